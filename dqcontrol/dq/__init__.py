@@ -1,0 +1,71 @@
+"""The thin dual-quaternion layer: ``vec8`` arrays and Hamilton operators.
+
+Coefficient order everywhere (FORMULATION §1, thesis eq. 2.17):
+``vec8(x) = [r_w, r_x, r_y, r_z, d_w, d_x, d_y, d_z]`` with ``d = ½ t r``.
+Quaternions are ``vec4 = [w, x, y, z]``. Functions accept a single value (shape ``(8,)`` /
+``(4,)``) and, where noted, a batch (shape ``(N, 8)`` / ``(N, 4)``).
+"""
+
+from dqcontrol.dq.algebra import (
+    C4,
+    C8,
+    align_sign,
+    dq_conj,
+    dq_from_matrix,
+    dq_from_rt,
+    dq_from_se3,
+    dq_from_translation,
+    dq_inv,
+    dq_is_unit,
+    dq_mul,
+    dq_norm,
+    dq_normalize,
+    dq_to_matrix,
+    dq_to_se3,
+    haminus4,
+    haminus8,
+    hamiplus4,
+    hamiplus8,
+    pose_error,
+    qconj,
+    qfrom_axis_angle,
+    qfrom_matrix,
+    qmul,
+    qto_matrix,
+    rotation,
+    rotation_angle,
+    rotation_axis,
+    translation,
+)
+
+__all__ = [
+    "C4",
+    "C8",
+    "align_sign",
+    "dq_conj",
+    "dq_from_matrix",
+    "dq_from_rt",
+    "dq_from_se3",
+    "dq_from_translation",
+    "dq_inv",
+    "dq_is_unit",
+    "dq_mul",
+    "dq_norm",
+    "dq_normalize",
+    "dq_to_matrix",
+    "dq_to_se3",
+    "hamiplus4",
+    "hamiplus8",
+    "haminus4",
+    "haminus8",
+    "pose_error",
+    "qconj",
+    "qfrom_axis_angle",
+    "qfrom_matrix",
+    "qmul",
+    "qto_matrix",
+    "rotation",
+    "rotation_angle",
+    "rotation_axis",
+    "translation",
+]

@@ -1,0 +1,33 @@
+"""Exceptions of dqcontrol: every error the library raises derives from :class:`DQControlError`.
+
+Each error carries its evidence in the message: what was wrong and what would be right.
+"""
+
+from __future__ import annotations
+
+
+class DQControlError(Exception):
+    """Base class of every error raised by dqcontrol."""
+
+
+class URDFError(DQControlError):
+    """A robot description could not be read: missing file, malformed XML, bad values."""
+
+
+class FrameError(DQControlError, KeyError):
+    """An unknown frame name was requested; the message lists the frames that exist."""
+
+    def __str__(self) -> str:  # KeyError would quote the message; keep it readable
+        return str(self.args[0]) if self.args else ""
+
+
+class ConfigurationError(DQControlError, ValueError):
+    """A joint vector (q, qd, ...) has the wrong size or holds NaN/inf."""
+
+
+class ParameterError(DQControlError, ValueError):
+    """A parameter is outside its accepted range; the message names it and the range."""
+
+
+class SolverError(DQControlError):
+    """A QP solver failed. Raised only outside control loops; loops fall back instead."""

@@ -1,0 +1,66 @@
+"""Ready-made robots: the thesis's KUKA LBR4p (shipped in ``robots/``) and the Franka Panda
+of example-robot-data, both loaded through :meth:`RobotModel.from_urdf`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from dqcontrol.errors import URDFError
+from dqcontrol.model.robot import RobotModel
+
+__all__ = ["LBR4P_Q0", "PANDA_Q0", "load_lbr4p", "load_panda", "lbr4p_urdf_path", "panda_urdf_path"]
+
+#: Initial configuration of the thesis's experiments [rad]: elbow bent, flange pointing
+#: down, 0.2–0.3 m away from every joint limit and from the singular stretched arm.
+LBR4P_Q0 = np.array([0.0, 0.6, 0.0, -1.4, 0.0, 1.1, 0.0])
+#: The Panda's usual "ready" posture [rad].
+PANDA_Q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+
+
+def _robots_dir() -> Path:
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        candidate = parent / "robots"
+        if (candidate / "lbr4p" / "lbr4p.urdf").is_file():
+            return candidate
+    raise URDFError(
+        "cannot find the shipped robots/ folder next to the dqcontrol package; install "
+        "dqcontrol from its repository with 'pip install -e .'"
+    )
+
+
+def lbr4p_urdf_path() -> Path:
+    """Path of the project's LBR4p URDF (``robots/lbr4p/lbr4p.urdf``)."""
+    return _robots_dir() / "lbr4p" / "lbr4p.urdf"
+
+
+def load_lbr4p(**kwargs) -> RobotModel:
+    """The KUKA LBR4p of the thesis, end-effector ``lbr4p_flange`` (= DH frame 7).
+
+    Keyword arguments go to :meth:`RobotModel.from_urdf` (``base``, ``tool`` ...).
+    """
+    return RobotModel.from_urdf(lbr4p_urdf_path(), "lbr4p_flange", **kwargs)
+
+
+def panda_urdf_path() -> tuple[Path, Path]:
+    """Path of example-robot-data's Panda URDF and the folder its ``package://`` URIs use."""
+    try:
+        import example_robot_data as erd
+    except ImportError as exc:  # pragma: no cover - it is a dependency
+        raise URDFError(f"example-robot-data is not installed: {exc}") from None
+    robots = Path(erd.getModelPath("panda_description/urdf/panda.urdf"))
+    return robots / "panda_description" / "urdf" / "panda.urdf", robots.parent.parent
+
+
+def load_panda(ee_frame: str = "panda_hand_tcp", **kwargs) -> RobotModel:
+    """The Franka Panda of example-robot-data with its fingers locked (7 joints).
+
+    ``ee_frame`` defaults to the hand's tool centre point; ``panda_hand`` is the flange of
+    the hand.
+    """
+    path, package_dir = panda_urdf_path()
+    kwargs.setdefault("locked_joints", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0})
+    kwargs.setdefault("package_dirs", [package_dir])
+    return RobotModel.from_urdf(path, ee_frame, **kwargs)

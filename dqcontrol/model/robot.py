@@ -1,0 +1,412 @@
+"""The robot model: a URDF loaded by Pinocchio, with kinematics in dual-quaternion form.
+
+FORMULATION §2: the end-effector pose ``x`` (``vec8``) comes from Pinocchio's placement
+``oMf`` and the 8×n pose Jacobian from Pinocchio's 6×n frame Jacobian in
+``LOCAL_WORLD_ALIGNED`` (rows ``[Jv; Jw]``)::
+
+    J_r = ½ H-4(r)[:, 1:4] Jw
+    J_d = ½ ( H-4(r)[:, 1:4] Jv + H+4(t) J_r )
+
+Both are bilinear in ``(r, [1, t])``; the model precomputes one constant 56×16 matrix that
+maps ``r ⊗ [1, t]`` to ``[vec8(x), A]`` with ``J = A [Jv; Jw]``, so one call costs one
+Pinocchio call and three small numpy products, and a batch of configurations shares them.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from dqcontrol.dq.algebra import dq_from_se3, haminus4, hamiplus4, qmul
+from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
+from dqcontrol.model.urdf_source import URDFSource, read_urdf
+
+__all__ = ["JointLimits", "RobotModel"]
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Joint limits of a robot, one entry per joint (radians for revolute joints).
+
+    Attributes:
+        q_min, q_max: position limits [rad] (or [m] for prismatic joints).
+        qd_max: symmetric velocity limit [rad/s].
+        effort_max: symmetric torque limit [N·m].
+    """
+
+    q_min: np.ndarray
+    q_max: np.ndarray
+    qd_max: np.ndarray
+    effort_max: np.ndarray
+
+
+def _pose_jacobian_map() -> np.ndarray:
+    """Constant 56×16 map from ``k = r ⊗ [1, t]`` to ``[vec8(x) (8), A (8×6 row-major)]``.
+
+    Built numerically from the Hamilton operators so that it restates FORMULATION §2
+    instead of hand-expanding it: column ``(a, 0)`` is the part linear in ``r``; column
+    ``(a, b ≥ 1)`` the part bilinear in ``r_a t_b``.
+    """
+
+    def full(r: np.ndarray, t: np.ndarray) -> np.ndarray:
+        tq = np.concatenate(([0.0], t))
+        x = np.concatenate((r, 0.5 * qmul(tq, r)))
+        hm3 = haminus4(r)[:, 1:4]
+        a = np.zeros((8, 6))
+        a[:4, 3:] = 0.5 * hm3
+        a[4:, :3] = 0.5 * hm3
+        a[4:, 3:] = 0.25 * hamiplus4(tq) @ hm3
+        return np.concatenate((x, a.ravel()))
+
+    cols = np.zeros((56, 16))
+    eye4 = np.eye(4)
+    eye3 = np.eye(3)
+    for a in range(4):
+        base = full(eye4[a], np.zeros(3))
+        cols[:, 4 * a] = base
+        for b in range(3):
+            cols[:, 4 * a + 1 + b] = full(eye4[a], eye3[b]) - base
+    return cols
+
+
+# Pinocchio's XYZQUAT is [tx, ty, tz, qx, qy, qz, qw]. Stored after a leading 1, the buffer
+# [1, tx, ty, tz, qx, qy, qz, qw] holds [1, t] in [0:4] and r (x, y, z, w order) in [4:8],
+# both contiguous views. _MAP_XYZW[o, 4·a + b] is _MAP[o, 4·a_wxyz + b] with a in xyzw order,
+# and _TENSOR_2D = _MAP_XYZW viewed as (56·4, 4), so that
+# ``_TENSOR_2D.dot([1, t]).reshape(56, 4).dot(r_xyzw)`` is ``_MAP · (r ⊗ [1, t])`` with two
+# matrix-vector products and no outer product (2-D dots: numpy's N-D dot is much slower).
+_XYZW_FROM_WXYZ = [1, 2, 3, 0]
+_MAP = _pose_jacobian_map()
+_MAP_XYZW = np.ascontiguousarray(_MAP.reshape(56, 4, 4)[:, _XYZW_FROM_WXYZ, :]).reshape(56, 16)
+_TENSOR_2D = _MAP_XYZW.reshape(224, 4)
+
+
+class RobotModel:
+    """A fixed-base robot from a URDF, with its end-effector pose as a unit dual quaternion.
+
+    Build with :meth:`from_urdf`. All quantities are in the world frame of the model (the
+    URDF's root link, moved by ``base`` if one is given).
+
+    Attributes:
+        model, data: the Pinocchio model and its workspace (the model may be reduced).
+        ee_frame: name of the end-effector frame (a ``tool`` offset adds ``<ee>_tool``).
+        nq: number of controlled joints ``n``.
+        joint_names: names of the controlled joints, in ``q`` order.
+        limits: :class:`JointLimits` from the URDF.
+        source: the URDF text and path (the simulator and the viewer read the same file).
+        base_placement: pose of the URDF root in the world [``pin.SE3``].
+        locked_joints: joints held fixed, name → position.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        ee_frame: str,
+        *,
+        source: URDFSource | None = None,
+        base_placement: pin.SE3 | None = None,
+        locked_joints: dict[str, float] | None = None,
+        tool_placement: pin.SE3 | None = None,
+    ) -> None:
+        if model.nq != model.nv:
+            bad = [
+                model.names[j]
+                for j in range(1, model.njoints)
+                if model.joints[j].nq != model.joints[j].nv
+            ]
+            raise URDFError(
+                "only 1-DoF revolute/prismatic joints are supported (q must be a vector of "
+                f"angles); joints with nq != nv: {bad}. Lock them or make them revolute."
+            )
+        if model.nq == 0:
+            raise URDFError("the robot has no movable joint")
+        self.model = model
+        self.source = source
+        self.base_placement = base_placement if base_placement is not None else pin.SE3.Identity()
+        self.tool_placement = tool_placement if tool_placement is not None else pin.SE3.Identity()
+        self.locked_joints = dict(locked_joints or {})
+        self.frame_names = [f.name for f in model.frames]
+        if ee_frame not in self.frame_names:
+            raise FrameError(
+                f"unknown end-effector frame '{ee_frame}'; frames of this robot: "
+                f"{sorted(set(self.frame_names))}"
+            )
+        self.ee_frame = ee_frame
+        self._fid = model.getFrameId(ee_frame)
+        self.data = model.createData()
+        self._omf = self.data.oMf  # cached proxy: saves an attribute lookup per call
+        self.nq = int(model.nq)
+        self.joint_names = [model.names[j] for j in range(1, model.njoints)]
+        self.limits = JointLimits(
+            q_min=np.array(model.lowerPositionLimit, dtype=float),
+            q_max=np.array(model.upperPositionLimit, dtype=float),
+            qd_max=np.array(model.velocityLimit, dtype=float),
+            effort_max=np.array(model.effortLimit, dtype=float),
+        )
+        self._buf = np.zeros(8)
+        self._buf[0] = 1.0
+        self._buf_t1 = self._buf[:4]  # [1, tx, ty, tz]
+        self._buf_r = self._buf[4:]  # [qx, qy, qz, qw]
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_urdf(
+        cls,
+        urdf: str | os.PathLike,
+        ee_frame: str,
+        *,
+        base: pin.SE3 | np.ndarray | None = None,
+        tool: pin.SE3 | np.ndarray | None = None,
+        locked_joints: dict[str, float] | None = None,
+        package_dirs: list[str | os.PathLike] | None = None,
+    ) -> RobotModel:
+        """Load a robot from a URDF file path or XML string.
+
+        Args:
+            urdf: path to a ``.urdf`` file, or the XML text itself.
+            ee_frame: name of the end-effector frame (a link or joint name of the URDF).
+            base: pose of the URDF's root link in the world (``pin.SE3``, 4×4 matrix or
+                ``vec8``); identity by default.
+            tool: fixed offset from ``ee_frame`` to the controlled tool frame; the model then
+                controls a new frame ``<ee_frame>_tool``.
+            locked_joints: joints to hold fixed (e.g. gripper fingers), name → position.
+            package_dirs: folders for ``package://`` meshes (viewer and simulator only).
+
+        Raises:
+            URDFError: missing file, malformed XML, invalid values, unsupported joints.
+            FrameError: ``ee_frame`` or a locked joint does not exist (the message lists
+                what exists).
+        """
+        source = read_urdf(urdf, package_dirs)
+        try:
+            model = pin.buildModelFromXML(source.xml)
+        except (ValueError, RuntimeError) as exc:
+            raise URDFError(f"Pinocchio could not build a model from the URDF: {exc}") from None
+        if locked_joints:
+            ids, qref = [], pin.neutral(model)
+            for name, value in locked_joints.items():
+                if not model.existJointName(name):
+                    raise FrameError(
+                        f"cannot lock unknown joint '{name}'; joints: {list(model.names)[1:]}"
+                    )
+                jid = model.getJointId(name)
+                ids.append(jid)
+                qref[model.idx_qs[jid]] = float(value)
+            model = pin.buildReducedModel(model, ids, qref)
+        base_se3 = _to_se3(base, "base") if base is not None else None
+        if base_se3 is not None:
+            for j in range(1, model.njoints):
+                if model.parents[j] == 0:
+                    model.jointPlacements[j] = base_se3 * model.jointPlacements[j]
+            for f in range(1, len(model.frames)):
+                frame = model.frames[f]
+                if frame.parentJoint == 0:
+                    frame.placement = base_se3 * frame.placement
+                    model.frames[f] = frame
+        names = [f.name for f in model.frames]
+        if ee_frame not in names:
+            raise FrameError(
+                f"unknown end-effector frame '{ee_frame}'; frames of this robot: "
+                f"{sorted(set(names))}"
+            )
+        tool_se3 = _to_se3(tool, "tool") if tool is not None else None
+        if tool_se3 is not None:
+            parent = model.frames[model.getFrameId(ee_frame)]
+            tool_name = f"{ee_frame}_tool"
+            model.addFrame(
+                pin.Frame(
+                    tool_name,
+                    parent.parentJoint,
+                    model.getFrameId(ee_frame),
+                    parent.placement * tool_se3,
+                    pin.FrameType.OP_FRAME,
+                )
+            )
+            ee_frame = tool_name
+        return cls(
+            model,
+            ee_frame,
+            source=source,
+            base_placement=base_se3,
+            locked_joints=locked_joints,
+            tool_placement=tool_se3,
+        )
+
+    # ------------------------------------------------------------------ input checks
+    def check_q(self, q: np.ndarray, name: str = "q") -> np.ndarray:
+        """Return ``q`` as a float array of shape ``(n,)``; raise on wrong size or NaN/inf."""
+        arr = np.asarray(q, dtype=float)
+        if arr.shape != (self.nq,):
+            raise ConfigurationError(
+                f"{name} must have shape ({self.nq},) for this robot's joints "
+                f"{self.joint_names}, got shape {arr.shape}"
+            )
+        if not np.isfinite(arr).all():
+            raise ConfigurationError(f"{name} must be finite, got {arr}")
+        return arr
+
+    def check_batch(self, qs: np.ndarray, name: str = "qs") -> np.ndarray:
+        """Return a batch of configurations as a float ``(N, n)`` array, checked."""
+        arr = np.asarray(qs, dtype=float)
+        if arr.ndim != 2 or arr.shape[1] != self.nq:
+            raise ConfigurationError(
+                f"{name} must have shape (N, {self.nq}), got shape {arr.shape}"
+            )
+        if not np.isfinite(arr).all():
+            raise ConfigurationError(f"{name} must be finite")
+        return arr
+
+    # ------------------------------------------------------------------ kinematics
+    def pose(self, q: np.ndarray) -> np.ndarray:
+        """End-effector pose ``vec8`` in the world frame (rotation with ``r_w ≥ 0``)."""
+        q = self.check_q(q)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return dq_from_se3(self.data.oMf[self._fid])
+
+    def placement(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
+        """World placement of ``frame`` (default: the end-effector) as a ``pin.SE3``."""
+        q = self.check_q(q)
+        fid = self._fid if frame is None else self.frame_id(frame)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return pin.SE3(self.data.oMf[fid])
+
+    def frame_id(self, frame: str) -> int:
+        """Pinocchio index of a frame; :class:`FrameError` listing the frames if unknown."""
+        if frame not in self.frame_names:
+            raise FrameError(
+                f"unknown frame '{frame}'; frames of this robot: {sorted(set(self.frame_names))}"
+            )
+        return self.model.getFrameId(frame)
+
+    def pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """End-effector pose ``vec8`` (8,) and pose Jacobian ``∂vec8(x)/∂q`` (8×n)."""
+        return self._pose_and_jacobian(self.check_q(q))
+
+    def pose_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Pose Jacobian ``∂vec8(x)/∂q`` (8×n) of the end-effector (FORMULATION §2)."""
+        return self._pose_and_jacobian(self.check_q(q))[1]
+
+    def _pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unchecked hot-path version of :meth:`pose_and_jacobian` (``q`` already valid)."""
+        j6 = pin.computeFrameJacobian(self.model, self.data, q, self._fid, _LWA)
+        buf = self._buf
+        buf[1:] = pin.SE3ToXYZQUAT(self._omf[self._fid])
+        if buf[7] < 0.0:
+            self._buf_r *= -1.0
+        out = _TENSOR_2D.dot(self._buf_t1).reshape(56, 4).dot(self._buf_r)
+        return out[:8], out[8:].reshape(8, 6).dot(j6)
+
+    def poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Batched pose and Jacobian for N configurations: ``(N, 8)`` and ``(N, 8, n)``.
+
+        The predictive controller calls this with its p predicted configurations every
+        step; the numpy part runs once for the whole batch.
+        """
+        return self._poses_and_jacobians(self.check_batch(qs))
+
+    def _poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        model, data, fid = self.model, self.data, self._fid
+        jacobian, to_xyzquat, omf = pin.computeFrameJacobian, pin.SE3ToXYZQUAT, self._omf
+        j6s, xqs = [], []
+        for qi in qs:
+            j6s.append(jacobian(model, data, qi, fid, _LWA))
+            xqs.append(to_xyzquat(omf[fid]))
+        xq = np.array(xqs)
+        neg = xq[:, 6] < 0.0
+        if neg.any():
+            xq[neg, 3:7] *= -1.0
+        # k[i] = r_xyzw ⊗ [1, t] (row-major 4×4), the layout of _MAP_XYZW's columns
+        k = np.empty((len(xqs), 4, 4))
+        k[:, :, 0] = xq[:, 3:7]
+        k[:, :, 1:] = xq[:, 3:7, None] * xq[:, None, 0:3]
+        out = k.reshape(-1, 16).dot(_MAP_XYZW.T)
+        return out[:, :8], np.matmul(out[:, 8:].reshape(-1, 8, 6), np.array(j6s))
+
+    def poses(self, qs: np.ndarray) -> np.ndarray:
+        """Batched end-effector poses ``(N, 8)``."""
+        qs = self.check_batch(qs)
+        out = np.empty((qs.shape[0], 8))
+        for i in range(qs.shape[0]):
+            pin.framesForwardKinematics(self.model, self.data, qs[i])
+            out[i] = dq_from_se3(self.data.oMf[self._fid])
+        return out
+
+    # ------------------------------------------------------------------ dynamics
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Joint-space mass matrix ``M(q)`` (n×n) [kg·m²] from Pinocchio's CRBA."""
+        q = self.check_q(q)
+        m = pin.crba(self.model, self.data, q)
+        return np.triu(m) + np.triu(m, 1).T
+
+    def gravity(self, q: np.ndarray) -> np.ndarray:
+        """Generalised gravity torques ``g(q)`` [N·m]."""
+        return np.array(pin.computeGeneralizedGravity(self.model, self.data, self.check_q(q)))
+
+    def acceleration_limits(
+        self,
+        q: np.ndarray,
+        *,
+        effort_fraction: float = 1.0,
+        floor_rad_s2: float = 0.5,
+        cap_rad_s2: float = 50.0,
+    ) -> np.ndarray:
+        """Dynamics-aware joint acceleration bound ``a_max(q)`` [rad/s²] (FORMULATION §6).
+
+        ``a_max_j = (effort_fraction·τ_max_j - |g_j(q)|) / M_jj(q)``, clipped to
+        ``[floor_rad_s2, cap_rad_s2]``: the acceleration joint j can reach alone with the
+        torque left after holding gravity. It replaces the thesis's estimate (eq. 4.14).
+        """
+        q = self.check_q(q)
+        return self._acceleration_limits(q, effort_fraction, floor_rad_s2, cap_rad_s2)
+
+    def _acceleration_limits(
+        self, q: np.ndarray, effort_fraction: float, floor: float, cap: float
+    ) -> np.ndarray:
+        if not 0.0 < effort_fraction <= 1.0:
+            raise ParameterError(f"effort_fraction must be in (0, 1], got {effort_fraction}")
+        if not 0.0 < floor <= cap:
+            raise ParameterError(
+                f"need 0 < floor_rad_s2 ≤ cap_rad_s2 [rad/s²], got {floor} and {cap}"
+            )
+        m = pin.crba(self.model, self.data, q)
+        g = pin.computeGeneralizedGravity(self.model, self.data, q)
+        diag = np.diagonal(m)
+        spare = effort_fraction * self.limits.effort_max - np.abs(g)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            amax = np.where(diag > 0.0, spare / diag, cap)
+        return np.clip(amax, floor, cap)
+
+    def random_configurations(self, count: int, seed: int, margin_rad: float = 0.0) -> np.ndarray:
+        """``count`` uniformly drawn configurations within the limits (shrunk by a margin)."""
+        rng = np.random.default_rng(seed)
+        lo = self.limits.q_min + margin_rad
+        hi = self.limits.q_max - margin_rad
+        return rng.uniform(lo, hi, size=(count, self.nq))
+
+    def __repr__(self) -> str:
+        return (
+            f"RobotModel('{self.model.name}', n={self.nq}, ee_frame='{self.ee_frame}', "
+            f"joints={self.joint_names})"
+        )
+
+
+def _to_se3(value: pin.SE3 | np.ndarray, name: str) -> pin.SE3:
+    from dqcontrol.dq.algebra import dq_is_unit, dq_to_se3
+
+    if isinstance(value, pin.SE3):
+        return pin.SE3(value)
+    arr = np.asarray(value, dtype=float)
+    if arr.shape == (4, 4) and np.isfinite(arr).all():
+        rot = arr[:3, :3]
+        if np.allclose(rot.T @ rot, np.eye(3), atol=1e-9) and np.linalg.det(rot) > 0:
+            return pin.SE3(rot, arr[:3, 3])
+    if arr.shape == (8,) and np.isfinite(arr).all() and dq_is_unit(arr, 1e-9):
+        return dq_to_se3(arr)
+    raise ParameterError(
+        f"{name} must be a pin.SE3, a 4×4 homogeneous transform or a unit vec8, got {value!r}"
+    )
