@@ -12,9 +12,12 @@ from dqcontrol.model.robot import RobotModel
 
 __all__ = ["LBR4P_Q0", "PANDA_Q0", "load_lbr4p", "load_panda", "lbr4p_urdf_path", "panda_urdf_path"]
 
-#: Initial configuration of the thesis's experiments [rad]: elbow bent, flange pointing
-#: down, 0.2–0.3 m away from every joint limit and from the singular stretched arm.
-LBR4P_Q0 = np.array([0.0, 0.6, 0.0, -1.4, 0.0, 1.1, 0.0])
+#: Initial configuration of the experiments [rad] (the thesis does not give its own): the
+#: flange points down at about (0.55, -0.21, 0.70) m with its x axis along world +y, so the
+#: default-anchored circle (tool xy-plane) is horizontal and the sinusoid runs along +y and
+#: oscillates vertically, both well inside the workspace; every joint is ≥ 0.64 rad from its
+#: limits and the arm is far from singular (smallest non-zero singular value of J ≈ 0.1).
+LBR4P_Q0 = np.array([-0.18, -0.76, -0.29, -1.45, 0.24, -0.97, 1.05])
 #: The Panda's usual "ready" posture [rad].
 PANDA_Q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
 

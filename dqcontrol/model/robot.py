@@ -14,13 +14,14 @@ Pinocchio call and three small numpy products, and a batch of configurations sha
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from dqcontrol.dq.algebra import dq_from_se3, haminus4, hamiplus4, qmul
+from dqcontrol.dq.algebra import haminus4, hamiplus4, qmul
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
 
@@ -140,6 +141,8 @@ class RobotModel:
         self._fid = model.getFrameId(ee_frame)
         self.data = model.createData()
         self._omf = self.data.oMf  # cached proxy: saves an attribute lookup per call
+        # a reference into data.oMf that Pinocchio updates in place at every call
+        self._ee_placement = self.data.oMf[self._fid]
         self.nq = int(model.nq)
         self.joint_names = [model.names[j] for j in range(1, model.njoints)]
         self.limits = JointLimits(
@@ -240,19 +243,30 @@ class RobotModel:
     # ------------------------------------------------------------------ input checks
     def check_q(self, q: np.ndarray, name: str = "q") -> np.ndarray:
         """Return ``q`` as a float array of shape ``(n,)``; raise on wrong size or NaN/inf."""
-        arr = np.asarray(q, dtype=float)
+        try:
+            arr = np.asarray(q, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigurationError(
+                f"{name} must be an array of {self.nq} numbers [rad], got {q!r}"
+            ) from None
         if arr.shape != (self.nq,):
             raise ConfigurationError(
                 f"{name} must have shape ({self.nq},) for this robot's joints "
                 f"{self.joint_names}, got shape {arr.shape}"
             )
-        if not np.isfinite(arr).all():
+        # a dot product is NaN/inf iff some entry is (or it overflows): cheap first test
+        if not math.isfinite(arr.dot(arr)) and not np.isfinite(arr).all():
             raise ConfigurationError(f"{name} must be finite, got {arr}")
         return arr
 
     def check_batch(self, qs: np.ndarray, name: str = "qs") -> np.ndarray:
         """Return a batch of configurations as a float ``(N, n)`` array, checked."""
-        arr = np.asarray(qs, dtype=float)
+        try:
+            arr = np.asarray(qs, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigurationError(
+                f"{name} must be an (N, {self.nq}) array of numbers, got {qs!r}"
+            ) from None
         if arr.ndim != 2 or arr.shape[1] != self.nq:
             raise ConfigurationError(
                 f"{name} must have shape (N, {self.nq}), got shape {arr.shape}"
@@ -264,9 +278,7 @@ class RobotModel:
     # ------------------------------------------------------------------ kinematics
     def pose(self, q: np.ndarray) -> np.ndarray:
         """End-effector pose ``vec8`` in the world frame (rotation with ``r_w ≥ 0``)."""
-        q = self.check_q(q)
-        pin.framesForwardKinematics(self.model, self.data, q)
-        return dq_from_se3(self.data.oMf[self._fid])
+        return self._pose_and_jacobian(self.check_q(q))[0].copy()
 
     def placement(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
         """World placement of ``frame`` (default: the end-effector) as a ``pin.SE3``."""
@@ -295,7 +307,7 @@ class RobotModel:
         """Unchecked hot-path version of :meth:`pose_and_jacobian` (``q`` already valid)."""
         j6 = pin.computeFrameJacobian(self.model, self.data, q, self._fid, _LWA)
         buf = self._buf
-        buf[1:] = pin.SE3ToXYZQUAT(self._omf[self._fid])
+        buf[1:] = pin.SE3ToXYZQUAT(self._ee_placement)
         if buf[7] < 0.0:
             self._buf_r *= -1.0
         out = _TENSOR_2D.dot(self._buf_t1).reshape(56, 4).dot(self._buf_r)
@@ -310,12 +322,14 @@ class RobotModel:
         return self._poses_and_jacobians(self.check_batch(qs))
 
     def _poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if qs.shape[0] == 0:
+            return np.empty((0, 8)), np.empty((0, 8, self.nq))
         model, data, fid = self.model, self.data, self._fid
-        jacobian, to_xyzquat, omf = pin.computeFrameJacobian, pin.SE3ToXYZQUAT, self._omf
+        jacobian, to_xyzquat, placement = pin.computeFrameJacobian, pin.SE3ToXYZQUAT, self._ee_placement
         j6s, xqs = [], []
         for qi in qs:
             j6s.append(jacobian(model, data, qi, fid, _LWA))
-            xqs.append(to_xyzquat(omf[fid]))
+            xqs.append(to_xyzquat(placement))
         xq = np.array(xqs)
         neg = xq[:, 6] < 0.0
         if neg.any():
@@ -329,12 +343,7 @@ class RobotModel:
 
     def poses(self, qs: np.ndarray) -> np.ndarray:
         """Batched end-effector poses ``(N, 8)``."""
-        qs = self.check_batch(qs)
-        out = np.empty((qs.shape[0], 8))
-        for i in range(qs.shape[0]):
-            pin.framesForwardKinematics(self.model, self.data, qs[i])
-            out[i] = dq_from_se3(self.data.oMf[self._fid])
-        return out
+        return self._poses_and_jacobians(self.check_batch(qs))[0]
 
     # ------------------------------------------------------------------ dynamics
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
@@ -400,7 +409,10 @@ def _to_se3(value: pin.SE3 | np.ndarray, name: str) -> pin.SE3:
 
     if isinstance(value, pin.SE3):
         return pin.SE3(value)
-    arr = np.asarray(value, dtype=float)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
     if arr.shape == (4, 4) and np.isfinite(arr).all():
         rot = arr[:3, :3]
         if np.allclose(rot.T @ rot, np.eye(3), atol=1e-9) and np.linalg.det(rot) > 0:

@@ -1,0 +1,167 @@
+"""The one interface of every controller (FORMULATION §5).
+
+A controller is reset with the initial state, then called once per control period ``T``
+with the measured joint positions (and velocities); it returns the joint-velocity command,
+the time scaling ``s`` applied, the phase ``σ`` used, and diagnostics. A controller never
+raises from inside :meth:`Controller.step` because a QP failed: it falls back to a safe
+command and says so in :class:`StepDiagnostics`.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dqcontrol.errors import ConfigurationError, ParameterError
+from dqcontrol.model.robot import RobotModel
+from dqcontrol.trajectories import Trajectory
+
+__all__ = ["Controller", "StepDiagnostics", "StepResult", "check_positive"]
+
+
+@dataclass(frozen=True)
+class StepDiagnostics:
+    """What happened inside one control step.
+
+    Attributes:
+        status: solver status (``"solved"``, ``"primal_infeasible"`` ...) or ``"closed_form"``.
+        iterations: solver iterations (0 for closed-form controllers).
+        solve_time_s: time spent in the solver [s].
+        step_time_s: time of the whole step, prediction and QP build included [s].
+        fallback: the safe fallback command was used (the QP failed).
+        relaxed: the predicted instants' position bounds were dropped to regain feasibility.
+        saturated: the command was clipped to the hard bounds (proportional controller).
+        conflict_joints: joints whose acceleration and position bounds conflicted.
+        message: a human-readable note when something was unusual.
+    """
+
+    status: str
+    iterations: int = 0
+    solve_time_s: float = 0.0
+    step_time_s: float = 0.0
+    fallback: bool = False
+    relaxed: bool = False
+    saturated: bool = False
+    conflict_joints: tuple[int, ...] = ()
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """The output of one control step.
+
+    Attributes:
+        qd_command: joint-velocity command to hold for one period [rad/s], shape ``(n,)``.
+        s: time scaling applied during this period (``0 ≤ s ≤ 1``).
+        sigma: phase ``σ_k`` of the target used in this step [s of nominal time].
+        sigma_next: ``σ_{k+1} = σ_k + T s`` (eq. 3.3).
+        pose: measured end-effector pose ``x_k`` (vec8, sign-aligned to the target).
+        target: target pose ``x_d(σ_k)`` (vec8).
+        diagnostics: :class:`StepDiagnostics`.
+        horizon_qd: predicted commands at the prediction instants ``(p, n)`` (predictive
+            controllers; ``None`` otherwise).
+        horizon_s: predicted scalings ``(p,)`` (predictive controllers).
+    """
+
+    qd_command: np.ndarray
+    s: float
+    sigma: float
+    sigma_next: float
+    pose: np.ndarray
+    target: np.ndarray
+    diagnostics: StepDiagnostics
+    horizon_qd: np.ndarray | None = field(default=None, repr=False)
+    horizon_s: np.ndarray | None = field(default=None, repr=False)
+
+
+def check_positive(name: str, value: float, unit: str, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as float or raise :class:`ParameterError` naming it and the range."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number [{unit}], got {value!r}") from None
+    ok = math.isfinite(v) and (v >= 0.0 if allow_zero else v > 0.0)
+    if not ok:
+        rng = "≥ 0" if allow_zero else "> 0"
+        raise ParameterError(f"{name} must be finite and {rng} [{unit}], got {value!r}")
+    return v
+
+
+class Controller(ABC):
+    """Base class of the four controllers.
+
+    Args:
+        robot: the robot model (Pinocchio, vec8 kinematics).
+        trajectory: the task; if its ``reference`` is ``None`` it is anchored at the
+            robot's pose at :meth:`reset` (FORMULATION §3 default reference frame).
+        period_s: control period ``T`` [s].
+    """
+
+    #: Short name used in logs and tables.
+    name: str = "controller"
+
+    def __init__(self, robot: RobotModel, trajectory: Trajectory, period_s: float) -> None:
+        if not isinstance(robot, RobotModel):
+            raise ParameterError(f"robot must be a dqcontrol RobotModel, got {type(robot).__name__}")
+        if not isinstance(trajectory, Trajectory):
+            raise ParameterError(
+                f"trajectory must be a dqcontrol Trajectory, got {type(trajectory).__name__}"
+            )
+        self.robot = robot
+        self.task = trajectory  # as given (maybe unanchored)
+        self.trajectory = trajectory  # as used (anchored at reset when needed)
+        self.period_s = check_positive("period_s (T)", period_s, "s")
+        self.n = robot.nq
+        self.sigma = 0.0
+        self.qd_prev = np.zeros(self.n)
+        self._reset_done = False
+
+    def reset(self, q0: np.ndarray, qd0: np.ndarray | None = None, sigma0: float = 0.0) -> None:
+        """Start a new run from joint positions ``q0`` [rad] (and velocity ``qd0`` [rad/s]).
+
+        Anchors the trajectory at the pose of ``q0`` if it has no reference yet, sets
+        ``σ = sigma0`` and takes ``qd0`` (default zero) as the previous command.
+        """
+        q0 = self.robot.check_q(q0, "q0")
+        qd0 = np.zeros(self.n) if qd0 is None else self.robot.check_q(qd0, "qd0")
+        if self.task.reference is None:
+            self.trajectory = self.task.anchored_at(self.robot.pose(q0))
+        else:
+            self.trajectory = self.task
+        self.sigma = check_positive("sigma0", sigma0, "s", allow_zero=True)
+        self.qd_prev = qd0.copy()
+        self._reset_done = True
+        self._reset_memory(q0, qd0)
+
+    def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        """Hook for controllers with more memory (the predictive horizon)."""
+
+    @property
+    def done(self) -> bool:
+        """Whether the phase has reached the end of the task (``σ ≥ T_tot``)."""
+        return self.sigma >= self.trajectory.duration - 1e-12
+
+    def step(self, q: np.ndarray, qd: np.ndarray | None = None) -> StepResult:
+        """One control step from the measured joint positions ``q`` [rad].
+
+        ``qd`` (measured velocity [rad/s]) is accepted for controllers that use it; the
+        acceleration bound is taken relative to the previous *command* (eq. 3.13).
+        Raises :class:`ConfigurationError` for a malformed ``q`` (wrong size, NaN/inf) —
+        that is a caller bug, not a control situation — but never because a QP failed.
+        """
+        if not self._reset_done:
+            raise ConfigurationError("call reset(q0) before the first step()")
+        q = self.robot.check_q(q)
+        if qd is not None:
+            qd = self.robot.check_q(qd, "qd")
+        result = self._step(q, qd)
+        self.qd_prev = result.qd_command
+        self.sigma = result.sigma_next
+        return result
+
+    @abstractmethod
+    def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        """Controller-specific step; ``q`` is already checked."""

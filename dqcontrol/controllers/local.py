@@ -1,0 +1,27 @@
+"""The local method with time scaling (FORMULATION §5.2, thesis eq. 3.4–3.14, 4.9–4.12)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.tracking import TrackingController
+from dqcontrol.model.robot import RobotModel
+from dqcontrol.trajectories import Trajectory
+
+__all__ = ["LocalController"]
+
+
+class LocalController(TrackingController):
+    """One-instant QP: ``min λ1‖J qd - s w‖² + λ2(1-s)² + μ‖qd‖²`` within the hard bounds.
+
+    Decision ``z = [qd; s]``; see :class:`~dqcontrol.controllers.tracking.TrackingController`
+    for every keyword argument (gain, weights, bounds, solver settings).
+    """
+
+    name = "local"
+
+    def __init__(
+        self, robot: RobotModel, trajectory: Trajectory, period_s: float, **kwargs
+    ) -> None:
+        kwargs.pop("instants_s", None)
+        super().__init__(robot, trajectory, period_s, instants_s=np.zeros(1), **kwargs)

@@ -1,0 +1,115 @@
+"""Proportional control on the invariant dual-quaternion error (FORMULATION §5.1).
+
+Thesis eq. 2.31–2.34: with ``e = 1 - x* x_d`` and ``N = H-8(x_d) C8 J``, imposing
+``ė = -K e`` gives ``N qd = K vec8(e) - vec8(x* ẋ_d)``, solved with the damped
+pseudo-inverse ``N⁺ = Nᵀ (N Nᵀ + λ² I)⁻¹`` so singular configurations stay bounded.
+There is no time scaling (``σ = t``); the command is clipped to the hard bounds of §6
+(reported as ``saturated``), which keeps the arm safe but may deform the path — the
+reason the QP controllers exist.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult, check_positive
+from dqcontrol.controllers.bounds import command_box
+from dqcontrol.dq.algebra import C8, dq_conj, dq_mul, haminus8
+from dqcontrol.errors import ParameterError
+from dqcontrol.model.robot import RobotModel
+from dqcontrol.trajectories import Trajectory
+
+__all__ = ["ProportionalController"]
+
+_ONE = np.array([1.0, 0, 0, 0, 0, 0, 0, 0])
+
+
+class ProportionalController(Controller):
+    """Invariant-error proportional controller.
+
+    Args:
+        robot, trajectory, period_s: see :class:`~dqcontrol.controllers.base.Controller`.
+        gain_per_s: ``K`` [1/s]; keep ``T K`` well below 2 (FORMULATION §9).
+        damping: ``λ`` of the damped pseudo-inverse (dimensionless, ≥ 0).
+        velocity_limits: ``qd_max`` [rad/s] (default: the URDF's).
+        acceleration_limit: ``a_max`` [rad/s²] for the clipping box.
+        saturate: clip the command to the hard bounds (default True).
+    """
+
+    name = "proportional"
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        trajectory: Trajectory,
+        period_s: float,
+        *,
+        gain_per_s: float = 10.0,
+        damping: float = 1e-3,
+        velocity_limits: float | np.ndarray | None = None,
+        acceleration_limit: float | np.ndarray = 10.0,
+        braking_aware: bool = True,
+        saturate: bool = True,
+    ) -> None:
+        super().__init__(robot, trajectory, period_s)
+        self.gain_per_s = check_positive("gain_per_s (K)", gain_per_s, "1/s")
+        self.damping = check_positive("damping (lambda)", damping, "-", allow_zero=True)
+        lim = robot.limits
+        qd_max = lim.qd_max if velocity_limits is None else velocity_limits
+        self.qd_max = np.broadcast_to(np.asarray(qd_max, dtype=float), (self.n,)).copy()
+        if np.any(~np.isfinite(self.qd_max)) or np.any(self.qd_max <= 0.0):
+            raise ParameterError(f"velocity_limits must be finite and > 0 [rad/s], got {qd_max}")
+        self.a_max = np.broadcast_to(np.asarray(acceleration_limit, dtype=float), (self.n,)).copy()
+        if np.any(~np.isfinite(self.a_max)) or np.any(self.a_max <= 0.0):
+            raise ParameterError(
+                f"acceleration_limit must be finite and > 0 [rad/s²], got {acceleration_limit}"
+            )
+        self.braking_aware = bool(braking_aware)
+        self.saturate = bool(saturate)
+
+    def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        start = time.perf_counter()
+        x, jac = self.robot._pose_and_jacobian(q)
+        sigma = self.sigma
+        xd, dxd = self.trajectory.targets(np.array([sigma]))
+        xd, dxd = xd[0], dxd[0]  # s = 1: dx_d/dt = dx_d/dσ
+        if x @ xd < 0.0:
+            x, jac = -x, -jac
+        err = _ONE - dq_mul(dq_conj(x), xd)
+        n_mat = haminus8(xd) @ C8 @ jac
+        rhs = self.gain_per_s * err - dq_mul(dq_conj(x), dxd)
+        gram = n_mat @ n_mat.T + (self.damping**2) * np.eye(8)
+        qd_cmd = n_mat.T @ np.linalg.solve(gram, rhs)
+        saturated = False
+        conflict: tuple[int, ...] = ()
+        message = ""
+        if not np.all(np.isfinite(qd_cmd)):
+            qd_cmd = np.zeros(self.n)
+            message = "non-finite command replaced by zero"
+        if self.saturate:
+            box = command_box(
+                q, self.qd_prev, self.robot.limits.q_min, self.robot.limits.q_max,
+                self.qd_max, self.a_max, self.period_s, self.braking_aware,
+            )
+            clipped = box.project(qd_cmd)
+            saturated = bool(np.any(clipped != qd_cmd))
+            qd_cmd = clipped
+            conflict = tuple(int(j) for j in np.flatnonzero(box.conflict))
+        diag = StepDiagnostics(
+            status="closed_form",
+            step_time_s=time.perf_counter() - start,
+            saturated=saturated,
+            conflict_joints=conflict,
+            message=message,
+        )
+        return StepResult(
+            qd_command=qd_cmd,
+            s=1.0,
+            sigma=sigma,
+            sigma_next=sigma + self.period_s,
+            pose=x,
+            target=xd,
+            diagnostics=diag,
+        )

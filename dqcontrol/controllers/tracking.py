@@ -1,0 +1,377 @@
+"""The QP tracking controllers with time scaling: local (p = 1) and predictive (p ≥ 2).
+
+One machinery serves FORMULATION §5.2, §5.3 and §5.4. At every step, for the instants
+``τ_1 = 0 < τ_2 < … < τ_p``, with ``z_i = [qd_i; s_i]``:
+
+    minimize   Σ_i λ1 ‖J_i qd_i - s_i w_i‖² + λ2 (1 - s_i)² + μ ‖qd_i‖²
+    subject to qd_1 in the command box (velocity, position, acceleration; bounds.py),
+               qd_i in the velocity/position box at q̂_i            (i ≥ 2),
+               |qd_i - qd_{i-1}| ≤ (τ_i - τ_{i-1}) a_max(q̂_i)       (i ≥ 2),
+               0 ≤ s_i ≤ 1   (s_i = 1 without scaling, §5.4)
+
+with ``w_i = dx_d/dσ(σ̂_i) + K (x_d(σ̂_i) - x̂_i)`` (vec8, ``x̂_i`` sign-aligned to the target).
+Writing ``G_i = [J_i, -w_i]`` (8×(n+1)), block i of the cost is
+``z_iᵀ (λ1 G_iᵀ G_i + diag(μ…μ, λ2)) z_i - 2 λ2 s_i``: ``P`` is block diagonal with dense
+blocks, ``c`` is constant, and ``A`` (identity + coupling rows) never changes, so OSQP is set
+up once and each step only refills ``P``'s values and the bounds.
+
+Variables are stored block by block (``[qd_1, s_1, qd_2, s_2, …]``); the thesis stacks all
+``qd`` then all ``s`` — the same problem with permuted variables.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Literal, NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult, check_positive
+from dqcontrol.controllers.bounds import command_box, safe_command, velocity_position_box
+from dqcontrol.controllers.prediction import integration_matrix
+from dqcontrol.controllers.qp_solver import OsqpQP
+from dqcontrol.errors import ParameterError
+from dqcontrol.model.robot import RobotModel
+from dqcontrol.trajectories import Trajectory
+
+__all__ = ["AccelerationLimit", "QPProblem", "TrackingController"]
+
+
+class QPProblem(NamedTuple):
+    """A QP ``minimize ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` as dense arrays."""
+
+    P: np.ndarray
+    c: np.ndarray
+    A: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+#: ``float`` (constant [rad/s²], or one per joint) or ``"dynamics"`` (FORMULATION §6).
+AccelerationLimit = float | np.ndarray | Literal["dynamics"]
+
+
+def _interpolation_matrix(tau: np.ndarray, shift_s: float) -> np.ndarray:
+    """``S`` with ``(S v)_i = g(τ_i + shift)``, ``g`` piecewise linear through ``(τ_j, v_j)``
+    and held at its ends: shifts the previous horizon by one period (warm start)."""
+    p = tau.size
+    out = np.zeros((p, p))
+    for i, t in enumerate(tau + shift_s):
+        if t >= tau[-1]:
+            out[i, -1] = 1.0
+            continue
+        j = int(np.searchsorted(tau, t, side="right")) - 1
+        h = tau[j + 1] - tau[j]
+        frac = (t - tau[j]) / h
+        out[i, j] = 1.0 - frac
+        out[i, j + 1] = frac
+    return out
+
+
+class TrackingController(Controller):
+    """Shared implementation of the local and predictive QP controllers.
+
+    Args:
+        robot, trajectory, period_s: see :class:`~dqcontrol.controllers.base.Controller`.
+        instants_s: prediction instants ``τ_i`` [s], starting at 0 (``[0]`` = local method).
+        gain_per_s: task-error gain ``K`` [1/s]; keep ``T s K`` well below 2 (FORMULATION §9).
+        task_weight: ``λ1`` (dimensionless, > 0).
+        scaling_weight: ``λ2`` (≥ 0); ``λ2 ≪ λ1`` puts the task before the speed.
+        regularization: ``μ`` [same unit as λ1], the small damping on ``‖qd‖²``.
+        velocity_limits: ``qd_max`` [rad/s], scalar or per joint; default: the URDF's.
+        acceleration_limit: constant ``a_max`` [rad/s²] (scalar or per joint) or
+            ``"dynamics"`` for Pinocchio's ``(τ_max - |g|)/M_jj`` clipped to
+            ``[acceleration_floor, acceleration_cap]``.
+        braking_aware: add the stop-before-the-limit position bound (bounds.py).
+        scaling: optimise ``s`` (True) or hold ``s ≡ 1`` (FORMULATION §5.4).
+        phase_prediction: ``"previous"`` integrates the previous ``s`` profile to predict
+            ``σ̂_i``; ``"nominal"`` uses ``σ + τ_i`` (the thesis).
+        solver_settings: OSQP settings overriding the defaults of ``qp_solver.py``.
+    """
+
+    name = "tracking"
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        trajectory: Trajectory,
+        period_s: float,
+        *,
+        instants_s: np.ndarray,
+        gain_per_s: float = 10.0,
+        task_weight: float = 1.0,
+        scaling_weight: float = 1e-3,
+        regularization: float = 1e-6,
+        velocity_limits: float | np.ndarray | None = None,
+        acceleration_limit: AccelerationLimit = 10.0,
+        acceleration_floor: float = 0.5,
+        acceleration_cap: float = 50.0,
+        braking_aware: bool = True,
+        scaling: bool = True,
+        phase_prediction: Literal["previous", "nominal"] = "previous",
+        solver_settings: dict | None = None,
+    ) -> None:
+        super().__init__(robot, trajectory, period_s)
+        n = self.n
+        self.gain_per_s = check_positive("gain_per_s (K)", gain_per_s, "1/s")
+        self.task_weight = check_positive("task_weight (lambda1)", task_weight, "-")
+        self.scaling_weight = check_positive(
+            "scaling_weight (lambda2)", scaling_weight, "-", allow_zero=True
+        )
+        self.regularization = check_positive(
+            "regularization (mu)", regularization, "-", allow_zero=True
+        )
+        if phase_prediction not in ("previous", "nominal"):
+            raise ParameterError(
+                f"phase_prediction must be 'previous' or 'nominal', got {phase_prediction!r}"
+            )
+        self.phase_prediction = phase_prediction
+        self.scaling = bool(scaling)
+        self.braking_aware = bool(braking_aware)
+        tau = np.asarray(instants_s, dtype=float)
+        if tau.ndim != 1 or tau.size < 1 or tau[0] != 0.0 or np.any(np.diff(tau) <= 0.0):
+            raise ParameterError(
+                f"instants_s must start at 0 and increase strictly [s], got {instants_s!r}"
+            )
+        self.instants_s = tau
+        self.p = tau.size
+
+        lim = robot.limits
+        self.q_min, self.q_max = lim.q_min, lim.q_max
+        if velocity_limits is None:
+            qd_max = lim.qd_max.copy()
+            if np.any(qd_max <= 0.0) or not np.all(np.isfinite(qd_max)):
+                raise ParameterError(
+                    "the URDF gives no positive velocity limit for some joints "
+                    f"({lim.qd_max}); pass velocity_limits [rad/s]"
+                )
+        else:
+            qd_max = np.broadcast_to(np.asarray(velocity_limits, dtype=float), (n,)).copy()
+            if np.any(~np.isfinite(qd_max)) or np.any(qd_max <= 0.0):
+                raise ParameterError(
+                    f"velocity_limits must be finite and > 0 [rad/s], got {velocity_limits!r}"
+                )
+        self.qd_max = qd_max
+
+        self.dynamic_acceleration = isinstance(acceleration_limit, str)
+        if self.dynamic_acceleration:
+            if acceleration_limit != "dynamics":
+                raise ParameterError(
+                    "acceleration_limit must be a positive number [rad/s²], one per joint, or "
+                    f"'dynamics', got {acceleration_limit!r}"
+                )
+            self.acceleration_floor = check_positive(
+                "acceleration_floor", acceleration_floor, "rad/s^2"
+            )
+            self.acceleration_cap = check_positive("acceleration_cap", acceleration_cap, "rad/s^2")
+            if self.acceleration_floor > self.acceleration_cap:
+                raise ParameterError(
+                    f"acceleration_floor ({acceleration_floor}) must be ≤ acceleration_cap "
+                    f"({acceleration_cap}) [rad/s²]"
+                )
+            self.a_const = None
+        else:
+            a = np.broadcast_to(np.asarray(acceleration_limit, dtype=float), (n,)).copy()
+            if np.any(~np.isfinite(a)) or np.any(a <= 0.0):
+                raise ParameterError(
+                    "acceleration_limit must be finite and > 0 [rad/s²] (or 'dynamics'), "
+                    f"got {acceleration_limit!r}"
+                )
+            self.a_const = a
+
+        # ---- QP structure, built once
+        p, m = self.p, n + 1
+        self._m = m
+        block = sp.csc_matrix(np.triu(np.ones((m, m))))
+        p_pattern = sp.block_diag([block] * p, format="csc")
+        # gather index: CSC order of each block's upper triangle into H (p, m, m) row-major
+        cols, rows = [], []
+        for c in range(m):
+            for r in range(c + 1):
+                rows.append(r)
+                cols.append(c)
+        within = np.array(rows) * m + np.array(cols)
+        self._p_gather = (np.arange(p)[:, None] * m * m + within[None, :]).ravel()
+        num_vars = p * m
+        coupling = []
+        for i in range(1, p):
+            for j in range(n):
+                row = np.zeros(num_vars)
+                row[i * m + j] = 1.0
+                row[(i - 1) * m + j] = -1.0
+                coupling.append(row)
+        a_rows = [sp.identity(num_vars, format="csc")]
+        if coupling:
+            a_rows.append(sp.csc_matrix(np.array(coupling)))
+        a_matrix = sp.vstack(a_rows, format="csc")
+        self.qp = OsqpQP(p_pattern, a_matrix, solver_settings)
+        self._c = np.zeros(num_vars)
+        self._c[n::m] = -2.0 * self.scaling_weight
+        self._diag = np.zeros((p, m, m))
+        idx = np.arange(n)
+        self._diag[:, idx, idx] = self.regularization
+        self._diag[:, n, n] = self.scaling_weight
+        self._g = np.zeros((p, 8, m))
+        self._lower = np.zeros(a_matrix.shape[0])
+        self._upper = np.zeros(a_matrix.shape[0])
+        s_lo = 0.0 if self.scaling else 1.0
+        for i in range(p):
+            self._lower[i * m + n] = s_lo
+            self._upper[i * m + n] = 1.0
+        self._dtau = np.diff(tau)
+        if p > 1:
+            self._w_int = integration_matrix(tau, self.period_s)
+            self._shift = _interpolation_matrix(tau, self.period_s)
+        self._horizon_qd = np.zeros((p, n))
+        self._horizon_s = np.ones(p)
+        self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ memory
+    def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        self._horizon_qd = np.tile(qd0, (self.p, 1))
+        self._horizon_s = np.ones(self.p)
+        self.qp.reset()
+
+    # ------------------------------------------------------------------ pieces of a step
+    def _predict(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted configurations ``q̂_i`` (p, n) and phases ``σ̂_i`` (p,)."""
+        if self.p == 1:
+            return q[None, :], np.array([self.sigma])
+        q_hat = q + self._w_int @ self._horizon_qd
+        if self.scaling and self.phase_prediction == "previous":
+            sigma_hat = self.sigma + self._w_int @ self._horizon_s
+        else:
+            sigma_hat = self.sigma + self.instants_s
+        return q_hat, sigma_hat
+
+    def _acceleration(self, q_hat: np.ndarray) -> np.ndarray:
+        """``a_max`` at each predicted configuration (p, n) [rad/s²]."""
+        if self.a_const is not None:
+            return np.broadcast_to(self.a_const, q_hat.shape)
+        return np.array(
+            [
+                self.robot._acceleration_limits(
+                    qi, 1.0, self.acceleration_floor, self.acceleration_cap
+                )
+                for qi in q_hat
+            ]
+        )
+
+    def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        start = time.perf_counter()
+        n, m, p = self.n, self._m, self.p
+        q_hat, sigma_hat = self._predict(q)
+        if p == 1:
+            x, jac = self.robot._pose_and_jacobian(q)
+            xs, jacs = x[None, :], jac[None, :, :]
+        else:
+            xs, jacs = self.robot._poses_and_jacobians(q_hat)
+        xd, dxd = self.trajectory.targets(sigma_hat)
+        flip = np.einsum("ij,ij->i", xs, xd) < 0.0
+        if flip.any():
+            xs = np.where(flip[:, None], -xs, xs)
+            jacs = np.where(flip[:, None, None], -jacs, jacs)
+        w = dxd + self.gain_per_s * (xd - xs)
+
+        # cost: P = 2 (λ1 Gᵀ G + D), G_i = [J_i, -w_i]
+        g = self._g
+        g[:, :, :n] = jacs
+        g[:, :, n] = -w
+        h = np.matmul(g.transpose(0, 2, 1), g)
+        h *= self.task_weight
+        h += self._diag
+        p_values = 2.0 * h.ravel()[self._p_gather]
+
+        # bounds
+        a_max = self._acceleration(q_hat)
+        box = command_box(
+            q, self.qd_prev, self.q_min, self.q_max, self.qd_max, a_max[0], self.period_s,
+            self.braking_aware,
+        )
+        lower, upper = self._lower, self._upper
+        lower[:n] = box.lower
+        upper[:n] = box.upper
+        if p > 1:
+            q_clip = np.clip(q_hat[1:], self.q_min, self.q_max)
+            lo_i, hi_i = velocity_position_box(
+                q_clip, self.q_min, self.q_max, self.qd_max, self.period_s,
+                a_max[1:] if self.braking_aware else None,
+            )
+            for i in range(1, p):
+                lower[i * m : i * m + n] = lo_i[i - 1]
+                upper[i * m : i * m + n] = hi_i[i - 1]
+            dv = (self._dtau[:, None] * a_max[1:]).ravel()
+            lower[p * m :] = -dv
+            upper[p * m :] = dv
+            warm = np.empty(p * m)
+            warm_view = warm.reshape(p, m)
+            warm_view[:, :n] = self._shift @ self._horizon_qd
+            warm_view[:, n] = self._shift @ self._horizon_s
+        else:
+            warm = None
+
+        self._last = (p_values, lower.copy(), upper.copy())
+        sol = self.qp.solve(p_values, self._c, lower, upper, warm)
+        relaxed = False
+        if not sol.ok and p > 1:
+            # regain feasibility: drop the predicted instants' boxes, keep the coupling
+            for i in range(1, p):
+                lower[i * m : i * m + n] = -np.inf
+                upper[i * m : i * m + n] = np.inf
+            sol = self.qp.solve(p_values, self._c, lower, upper, None)
+            relaxed = sol.ok
+
+        conflict = tuple(int(j) for j in np.flatnonzero(box.conflict))
+        if sol.ok:
+            z = sol.x.reshape(p, m)
+            qd_cmd = box.project(z[0, :n])
+            s_now = float(min(max(z[0, n], 0.0), 1.0)) if self.scaling else 1.0
+            self._horizon_qd = z[:, :n].copy()
+            self._horizon_qd[0] = qd_cmd
+            self._horizon_s = np.clip(z[:, n], 0.0, 1.0) if self.scaling else np.ones(p)
+            fallback, message = False, ""
+            if relaxed:
+                message = "predicted position bounds dropped to regain feasibility"
+        else:
+            qd_cmd = safe_command(box)
+            s_now = 0.0
+            self._horizon_qd = np.tile(qd_cmd, (p, 1))
+            self._horizon_s = np.zeros(p)
+            self.qp.reset()
+            fallback = True
+            message = f"QP failed ({sol.status}); safe fallback: brake within a_max, s = 0"
+        diag = StepDiagnostics(
+            status=sol.status,
+            iterations=sol.iterations,
+            solve_time_s=sol.solve_time_s,
+            step_time_s=time.perf_counter() - start,
+            fallback=fallback,
+            relaxed=relaxed,
+            conflict_joints=conflict,
+            message=message,
+        )
+        return StepResult(
+            qd_command=qd_cmd,
+            s=s_now,
+            sigma=self.sigma,
+            sigma_next=self.sigma + self.period_s * s_now,
+            pose=xs[0].copy(),
+            target=xd[0].copy(),
+            diagnostics=diag,
+            horizon_qd=self._horizon_qd.copy() if p > 1 else None,
+            horizon_s=self._horizon_s.copy() if p > 1 else None,
+        )
+
+    def last_problem(self) -> QPProblem:
+        """The QP of the last step as dense arrays, for inspection and tests.
+
+        ``minimize ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with
+        ``z = [qd_1, s_1, …, qd_p, s_p]``, as first posed (before any relaxation).
+        """
+        if self._last is None:
+            raise ParameterError("no QP has been built yet: call step() first")
+        p_values, lower, upper = self._last
+        pat = self.qp.p_pattern
+        upper_tri = sp.csc_matrix((p_values, pat.indices, pat.indptr), shape=pat.shape).toarray()
+        full = upper_tri + np.triu(upper_tri, 1).T
+        return QPProblem(full, self._c.copy(), self.qp.a_matrix.toarray(), lower, upper)

@@ -1,0 +1,139 @@
+"""The run log: everything a closed loop records per control sample.
+
+Both closed loops (kinematic and MuJoCo) fill the same :class:`LogRecorder` and produce the
+same :class:`RunLog`, so the metrics, figures and files never depend on the simulator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from dqcontrol.controllers.base import StepResult
+
+__all__ = ["LogRecorder", "RunLog"]
+
+
+@dataclass
+class RunLog:
+    """Arrays over the K control samples of a run (row k = sample k).
+
+    Attributes:
+        t_s: time of sample k [s]. sigma: phase σ_k [s]. s: scaling applied.
+        q: measured joint positions [rad] (K, n). qd_measured, qd_command: [rad/s] (K, n).
+        torque: applied joint torques [N·m] (K, n); NaN in the kinematic loop.
+        pose, target: measured end-effector pose x_k and target x_d(σ_k), vec8 (K, 8).
+        solver_status: status string per sample. iterations, solve_time_s, step_time_s.
+        fallback, relaxed, saturated: per-sample flags.
+        meta: free-form description (robot, trajectory, controller, parameters, simulator).
+    """
+
+    t_s: np.ndarray
+    sigma: np.ndarray
+    s: np.ndarray
+    q: np.ndarray
+    qd_measured: np.ndarray
+    qd_command: np.ndarray
+    torque: np.ndarray
+    pose: np.ndarray
+    target: np.ndarray
+    solver_status: np.ndarray
+    iterations: np.ndarray
+    solve_time_s: np.ndarray
+    step_time_s: np.ndarray
+    fallback: np.ndarray
+    relaxed: np.ndarray
+    saturated: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The array fields by name (for ``np.savez``)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "meta"}
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict | None = None) -> RunLog:
+        """Rebuild a log from :meth:`arrays` (e.g. a loaded ``.npz``)."""
+        names = [f.name for f in fields(cls) if f.name != "meta"]
+        return cls(**{k: np.asarray(arrays[k]) for k in names}, meta=dict(meta or {}))
+
+
+class LogRecorder:
+    """Collects one row per control step; :meth:`finish` turns the rows into a RunLog."""
+
+    def __init__(self, num_joints: int, meta: dict | None = None) -> None:
+        self.n = num_joints
+        self.meta = dict(meta or {})
+        self._rows: list[tuple] = []
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def record(
+        self,
+        t_s: float,
+        q: np.ndarray,
+        qd_measured: np.ndarray,
+        result: StepResult,
+        torque: np.ndarray | None = None,
+    ) -> None:
+        """Append sample k: the measurement it was computed from and the controller output."""
+        d = result.diagnostics
+        self._rows.append(
+            (
+                t_s,
+                result.sigma,
+                result.s,
+                np.array(q, dtype=float),
+                np.array(qd_measured, dtype=float),
+                np.array(result.qd_command, dtype=float),
+                np.full(self.n, np.nan) if torque is None else np.array(torque, dtype=float),
+                np.array(result.pose, dtype=float),
+                np.array(result.target, dtype=float),
+                d.status,
+                d.iterations,
+                d.solve_time_s,
+                d.step_time_s,
+                d.fallback,
+                d.relaxed,
+                d.saturated,
+            )
+        )
+
+    def finish(self) -> RunLog:
+        """The collected samples as a :class:`RunLog` (empty arrays if nothing recorded)."""
+        n = self.n
+        if not self._rows:
+            empty = np.zeros(0)
+            return RunLog(
+                t_s=empty, sigma=empty, s=empty, q=np.zeros((0, n)),
+                qd_measured=np.zeros((0, n)), qd_command=np.zeros((0, n)),
+                torque=np.zeros((0, n)), pose=np.zeros((0, 8)), target=np.zeros((0, 8)),
+                solver_status=np.zeros(0, dtype="U32"), iterations=np.zeros(0, dtype=int),
+                solve_time_s=empty, step_time_s=empty, fallback=np.zeros(0, dtype=bool),
+                relaxed=np.zeros(0, dtype=bool), saturated=np.zeros(0, dtype=bool),
+                meta=self.meta,
+            )  # fmt: skip
+        cols = list(zip(*self._rows, strict=True))
+        return RunLog(
+            t_s=np.array(cols[0], dtype=float),
+            sigma=np.array(cols[1], dtype=float),
+            s=np.array(cols[2], dtype=float),
+            q=np.array(cols[3]),
+            qd_measured=np.array(cols[4]),
+            qd_command=np.array(cols[5]),
+            torque=np.array(cols[6]),
+            pose=np.array(cols[7]),
+            target=np.array(cols[8]),
+            solver_status=np.array(cols[9], dtype="U32"),
+            iterations=np.array(cols[10], dtype=int),
+            solve_time_s=np.array(cols[11], dtype=float),
+            step_time_s=np.array(cols[12], dtype=float),
+            fallback=np.array(cols[13], dtype=bool),
+            relaxed=np.array(cols[14], dtype=bool),
+            saturated=np.array(cols[15], dtype=bool),
+            meta=self.meta,
+        )

@@ -1,0 +1,325 @@
+"""Build the MuJoCo model of a :class:`~dqcontrol.model.robot.RobotModel` from its own URDF.
+
+One description of the robot (STYLE: "never three"): the simulator reads the very URDF text
+Pinocchio read (``robot.source``), then edits it as an :class:`mujoco.MjSpec`:
+
+1. :func:`prepare_urdf_xml` rewrites the XML for MuJoCo's URDF importer: ``package://``,
+   ``file://`` and relative mesh paths become absolute files; visual meshes MuJoCo cannot
+   read (``.dae`` ...) are dropped (they only matter for drawing); the ``<mujoco><compiler>``
+   block is set so that every link stays a body (``fusestatic="false"``), visuals are kept,
+   paths are not stripped, and a link without ``<inertial>`` has no mass (as in Pinocchio;
+   MuJoCo's default would give it the mass of its collision geoms).
+2. :func:`build_spec` moves the root to ``robot.base_placement``, welds locked joints at their
+   lock value, sets armature, damping and the torque limits of the controlled joints, adds a
+   site named ``robot.ee_frame`` at the Pinocchio end-effector frame, an optional payload body
+   at that frame, and one torque actuator (``motor``, clamped to the torque limit) per
+   controlled joint.
+
+Nothing here steps physics; :mod:`dqcontrol.sim.mujoco_sim` owns the servo loop.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from dqcontrol.dq.algebra import qfrom_axis_angle, qfrom_matrix, qmul, qto_matrix
+from dqcontrol.errors import ConfigurationError, URDFError
+from dqcontrol.model.robot import RobotModel
+from dqcontrol.model.urdf_source import URDFSource
+
+__all__ = [
+    "MESH_EXTENSIONS",
+    "PAYLOAD_BODY",
+    "ACTUATOR_SUFFIX",
+    "PreparedURDF",
+    "SpecOptions",
+    "build_spec",
+    "prepare_urdf_xml",
+    "resolve_mesh_path",
+]
+
+#: Mesh file types MuJoCo's compiler reads (others, e.g. COLLADA ``.dae``, are refused).
+MESH_EXTENSIONS = frozenset({".stl", ".obj", ".msh"})
+#: Name of the payload body added at the end-effector frame when ``payload_kg > 0``.
+PAYLOAD_BODY = "dqcontrol_payload"
+#: Actuator of joint ``j`` is named ``j + ACTUATOR_SUFFIX``.
+ACTUATOR_SUFFIX = "_servo"
+#: Radius [m] of the payload's solid-sphere inertia (and of its visual marker).
+PAYLOAD_RADIUS_M = 0.02
+
+# Compiler settings the simulator relies on; they override the URDF's own <mujoco> block.
+_FORCED_COMPILER = {
+    "fusestatic": "false",  # every link stays a body (frames, EE, payload need them)
+    "discardvisual": "false",  # keep visuals for a viewer (group 1, no contact, no mass)
+    "strippath": "false",  # mesh paths are absolute after prepare_urdf_xml
+    "inertiafromgeom": "false",  # a link without <inertial> is massless, as in Pinocchio
+}
+# Defaults that a URDF's <mujoco><compiler> may override.
+_DEFAULT_COMPILER = {"balanceinertia": "true"}
+
+
+@dataclass(frozen=True)
+class PreparedURDF:
+    """URDF text ready for ``mujoco.MjSpec.from_string`` and what was changed to get it.
+
+    Attributes:
+        xml: the rewritten URDF.
+        dropped_visuals: visual meshes removed (path and reason), for the record.
+    """
+
+    xml: str
+    dropped_visuals: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class SpecOptions:
+    """What :func:`build_spec` adds to the imported URDF (all arrays in ``robot.joint_names``
+    order; validated by the caller).
+
+    Attributes:
+        physics_dt_s: MuJoCo time step [s].
+        gravity: gravity on (-9.81 m/s² along world z) or off.
+        armature_kg_m2: rotor inertia reflected to each joint [kg·m²].
+        damping_nms_rad: viscous joint damping [N·m·s/rad]; ``None`` keeps the URDF's.
+        effort_limit_nm: torque limit of each joint's drive [N·m] (already scaled).
+        payload_kg: extra mass at the end-effector [kg] (0: no payload body).
+        payload_offset_m: payload centre in the end-effector frame [m].
+    """
+
+    physics_dt_s: float
+    gravity: bool
+    armature_kg_m2: np.ndarray
+    damping_nms_rad: np.ndarray | None
+    effort_limit_nm: np.ndarray
+    payload_kg: float
+    payload_offset_m: np.ndarray
+
+
+# ----------------------------------------------------------------------------- URDF text
+def resolve_mesh_path(filename: str, source: URDFSource) -> Path | None:
+    """Absolute path of a URDF mesh ``filename``, or ``None`` if no such file exists.
+
+    ``package://pkg/rest`` is looked up as ``d/pkg/rest`` and ``d/rest`` for every ``d`` in
+    ``source.package_dirs``, then in the folders above the URDF file (``a/pkg/rest``, or
+    ``a/rest`` when ``a`` is named ``pkg``). ``file://`` URIs and absolute paths are taken as
+    they are; relative paths are relative to the URDF's folder.
+    """
+    candidates: list[Path] = []
+    if filename.startswith("package://"):
+        rest = filename[len("package://") :]
+        pkg, _, sub = rest.partition("/")
+        for d in source.package_dirs:
+            candidates += [Path(d) / rest, Path(d) / sub]
+        if source.directory is not None:
+            for a in (source.directory, *source.directory.parents):
+                candidates.append(a / rest)
+                if a.name == pkg:
+                    candidates.append(a / sub)
+    else:
+        path = Path(filename[len("file://") :] if filename.startswith("file://") else filename)
+        if path.is_absolute():
+            candidates.append(path)
+        elif source.directory is not None:
+            candidates.append(source.directory / path)
+    for c in candidates:
+        if c.is_file():
+            return c.resolve()
+    return None
+
+
+def prepare_urdf_xml(source: URDFSource) -> PreparedURDF:
+    """Rewrite a URDF for MuJoCo's importer (module docstring, step 1).
+
+    Raises:
+        URDFError: a collision mesh cannot be found or has a type MuJoCo cannot read (the
+            simulation would silently lose that link's collision geometry).
+    """
+    try:
+        root = ET.fromstring(source.xml)
+    except ET.ParseError as exc:  # read_urdf already checked it; keep the error typed
+        raise URDFError(f"malformed URDF XML: {exc}") from None
+    where = str(source.path) if source.path is not None else "<string>"
+    dropped: list[str] = []
+    for link in root.findall("link"):
+        for tag in ("visual", "collision"):
+            for element in list(link.findall(tag)):
+                mesh = element.find("geometry/mesh")
+                if mesh is None:
+                    continue
+                filename = mesh.get("filename", "")
+                path = resolve_mesh_path(filename, source)
+                problem = None
+                if path is None:
+                    problem = (
+                        f"file not found (package_dirs={[str(d) for d in source.package_dirs]}, "
+                        f"URDF folder={source.directory})"
+                    )
+                elif path.suffix.lower() not in MESH_EXTENSIONS:
+                    problem = (
+                        f"MuJoCo cannot read '{path.suffix}' meshes (it reads "
+                        f"{sorted(MESH_EXTENSIONS)})"
+                    )
+                if problem is None:
+                    mesh.set("filename", str(path))
+                elif tag == "visual":
+                    link.remove(element)
+                    dropped.append(f"{link.get('name')}: {filename}: {problem}")
+                else:
+                    raise URDFError(
+                        f"{where}: collision mesh '{filename}' of link '{link.get('name')}': "
+                        f"{problem}. Pass package_dirs to the robot loader, or convert the "
+                        "mesh to STL/OBJ."
+                    )
+    block = root.find("mujoco")
+    if block is None:
+        block = ET.SubElement(root, "mujoco")
+    compiler = block.find("compiler")
+    if compiler is None:
+        compiler = ET.SubElement(block, "compiler")
+    for key, value in _DEFAULT_COMPILER.items():
+        compiler.set(key, compiler.get(key, value))
+    for key, value in _FORCED_COMPILER.items():
+        compiler.set(key, value)
+    return PreparedURDF(ET.tostring(root, encoding="unicode"), tuple(dropped))
+
+
+# ----------------------------------------------------------------------------- spec edits
+def _pos_quat(placement: pin.SE3) -> tuple[np.ndarray, np.ndarray]:
+    return np.array(placement.translation, dtype=float), qfrom_matrix(placement.rotation)
+
+
+def _body_quat(spec: mujoco.MjSpec, body: mujoco.MjsBody) -> np.ndarray:
+    if body.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
+        return np.asarray(spec.resolve_orientation(False, None, body.alt), dtype=float)
+    q = np.asarray(body.quat, dtype=float)
+    return q / np.linalg.norm(q)
+
+
+def _lock_joint(spec: mujoco.MjSpec, name: str, value: float) -> None:
+    """Weld joint ``name`` at ``value`` [rad or m]: fold the motion into its body's pose."""
+    joint = spec.joint(name)
+    if joint is None:
+        raise URDFError(f"locked joint '{name}' is not in the MuJoCo model of the URDF")
+    body = joint.parent
+    quat = _body_quat(spec, body)
+    rot = qto_matrix(quat)
+    axis = np.asarray(joint.axis, dtype=float)
+    anchor = np.asarray(joint.pos, dtype=float)
+    ref = float(joint.ref)
+    if joint.type == mujoco.mjtJoint.mjJNT_HINGE:
+        dq = qfrom_axis_angle(axis, value - ref)
+        # rotation about the axis through `anchor` (body frame): x -> a + R (x - a)
+        offset = anchor - qto_matrix(dq) @ anchor
+        body.pos = np.asarray(body.pos, dtype=float) + rot @ offset
+        body.quat = qmul(quat, dq)
+    elif joint.type == mujoco.mjtJoint.mjJNT_SLIDE:
+        body.pos = np.asarray(body.pos, dtype=float) + rot @ (axis / np.linalg.norm(axis)) * (
+            value - ref
+        )
+        body.quat = quat
+    else:
+        raise ConfigurationError(
+            f"cannot lock joint '{name}' of MuJoCo type {joint.type}: only 1-DoF joints"
+        )
+    spec.delete(joint)
+
+
+def build_spec(robot: RobotModel, prepared: PreparedURDF, options: SpecOptions) -> mujoco.MjSpec:
+    """The edited :class:`mujoco.MjSpec` of ``robot`` (module docstring, step 2).
+
+    Raises:
+        URDFError: MuJoCo cannot import the URDF, or a controlled joint is missing from it.
+    """
+    try:
+        spec = mujoco.MjSpec.from_string(prepared.xml)
+    except ValueError as exc:
+        raise URDFError(f"MuJoCo could not import the URDF: {exc}") from None
+    spec.option.timestep = options.physics_dt_s
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.gravity = [0.0, 0.0, -9.81] if options.gravity else [0.0, 0.0, 0.0]
+
+    # base placement: hang every top-level body from a frame at robot.base_placement
+    base_pos, base_quat = _pos_quat(robot.base_placement)
+    base = spec.worldbody.add_frame(name="dqcontrol_base", pos=base_pos, quat=base_quat)
+    for body in list(spec.worldbody.bodies):
+        body.set_frame(base)
+
+    for name, value in robot.locked_joints.items():
+        _lock_joint(spec, name, float(value))
+    # joint couplings (URDF <mimic> becomes a joint equality) that involve a locked joint
+    locked = set(robot.locked_joints)
+    for eq in list(spec.equalities):
+        if eq.type == mujoco.mjtEq.mjEQ_JOINT and {eq.name1, eq.name2} & locked:
+            spec.delete(eq)
+
+    limited = mujoco.mjtLimited.mjLIMITED_TRUE
+    for i, name in enumerate(robot.joint_names):
+        joint = spec.joint(name)
+        if joint is None:
+            raise URDFError(f"controlled joint '{name}' is not in the MuJoCo model of the URDF")
+        joint.armature = float(options.armature_kg_m2[i])
+        if options.damping_nms_rad is not None:
+            joint.damping = [float(options.damping_nms_rad[i]), 0.0, 0.0]
+        limit = float(options.effort_limit_nm[i])
+        joint.actfrclimited = limited
+        joint.actfrcrange = [-limit, limit]
+        # a torque motor: the servo law runs in dqcontrol.sim.mujoco_sim
+        act = spec.add_actuator(
+            name=name + ACTUATOR_SUFFIX, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
+        )
+        act.set_to_motor()
+        act.gear = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+        act.ctrllimited = limited
+        act.ctrlrange = [-limit, limit]
+        act.forcelimited = limited
+        act.forcerange = [-limit, limit]
+
+    # end-effector site at the Pinocchio frame, on the body of its parent joint
+    frame = robot.model.frames[robot.model.getFrameId(robot.ee_frame)]
+    if frame.parentJoint == 0:
+        ee_body = spec.worldbody
+    else:
+        joint = spec.joint(robot.model.names[frame.parentJoint])
+        if joint is None:
+            raise URDFError(
+                f"joint '{robot.model.names[frame.parentJoint]}' carrying the end-effector "
+                "frame is not in the MuJoCo model of the URDF"
+            )
+        ee_body = joint.parent
+    site_pos, site_quat = _pos_quat(frame.placement)
+    ee_body.add_site(
+        name=robot.ee_frame,
+        pos=site_pos,
+        quat=site_quat,
+        size=[0.01, 0.0, 0.0],
+        rgba=[0.1, 0.8, 0.1, 0.6],
+        group=2,
+    )
+
+    if options.payload_kg > 0.0:
+        mass = float(options.payload_kg)
+        inertia = 0.4 * mass * PAYLOAD_RADIUS_M**2  # solid sphere: "a point-ish mass"
+        payload = ee_body.add_body(
+            name=PAYLOAD_BODY,
+            pos=site_pos + qto_matrix(site_quat) @ options.payload_offset_m,
+            quat=[1.0, 0.0, 0.0, 0.0],
+            mass=mass,
+            inertia=[inertia, inertia, inertia],
+            explicitinertial=True,
+        )
+        payload.add_geom(
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=[PAYLOAD_RADIUS_M, 0.0, 0.0],
+            contype=0,
+            conaffinity=0,
+            group=1,
+            density=0.0,
+            rgba=[0.8, 0.1, 0.1, 1.0],
+        )
+    return spec

@@ -1,0 +1,19 @@
+"""Trajectories: geometric pose paths ``traj(σ)`` in a reference frame (FORMULATION §3).
+
+Every trajectory implements the :class:`Trajectory` contract: ``target(σ) = ref ⊗ traj(σ)``
+and its derivative with respect to the phase ``σ`` [s of nominal time], batched for the
+predictive controller, anchoring at the robot's start pose, and path deviation [m].
+
+- :class:`Circle` — the thesis's circle (eq. 5.1);
+- :class:`Sinusoid` — the thesis's sinusoid (eq. 5.3);
+- :class:`WaypointTrajectory` — a C² spline through position/orientation waypoints;
+- :class:`FunctionTrajectory` — any path given as plain Python functions.
+"""
+
+from dqcontrol.trajectories.base import Trajectory
+from dqcontrol.trajectories.circle import Circle
+from dqcontrol.trajectories.functional import FunctionTrajectory
+from dqcontrol.trajectories.sinusoid import Sinusoid
+from dqcontrol.trajectories.waypoints import WaypointTrajectory
+
+__all__ = ["Circle", "FunctionTrajectory", "Sinusoid", "Trajectory", "WaypointTrajectory"]
