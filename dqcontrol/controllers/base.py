@@ -105,7 +105,9 @@ class Controller(ABC):
 
     def __init__(self, robot: RobotModel, trajectory: Trajectory, period_s: float) -> None:
         if not isinstance(robot, RobotModel):
-            raise ParameterError(f"robot must be a dqcontrol RobotModel, got {type(robot).__name__}")
+            raise ParameterError(
+                f"robot must be a dqcontrol RobotModel, got {type(robot).__name__}"
+            )
         if not isinstance(trajectory, Trajectory):
             raise ParameterError(
                 f"trajectory must be a dqcontrol Trajectory, got {type(trajectory).__name__}"
@@ -136,8 +138,8 @@ class Controller(ABC):
         self._reset_done = True
         self._reset_memory(q0, qd0)
 
-    def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
-        """Hook for controllers with more memory (the predictive horizon)."""
+    def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:  # noqa: B027
+        """Hook for controllers with more memory (the predictive horizon); none by default."""
 
     @property
     def done(self) -> bool:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from dqcontrol.controllers.prediction import prediction_instants
+import numpy as np
+
+from dqcontrol.controllers.prediction import integration_matrix, prediction_instants
 from dqcontrol.controllers.tracking import TrackingController
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -47,11 +49,24 @@ class PredictiveNoScalingController(PredictiveController):
 
     The thesis compared it with ``|qd| ≤ 2 rad/s`` and ``|qdd| ≤ 40 rad/s²``; pass those as
     ``velocity_limits`` / ``acceleration_limit`` to reproduce that comparison.
+
+    Default gain. The predicted poses ``x̂_i`` come from integrating the previous horizon
+    (``q̂ = q + W qd_prev``), and each ``qd_i`` answers the predicted error with gain ``K``;
+    from one step to the next, a deviation of the horizon is therefore multiplied by about
+    ``K W``. Without ``s_i`` to absorb it (the scaled method shrinks ``s_i`` instead), the
+    horizon diverges unless ``K ρ(W) < 1``; we measured divergence from ``K ρ(W) ≈ 1.2``
+    (p = 6 and 10, τ_p = 1 s, T = 50 ms). The default is therefore
+    ``K = min(10, 0.9 / ρ(W))`` [1/s] (≈ 3.6 for p = 6, 4.6 for p = 10 at those values).
     """
 
     def __init__(
         self, robot: RobotModel, trajectory: Trajectory, period_s: float, **kwargs
     ) -> None:
+        if kwargs.get("gain_per_s") is None:
+            tau = prediction_instants(kwargs.get("num_instants", 10), kwargs.get("horizon_s", 1.0))
+            if period_s > 0:
+                rho = float(max(abs(np.linalg.eigvals(integration_matrix(tau, period_s)))))
+                kwargs["gain_per_s"] = min(10.0, 0.9 / rho)
         kwargs["scaling"] = False
         super().__init__(robot, trajectory, period_s, **kwargs)
         self.name = f"predictive_noscale_p{self.num_instants}"

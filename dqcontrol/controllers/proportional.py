@@ -90,8 +90,14 @@ class ProportionalController(Controller):
             message = "non-finite command replaced by zero"
         if self.saturate:
             box = command_box(
-                q, self.qd_prev, self.robot.limits.q_min, self.robot.limits.q_max,
-                self.qd_max, self.a_max, self.period_s, self.braking_aware,
+                q,
+                self.qd_prev,
+                self.robot.limits.q_min,
+                self.robot.limits.q_max,
+                self.qd_max,
+                self.a_max,
+                self.period_s,
+                self.braking_aware,
             )
             clipped = box.project(qd_cmd)
             saturated = bool(np.any(clipped != qd_cmd))

@@ -4,10 +4,19 @@ The controllers describe their QP as ``minimize ½ zᵀ P z + cᵀ z  s.t.  l �
 a *fixed* sparsity pattern; :class:`OsqpQP` sets OSQP up once and afterwards only updates
 the value arrays (``P``'s upper-triangle values, ``c``, ``l``, ``u``) in place.
 
-Settings: tolerances 1e-9 absolute/relative (the thesis blamed solver noise for jitter;
-at these tolerances the command is exact to well below a µrad/s), adaptive ρ, no
-*polishing*: OSQP 1.x prints an unguarded line on every polished solve without an active
-set (osqp/osqp#785) and its polish may accept a worse point (osqp/osqp#790).
+Settings: tolerances 1e-9 absolute/relative, adaptive ρ, no OSQP *polishing*: OSQP 1.x
+prints an unguarded line on every polished solve without an active set (osqp/osqp#785) and
+its polish may accept a worse point (osqp/osqp#790); on our problems it failed often.
+
+Exactness (*refinement*, on by default). The controllers' costs are nearly singular in the
+robot's redundant direction (only ``μ ≈ 1e-6`` fixes it), where a first-order method stops
+~1e-4 rad/s away from the optimum without seeing any residual — the solver noise the thesis
+blamed for jitter. After OSQP converges, :class:`OsqpQP` takes the active set it found
+(rows at a bound with a non-zero multiplier, and equalities), solves that
+equality-constrained KKT system exactly, and keeps the result only if it is primal
+feasible and its multipliers have the right signs (i.e. it *is* the optimum); otherwise it
+keeps OSQP's point. The applied command then matches an independent active-set solver to
+~1e-10.
 """
 
 from __future__ import annotations
@@ -71,8 +80,12 @@ class OsqpQP:
         if settings:
             self.settings.update(settings)
         self._solver: osqp.OSQP | None = None
-        self._p_values = np.zeros(self.p_pattern.nnz)
-        self._p_changed = True
+        self.refine = bool(self.settings.pop("refine", True))
+        # dense views for the refinement
+        pat = self.p_pattern.tocoo()
+        self._p_rows, self._p_cols = pat.row, pat.col
+        self._a_dense = self.a_matrix.toarray()
+        self.last_refined = False
 
     @property
     def p_nnz(self) -> int:
@@ -110,14 +123,65 @@ class OsqpQP:
             return QPSolution(None, None, False, f"error: {exc}", 0, time.perf_counter() - start)
         status = res.info.status_val
         ok = status in _SUCCESS and res.x is not None and bool(np.all(np.isfinite(res.x)))
+        x = np.array(res.x) if ok else None
+        self.last_refined = False
+        if ok and self.refine:
+            refined = self._refine(p_values, c, lower, upper, x, np.asarray(res.y))
+            if refined is not None:
+                x = refined
+                self.last_refined = True
         return QPSolution(
-            x=np.array(res.x) if ok else None,
+            x=x,
             y=np.array(res.y) if ok else None,
             ok=ok,
             status=str(res.info.status),
             iterations=int(res.info.iter),
             solve_time_s=time.perf_counter() - start,
         )
+
+    def _refine(
+        self,
+        p_values: np.ndarray,
+        c: np.ndarray,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        x: np.ndarray,
+        y: np.ndarray,
+    ) -> np.ndarray | None:
+        """Exact optimum on OSQP's active set, or ``None`` if it is not verified."""
+        a = self._a_dense
+        ax = a @ x
+        scale = max(1.0, float(np.max(np.abs(y))))
+        at_low = (ax - lower <= 1e-6) & (y < -1e-9 * scale)
+        at_up = (upper - ax <= 1e-6) & (y > 1e-9 * scale)
+        eq = lower == upper
+        act = at_low | at_up | eq
+        bound = np.where(at_up & ~eq, upper, lower)[act]
+        nv, na = self.num_vars, int(act.sum())
+        kkt = np.zeros((nv + na, nv + na))
+        kkt[self._p_rows, self._p_cols] = p_values
+        kkt[self._p_cols, self._p_rows] = p_values
+        a_act = a[act]
+        kkt[nv:, :nv] = a_act
+        kkt[:nv, nv:] = a_act.T
+        rhs = np.concatenate((-c, bound))
+        try:
+            sol = np.linalg.solve(kkt, rhs)
+        except np.linalg.LinAlgError:
+            return None
+        xs, lam = sol[:nv], sol[nv:]
+        if not np.all(np.isfinite(sol)):
+            return None
+        axs = a @ xs
+        tol = 1e-9 * max(1.0, float(np.max(np.abs(xs))))
+        if np.any(axs < lower - tol) or np.any(axs > upper + tol):
+            return None
+        # multiplier signs: ≥ 0 pushes up at an upper bound, ≤ 0 at a lower bound
+        lam_up = lam[(at_up & ~eq)[act]]
+        lam_low = lam[(at_low & ~eq)[act]]
+        if np.any(lam_up < -1e-9 * scale) or np.any(lam_low > 1e-9 * scale):
+            return None
+        return xs
 
     def reset(self) -> None:
         """Forget the factorisation and warm start (next solve sets OSQP up again)."""

@@ -47,6 +47,7 @@ class QPProblem(NamedTuple):
     lower: np.ndarray
     upper: np.ndarray
 
+
 #: ``float`` (constant [rad/s²], or one per joint) or ``"dynamics"`` (FORMULATION §6).
 AccelerationLimit = float | np.ndarray | Literal["dynamics"]
 
@@ -285,7 +286,13 @@ class TrackingController(Controller):
         # bounds
         a_max = self._acceleration(q_hat)
         box = command_box(
-            q, self.qd_prev, self.q_min, self.q_max, self.qd_max, a_max[0], self.period_s,
+            q,
+            self.qd_prev,
+            self.q_min,
+            self.q_max,
+            self.qd_max,
+            a_max[0],
+            self.period_s,
             self.braking_aware,
         )
         lower, upper = self._lower, self._upper
@@ -294,7 +301,11 @@ class TrackingController(Controller):
         if p > 1:
             q_clip = np.clip(q_hat[1:], self.q_min, self.q_max)
             lo_i, hi_i = velocity_position_box(
-                q_clip, self.q_min, self.q_max, self.qd_max, self.period_s,
+                q_clip,
+                self.q_min,
+                self.q_max,
+                self.qd_max,
+                self.period_s,
                 a_max[1:] if self.braking_aware else None,
             )
             for i in range(1, p):

@@ -325,7 +325,11 @@ class RobotModel:
         if qs.shape[0] == 0:
             return np.empty((0, 8)), np.empty((0, 8, self.nq))
         model, data, fid = self.model, self.data, self._fid
-        jacobian, to_xyzquat, placement = pin.computeFrameJacobian, pin.SE3ToXYZQUAT, self._ee_placement
+        jacobian, to_xyzquat, placement = (
+            pin.computeFrameJacobian,
+            pin.SE3ToXYZQUAT,
+            self._ee_placement,
+        )
         j6s, xqs = [], []
         for qi in qs:
             j6s.append(jacobian(model, data, qi, fid, _LWA))

@@ -19,7 +19,11 @@ def bounds_of(controller: Controller, q_samples: np.ndarray | None = None) -> Bo
     if a_const is None:
         a_const = getattr(controller, "a_max", None)
     per_sample = None
-    if a_const is None and getattr(controller, "dynamic_acceleration", False) and q_samples is not None:
+    if (
+        a_const is None
+        and getattr(controller, "dynamic_acceleration", False)
+        and q_samples is not None
+    ):
         per_sample = np.array(
             [
                 robot._acceleration_limits(

@@ -22,7 +22,8 @@ class RunLog:
     Attributes:
         t_s: time of sample k [s]. sigma: phase σ_k [s]. s: scaling applied.
         q: measured joint positions [rad] (K, n). qd_measured, qd_command: [rad/s] (K, n).
-        torque: applied joint torques [N·m] (K, n); NaN in the kinematic loop.
+        torque: joint torques applied at the end of period k [N·m] (K, n); NaN in the
+            kinematic loop. torque_peak: largest |torque| during period k [N·m] (K, n).
         pose, target: measured end-effector pose x_k and target x_d(σ_k), vec8 (K, 8).
         solver_status: status string per sample. iterations, solve_time_s, step_time_s.
         fallback, relaxed, saturated: per-sample flags.
@@ -36,6 +37,7 @@ class RunLog:
     qd_measured: np.ndarray
     qd_command: np.ndarray
     torque: np.ndarray
+    torque_peak: np.ndarray
     pose: np.ndarray
     target: np.ndarray
     solver_status: np.ndarray
@@ -79,6 +81,7 @@ class LogRecorder:
         qd_measured: np.ndarray,
         result: StepResult,
         torque: np.ndarray | None = None,
+        torque_peak: np.ndarray | None = None,
     ) -> None:
         """Append sample k: the measurement it was computed from and the controller output."""
         d = result.diagnostics
@@ -91,6 +94,9 @@ class LogRecorder:
                 np.array(qd_measured, dtype=float),
                 np.array(result.qd_command, dtype=float),
                 np.full(self.n, np.nan) if torque is None else np.array(torque, dtype=float),
+                np.full(self.n, np.nan)
+                if torque_peak is None
+                else np.array(torque_peak, dtype=float),
                 np.array(result.pose, dtype=float),
                 np.array(result.target, dtype=float),
                 d.status,
@@ -111,7 +117,8 @@ class LogRecorder:
             return RunLog(
                 t_s=empty, sigma=empty, s=empty, q=np.zeros((0, n)),
                 qd_measured=np.zeros((0, n)), qd_command=np.zeros((0, n)),
-                torque=np.zeros((0, n)), pose=np.zeros((0, 8)), target=np.zeros((0, 8)),
+                torque=np.zeros((0, n)), torque_peak=np.zeros((0, n)),
+                pose=np.zeros((0, 8)), target=np.zeros((0, 8)),
                 solver_status=np.zeros(0, dtype="U32"), iterations=np.zeros(0, dtype=int),
                 solve_time_s=empty, step_time_s=empty, fallback=np.zeros(0, dtype=bool),
                 relaxed=np.zeros(0, dtype=bool), saturated=np.zeros(0, dtype=bool),
@@ -126,14 +133,15 @@ class LogRecorder:
             qd_measured=np.array(cols[4]),
             qd_command=np.array(cols[5]),
             torque=np.array(cols[6]),
-            pose=np.array(cols[7]),
-            target=np.array(cols[8]),
-            solver_status=np.array(cols[9], dtype="U32"),
-            iterations=np.array(cols[10], dtype=int),
-            solve_time_s=np.array(cols[11], dtype=float),
-            step_time_s=np.array(cols[12], dtype=float),
-            fallback=np.array(cols[13], dtype=bool),
-            relaxed=np.array(cols[14], dtype=bool),
-            saturated=np.array(cols[15], dtype=bool),
+            torque_peak=np.array(cols[7]),
+            pose=np.array(cols[8]),
+            target=np.array(cols[9]),
+            solver_status=np.array(cols[10], dtype="U32"),
+            iterations=np.array(cols[11], dtype=int),
+            solve_time_s=np.array(cols[12], dtype=float),
+            step_time_s=np.array(cols[13], dtype=float),
+            fallback=np.array(cols[14], dtype=bool),
+            relaxed=np.array(cols[15], dtype=bool),
+            saturated=np.array(cols[16], dtype=bool),
             meta=self.meta,
         )

@@ -118,7 +118,8 @@ def compute_metrics(
     acc_excess = acc - a_lim
     acc_bad = acc_excess > VIOLATION_TOL * max(1.0, 1.0 / period_s)
     torque = log.torque[sl]
-    has_torque = torque.size and np.all(np.isfinite(torque))
+    peak = log.torque_peak[sl]
+    has_torque = bool(torque.size) and bool(np.all(np.isfinite(torque)))
     exec_time = float(log.t_s[end - 1] + period_s) if completed else float("nan")
     return Metrics(
         completed=bool(completed),
@@ -139,7 +140,7 @@ def compute_metrics(
         path_deviation_max_m=_nanmax(dev),
         u_mean_rad_s=float(np.mean(np.linalg.norm(qd_cmd, axis=1))) if end else float("nan"),
         s_mean=float(np.mean(log.s[sl])) if end else float("nan"),
-        torque_peak_nm=float(np.max(np.abs(torque))) if has_torque else float("nan"),
+        torque_peak_nm=float(np.max(np.abs(peak))) if has_torque else float("nan"),
         torque_rms_nm=float(np.sqrt(np.mean(torque**2))) if has_torque else float("nan"),
         position_violations=int(np.count_nonzero(pos_bad)),
         position_violation_max_rad=float(max(0.0, _nanmax(pos_excess))),

@@ -46,7 +46,11 @@ def run_kinematic(
     controller.reset(q)
     period = controller.period_s
     duration = controller.trajectory.duration
-    limit = 10.0 * duration + 1.0 if max_time_s is None else check_positive("max_time_s", max_time_s, "s")
+    limit = (
+        10.0 * duration + 1.0
+        if max_time_s is None
+        else check_positive("max_time_s", max_time_s, "s")
+    )
     steps = int(np.ceil(limit / period - 1e-9))
     info = {"simulator": "kinematic", "controller": controller.name, "period_s": period}
     info.update(meta or {})
