@@ -25,7 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Box", "braking_speed", "command_box", "safe_command", "velocity_position_box"]
+__all__ = [
+    "Box",
+    "braking_speed",
+    "command_box",
+    "intersect_acceleration",
+    "safe_command",
+    "velocity_position_box",
+]
 
 
 @dataclass(frozen=True)
@@ -101,7 +108,14 @@ def command_box(
     lo_vp, hi_vp = velocity_position_box(
         q, q_min, q_max, qd_max, period_s, a_max if braking_aware else None
     )
-    step = period_s * a_max
+    return intersect_acceleration(lo_vp, hi_vp, qd_prev, period_s * a_max)
+
+
+def intersect_acceleration(
+    lo_vp: np.ndarray, hi_vp: np.ndarray, qd_prev: np.ndarray, step: np.ndarray
+) -> Box:
+    """Intersect a velocity/position box with ``|qd - qd_prev| ≤ step`` (the conflict rule
+    of :func:`command_box` where they do not meet)."""
     lo_a = qd_prev - step
     hi_a = qd_prev + step
     lo = np.maximum(lo_vp, lo_a)

@@ -81,11 +81,13 @@ class OsqpQP:
             self.settings.update(settings)
         self._solver: osqp.OSQP | None = None
         self.refine = bool(self.settings.pop("refine", True))
+        self.hot_start = bool(self.settings.pop("hot_start", True))
+        self._active: tuple[np.ndarray, np.ndarray] | None = None
+        self.last_method = ""
         # dense views for the refinement
         pat = self.p_pattern.tocoo()
         self._p_rows, self._p_cols = pat.row, pat.col
         self._a_dense = self.a_matrix.toarray()
-        self.last_refined = False
 
     @property
     def p_nnz(self) -> int:
@@ -108,8 +110,19 @@ class OsqpQP:
         upper: np.ndarray,
         warm_x: np.ndarray | None = None,
     ) -> QPSolution:
-        """Update the values and solve. Never raises for a failed solve: check ``ok``."""
+        """Update the values and solve. Never raises for a failed solve: check ``ok``.
+
+        With ``hot_start`` (default), the previous step's active set is tried first: one
+        KKT solve, accepted only if verified optimal (primal feasible, multipliers of the
+        right sign), which is the usual case in a control loop where the active set changes
+        rarely. Otherwise OSQP solves (warm-started) and its result is refined.
+        """
         start = time.perf_counter()
+        if self.hot_start and self._active is not None:
+            guess = self._kkt(p_values, c, lower, upper, *self._active)
+            if guess is not None:
+                self.last_method = "hot_start"
+                return QPSolution(guess, None, True, "solved", 0, time.perf_counter() - start)
         try:
             if self._solver is None:
                 self._setup(p_values, c, lower, upper)
@@ -120,16 +133,23 @@ class OsqpQP:
             res = self._solver.solve(raise_error=False)
         except Exception as exc:  # noqa: BLE001 - a solver failure must not stop the loop
             self._solver = None  # rebuild next time
+            self._active = None
             return QPSolution(None, None, False, f"error: {exc}", 0, time.perf_counter() - start)
         status = res.info.status_val
         ok = status in _SUCCESS and res.x is not None and bool(np.all(np.isfinite(res.x)))
         x = np.array(res.x) if ok else None
-        self.last_refined = False
+        self.last_method = "osqp"
+        self._active = None
         if ok and self.refine:
-            refined = self._refine(p_values, c, lower, upper, x, np.asarray(res.y))
+            y = np.asarray(res.y)
+            ax = self._a_dense @ x
+            scale = max(1.0, float(np.max(np.abs(y))))
+            at_low = (ax - lower <= 1e-6) & (y < -1e-9 * scale)
+            at_up = (upper - ax <= 1e-6) & (y > 1e-9 * scale)
+            refined = self._kkt(p_values, c, lower, upper, at_low, at_up)
             if refined is not None:
                 x = refined
-                self.last_refined = True
+                self.last_method = "osqp+refine"
         return QPSolution(
             x=x,
             y=np.array(res.y) if ok else None,
@@ -139,24 +159,25 @@ class OsqpQP:
             solve_time_s=time.perf_counter() - start,
         )
 
-    def _refine(
+    def _kkt(
         self,
         p_values: np.ndarray,
         c: np.ndarray,
         lower: np.ndarray,
         upper: np.ndarray,
-        x: np.ndarray,
-        y: np.ndarray,
+        at_low: np.ndarray,
+        at_up: np.ndarray,
     ) -> np.ndarray | None:
-        """Exact optimum on OSQP's active set, or ``None`` if it is not verified."""
-        a = self._a_dense
-        ax = a @ x
-        scale = max(1.0, float(np.max(np.abs(y))))
-        at_low = (ax - lower <= 1e-6) & (y < -1e-9 * scale)
-        at_up = (upper - ax <= 1e-6) & (y > 1e-9 * scale)
+        """Optimum with the rows ``at_low``/``at_up`` (and every equality) held at their
+        bounds, or ``None`` if that point is not verified to be the QP's optimum."""
         eq = lower == upper
-        act = at_low | at_up | eq
-        bound = np.where(at_up & ~eq, upper, lower)[act]
+        low = at_low & ~eq
+        up = at_up & ~eq
+        act = low | up | eq
+        bound = np.where(up, upper, lower)[act]
+        if not np.all(np.isfinite(bound)):
+            return None
+        a = self._a_dense
         nv, na = self.num_vars, int(act.sum())
         kkt = np.zeros((nv + na, nv + na))
         kkt[self._p_rows, self._p_cols] = p_values
@@ -169,20 +190,22 @@ class OsqpQP:
             sol = np.linalg.solve(kkt, rhs)
         except np.linalg.LinAlgError:
             return None
-        xs, lam = sol[:nv], sol[nv:]
         if not np.all(np.isfinite(sol)):
             return None
+        xs, lam = sol[:nv], sol[nv:]
         axs = a @ xs
         tol = 1e-9 * max(1.0, float(np.max(np.abs(xs))))
         if np.any(axs < lower - tol) or np.any(axs > upper + tol):
             return None
-        # multiplier signs: ≥ 0 pushes up at an upper bound, ≤ 0 at a lower bound
-        lam_up = lam[(at_up & ~eq)[act]]
-        lam_low = lam[(at_low & ~eq)[act]]
-        if np.any(lam_up < -1e-9 * scale) or np.any(lam_low > 1e-9 * scale):
+        # optimality: P x + c + Aᵀλ = 0 with λ ≥ 0 on rows at their upper bound and λ ≤ 0 on
+        # rows at their lower bound (OSQP's sign convention for y)
+        scale = max(1.0, float(np.max(np.abs(lam)))) if na else 1.0
+        if np.any(lam[up[act]] < -1e-9 * scale) or np.any(lam[low[act]] > 1e-9 * scale):
             return None
+        self._active = (low, up)
         return xs
 
     def reset(self) -> None:
-        """Forget the factorisation and warm start (next solve sets OSQP up again)."""
+        """Forget the factorisation, the warm start and the active set."""
         self._solver = None
+        self._active = None

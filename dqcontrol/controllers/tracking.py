@@ -28,7 +28,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult, check_positive
-from dqcontrol.controllers.bounds import command_box, safe_command, velocity_position_box
+from dqcontrol.controllers.bounds import (
+    intersect_acceleration,
+    safe_command,
+    velocity_position_box,
+)
 from dqcontrol.controllers.prediction import integration_matrix
 from dqcontrol.controllers.qp_solver import OsqpQP
 from dqcontrol.errors import ParameterError
@@ -87,7 +91,9 @@ class TrackingController(Controller):
         scaling: optimise ``s`` (True) or hold ``s ≡ 1`` (FORMULATION §5.4).
         phase_prediction: ``"previous"`` integrates the previous ``s`` profile to predict
             ``σ̂_i``; ``"nominal"`` uses ``σ + τ_i`` (the thesis).
-        solver_settings: OSQP settings overriding the defaults of ``qp_solver.py``.
+        solver: ``"osqp"`` (default; refined to the exact optimum, ``qp_solver.py``) or
+            ``"daqp"`` (dual active-set, ``qp_daqp.py``; needs the ``daqp`` package).
+        solver_settings: settings overriding the solver's defaults.
     """
 
     name = "tracking"
@@ -110,9 +116,13 @@ class TrackingController(Controller):
         braking_aware: bool = True,
         scaling: bool = True,
         phase_prediction: Literal["previous", "nominal"] = "previous",
+        solver: Literal["osqp", "daqp"] = "osqp",
         solver_settings: dict | None = None,
     ) -> None:
         super().__init__(robot, trajectory, period_s)
+        if solver not in ("osqp", "daqp"):
+            raise ParameterError(f"solver must be 'osqp' or 'daqp', got {solver!r}")
+        self.solver = solver
         n = self.n
         self.gain_per_s = check_positive("gain_per_s (K)", gain_per_s, "1/s")
         self.task_weight = check_positive("task_weight (lambda1)", task_weight, "-")
@@ -205,7 +215,12 @@ class TrackingController(Controller):
         if coupling:
             a_rows.append(sp.csc_matrix(np.array(coupling)))
         a_matrix = sp.vstack(a_rows, format="csc")
-        self.qp = OsqpQP(p_pattern, a_matrix, solver_settings)
+        if solver == "daqp":
+            from dqcontrol.controllers.qp_daqp import DaqpQP
+
+            self.qp = DaqpQP(p_pattern, a_matrix, solver_settings)
+        else:
+            self.qp = OsqpQP(p_pattern, a_matrix, solver_settings)
         self._c = np.zeros(num_vars)
         self._c[n::m] = -2.0 * self.scaling_weight
         self._diag = np.zeros((p, m, m))
@@ -223,6 +238,15 @@ class TrackingController(Controller):
         if p > 1:
             self._w_int = integration_matrix(tau, self.period_s)
             self._shift = _interpolation_matrix(tau, self.period_s)
+        if self.a_const is not None:
+            self._a_const_batch = np.tile(self.a_const, (p, 1))
+            self._dv_const = (self._dtau[:, None] * self._a_const_batch[1:]).ravel()
+        # views of the bound vectors: the qd part of each instant's block, the coupling rows
+        self._lower_qd = self._lower[: p * m].reshape(p, m)[:, :n]
+        self._upper_qd = self._upper[: p * m].reshape(p, m)[:, :n]
+        self._lower_cpl = self._lower[p * m :]
+        self._upper_cpl = self._upper[p * m :]
+        self._uses_warm = isinstance(self.qp, OsqpQP)
         self._horizon_qd = np.zeros((p, n))
         self._horizon_s = np.ones(p)
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -248,7 +272,7 @@ class TrackingController(Controller):
     def _acceleration(self, q_hat: np.ndarray) -> np.ndarray:
         """``a_max`` at each predicted configuration (p, n) [rad/s²]."""
         if self.a_const is not None:
-            return np.broadcast_to(self.a_const, q_hat.shape)
+            return self._a_const_batch
         return np.array(
             [
                 self.robot._acceleration_limits(
@@ -268,7 +292,7 @@ class TrackingController(Controller):
         else:
             xs, jacs = self.robot._poses_and_jacobians(q_hat)
         xd, dxd = self.trajectory.targets(sigma_hat)
-        flip = np.einsum("ij,ij->i", xs, xd) < 0.0
+        flip = (xs * xd).sum(axis=1) < 0.0
         if flip.any():
             xs = np.where(flip[:, None], -xs, xs)
             jacs = np.where(flip[:, None, None], -jacs, jacs)
@@ -285,50 +309,44 @@ class TrackingController(Controller):
 
         # bounds
         a_max = self._acceleration(q_hat)
-        box = command_box(
-            q,
-            self.qd_prev,
-            self.q_min,
-            self.q_max,
-            self.qd_max,
-            a_max[0],
-            self.period_s,
-            self.braking_aware,
-        )
-        lower, upper = self._lower, self._upper
-        lower[:n] = box.lower
-        upper[:n] = box.upper
+        # velocity/position boxes of every instant at once (predicted ones clipped to the
+        # limits), then the acceleration bound on the applied command
         if p > 1:
-            q_clip = np.clip(q_hat[1:], self.q_min, self.q_max)
-            lo_i, hi_i = velocity_position_box(
-                q_clip,
-                self.q_min,
-                self.q_max,
-                self.qd_max,
-                self.period_s,
-                a_max[1:] if self.braking_aware else None,
-            )
-            for i in range(1, p):
-                lower[i * m : i * m + n] = lo_i[i - 1]
-                upper[i * m : i * m + n] = hi_i[i - 1]
-            dv = (self._dtau[:, None] * a_max[1:]).ravel()
-            lower[p * m :] = -dv
-            upper[p * m :] = dv
+            q_box = np.minimum(np.maximum(q_hat, self.q_min), self.q_max)
+            q_box[0] = q
+        else:
+            q_box = q[None, :]
+        lo_vp, hi_vp = velocity_position_box(
+            q_box, self.q_min, self.q_max, self.qd_max, self.period_s,
+            a_max if self.braking_aware else None,
+        )  # fmt: skip
+        box = intersect_acceleration(lo_vp[0], hi_vp[0], self.qd_prev, self.period_s * a_max[0])
+        lower, upper = self._lower, self._upper
+        self._lower_qd[0] = box.lower
+        self._upper_qd[0] = box.upper
+        warm = None
+        if p > 1:
+            self._lower_qd[1:] = lo_vp[1:]
+            self._upper_qd[1:] = hi_vp[1:]
+            if self.a_const is not None:
+                dv = self._dv_const
+            else:
+                dv = (self._dtau[:, None] * a_max[1:]).ravel()
+            np.negative(dv, out=self._lower_cpl)
+            self._upper_cpl[:] = dv
+        if p > 1 and self._uses_warm:
             warm = np.empty(p * m)
             warm_view = warm.reshape(p, m)
             warm_view[:, :n] = self._shift @ self._horizon_qd
             warm_view[:, n] = self._shift @ self._horizon_s
-        else:
-            warm = None
 
         self._last = (p_values, lower.copy(), upper.copy())
         sol = self.qp.solve(p_values, self._c, lower, upper, warm)
         relaxed = False
         if not sol.ok and p > 1:
             # regain feasibility: drop the predicted instants' boxes, keep the coupling
-            for i in range(1, p):
-                lower[i * m : i * m + n] = -np.inf
-                upper[i * m : i * m + n] = np.inf
+            self._lower_qd[1:] = -np.inf
+            self._upper_qd[1:] = np.inf
             sol = self.qp.solve(p_values, self._c, lower, upper, None)
             relaxed = sol.ok
 
