@@ -94,10 +94,14 @@ def test_command_box_conflict_keeps_acceleration_and_brakes():
 
 
 # --------------------------------------------------------------------------- QP vs reference
+SOLVERS = ["osqp", "daqp"]
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize("kind", ["local", "p6", "p10", "noscale"])
 @pytest.mark.parametrize("traj_cls,duration", [(Circle, 1.0), (Sinusoid, 2.0)])
-def test_qp_matches_independent_solution(lbr4p, kind, traj_cls, duration):
-    ctrl = make(kind, lbr4p, traj_cls(duration))
+def test_qp_matches_independent_solution(lbr4p, kind, traj_cls, duration, solver):
+    ctrl = make(kind, lbr4p, traj_cls(duration), solver=solver)
     q = LBR4P_Q0.copy()
     ctrl.reset(q)
     checked = 0
@@ -139,9 +143,10 @@ def test_qp_matches_independent_solution(lbr4p, kind, traj_cls, duration):
     fast=st.booleans(),
     prev_at_acc_limit=st.booleans(),
     dynamic=st.booleans(),
+    solver=st.sampled_from(SOLVERS),
 )
 def test_commands_never_cross_a_bound(
-    lbr4p, seed, kind, near_limit, fast, prev_at_acc_limit, dynamic
+    lbr4p, seed, kind, near_limit, fast, prev_at_acc_limit, dynamic, solver
 ):
     rng = np.random.default_rng(seed)
     lim = lbr4p.limits
@@ -152,7 +157,7 @@ def test_commands_never_cross_a_bound(
         q[j] = np.where(side > 0, lim.q_max[j], lim.q_min[j]) - side * rng.uniform(0, 0.02, 3)
     qd_prev = rng.uniform(-1, 1, 7) * THESIS_VEL * (0.9 if fast else 0.2)
     kw = {"acceleration_limit": "dynamics"} if dynamic else {}
-    ctrl = make(kind, lbr4p, Circle(1.0), **kw)
+    ctrl = make(kind, lbr4p, Circle(1.0), solver=solver, **kw)
     ctrl.reset(q, qd0=qd_prev)
     a_max = (
         lbr4p.acceleration_limits(q, floor_rad_s2=ctrl.acceleration_floor,
@@ -216,12 +221,14 @@ def test_infeasible_timing_scales_down_and_keeps_the_path(lbr4p, kind):
 
 
 # --------------------------------------------------------------------------- the thesis's claim
+@pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize(
     "traj_cls,duration", [(Circle, 1.0), (Circle, 2.0), (Sinusoid, 2.0), (Sinusoid, 4.0)]
 )
-def test_predictive_beats_local_at_short_periods(lbr4p, traj_cls, duration):
-    local = run_kinematic(make("local", lbr4p, traj_cls(duration)), LBR4P_Q0).metrics
-    mpc = run_kinematic(make("p10", lbr4p, traj_cls(duration)), LBR4P_Q0).metrics
+def test_predictive_beats_local_at_short_periods(lbr4p, traj_cls, duration, solver):
+    local = run_kinematic(make("local", lbr4p, traj_cls(duration), solver=solver), LBR4P_Q0)
+    mpc = run_kinematic(make("p10", lbr4p, traj_cls(duration), solver=solver), LBR4P_Q0)
+    local, mpc = local.metrics, mpc.metrics
     assert local.completed and mpc.completed
     assert mpc.e_mean < local.e_mean
     assert mpc.path_deviation_mean_m < local.path_deviation_mean_m
@@ -318,8 +325,11 @@ def test_reset_reanchors_an_unanchored_task(lbr4p):
     assert np.abs(first - ctrl.trajectory.target(0.0)).max() > 1e-3
 
 
-def test_failed_qp_falls_back_safely(lbr4p):
-    ctrl = make("p6", lbr4p, Circle(1.0), solver_settings={"max_iter": 1})
+@pytest.mark.parametrize(
+    "solver,settings", [("osqp", {"max_iter": 1, "hot_start": False}), ("daqp", {"iter_limit": 1})]
+)
+def test_failed_qp_falls_back_safely(lbr4p, solver, settings):
+    ctrl = make("p6", lbr4p, Circle(1.0), solver=solver, solver_settings=settings)
     q = LBR4P_Q0.copy()
     ctrl.reset(q, qd0=np.full(7, 0.5))
     res = ctrl.step(q)
