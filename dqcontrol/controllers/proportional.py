@@ -16,7 +16,7 @@ import numpy as np
 
 from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult, check_positive
 from dqcontrol.controllers.bounds import command_box
-from dqcontrol.dq.algebra import C8, dq_conj, dq_mul, haminus8
+from dqcontrol.dq.algebra import C8, haminus8, hamiplus8
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -24,6 +24,8 @@ from dqcontrol.trajectories import Trajectory
 __all__ = ["ProportionalController"]
 
 _ONE = np.array([1.0, 0, 0, 0, 0, 0, 0, 0])
+_C8_DIAG = np.diagonal(C8).copy()
+_DIAG8 = np.arange(8)
 
 
 class ProportionalController(Controller):
@@ -77,10 +79,13 @@ class ProportionalController(Controller):
         xd, dxd = xd[0], dxd[0]  # s = 1: dx_d/dt = dx_d/dσ
         if x @ xd < 0.0:
             x, jac = -x, -jac
-        err = _ONE - dq_mul(dq_conj(x), xd)
-        n_mat = haminus8(xd) @ C8 @ jac
-        rhs = self.gain_per_s * err - dq_mul(dq_conj(x), dxd)
-        gram = n_mat @ n_mat.T + (self.damping**2) * np.eye(8)
+        # x* x_d and x* dx_d with one Hamilton matrix: H+8(x*) [x_d, dx_d]
+        prods = hamiplus8(_C8_DIAG * x) @ np.stack((xd, dxd), axis=1)
+        err = _ONE - prods[:, 0]
+        n_mat = (haminus8(xd) * _C8_DIAG) @ jac  # H-8(x_d) C8 J
+        rhs = self.gain_per_s * err - prods[:, 1]
+        gram = n_mat @ n_mat.T
+        gram[_DIAG8, _DIAG8] += self.damping**2
         qd_cmd = n_mat.T @ np.linalg.solve(gram, rhs)
         saturated = False
         conflict: tuple[int, ...] = ()

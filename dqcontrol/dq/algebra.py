@@ -54,6 +54,7 @@ C4 = np.diag([1.0, -1.0, -1.0, -1.0])
 C8 = np.diag([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 _CONJ4 = np.array([1.0, -1.0, -1.0, -1.0])
+_HP4: np.ndarray | None = None  # set below, once hamiplus4 exists
 _CONJ8 = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 
@@ -62,6 +63,8 @@ def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product ``a b`` of quaternions ``[..., 4]`` (broadcasts)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
+    if a.ndim == 1 and b.ndim == 1 and _HP4 is not None:
+        return (_HP4 @ a).reshape(4, 4) @ b
     aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
     return np.stack(
@@ -144,6 +147,8 @@ def dq_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Dual-quaternion product ``a b`` of ``vec8`` arrays (broadcasts over leading axes)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
+    if a.ndim == 1 and b.ndim == 1:
+        return hamiplus8(a) @ b
     ra, da = a[..., :4], a[..., 4:]
     rb, db = b[..., :4], b[..., 4:]
     return np.concatenate((qmul(ra, rb), qmul(ra, db) + qmul(da, rb)), axis=-1)
@@ -193,26 +198,36 @@ def dq_normalize(x: np.ndarray) -> np.ndarray:
     return np.concatenate((r, d), axis=-1)
 
 
-def hamiplus8(x: np.ndarray) -> np.ndarray:
-    """``H+8(x)`` (8×8) with ``vec8(x b) = H+8(x) vec8(b)`` (thesis eq. 2.18)."""
-    x = np.asarray(x, dtype=float)
-    hr = hamiplus4(x[:4])
+def _hamilton8_slow(x: np.ndarray, ham4) -> np.ndarray:
+    hr = ham4(x[:4])
     out = np.zeros((8, 8))
     out[:4, :4] = hr
     out[4:, 4:] = hr
-    out[4:, :4] = hamiplus4(x[4:])
+    out[4:, :4] = ham4(x[4:])
     return out
+
+
+def _linear_tensor(fn, size: int) -> np.ndarray:
+    """Constant matrix ``T`` with ``fn(x).ravel() = T x`` for a matrix ``fn`` linear in x."""
+    eye = np.eye(size)
+    return np.stack([fn(eye[i]).ravel() for i in range(size)], axis=1)
+
+
+#: H+4, H-4, H+8, H-8 are linear in their argument: ``H(x) = (T x).reshape``. One product
+#: instead of building the matrix entry by entry (the controllers call them every step).
+_HP4 = _linear_tensor(hamiplus4, 4)
+_HP8 = _linear_tensor(lambda x: _hamilton8_slow(x, hamiplus4), 8)
+_HM8 = _linear_tensor(lambda x: _hamilton8_slow(x, haminus4), 8)
+
+
+def hamiplus8(x: np.ndarray) -> np.ndarray:
+    """``H+8(x)`` (8×8) with ``vec8(x b) = H+8(x) vec8(b)`` (thesis eq. 2.18)."""
+    return (_HP8 @ np.asarray(x, dtype=float)).reshape(8, 8)
 
 
 def haminus8(x: np.ndarray) -> np.ndarray:
     """``H-8(x)`` (8×8) with ``vec8(a x) = H-8(x) vec8(a)`` (thesis eq. 2.18)."""
-    x = np.asarray(x, dtype=float)
-    hr = haminus4(x[:4])
-    out = np.zeros((8, 8))
-    out[:4, :4] = hr
-    out[4:, 4:] = hr
-    out[4:, :4] = haminus4(x[4:])
-    return out
+    return (_HM8 @ np.asarray(x, dtype=float)).reshape(8, 8)
 
 
 # ------------------------------------------------------------------ poses
