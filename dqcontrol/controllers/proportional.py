@@ -75,8 +75,8 @@ class ProportionalController(Controller):
         start = time.perf_counter()
         x, jac = self.robot._pose_and_jacobian(q)
         sigma = self.sigma
-        xd, dxd = self.trajectory.targets(np.array([sigma]))
-        xd, dxd = xd[0], dxd[0]  # s = 1: dx_d/dt = dx_d/dσ
+        traj = self.trajectory
+        xd, dxd = traj.target(sigma), traj.target_derivative(sigma)  # s = 1: d/dt = d/dσ
         if x @ xd < 0.0:
             x, jac = -x, -jac
         # x* x_d and x* dx_d with one Hamilton matrix: H+8(x*) [x_d, dx_d]

@@ -291,7 +291,12 @@ class TrackingController(Controller):
             xs, jacs = x[None, :], jac[None, :, :]
         else:
             xs, jacs = self.robot._poses_and_jacobians(q_hat)
-        xd, dxd = self.trajectory.targets(sigma_hat)
+        if p == 1:
+            traj = self.trajectory
+            xd = traj.target(self.sigma)[None, :]
+            dxd = traj.target_derivative(self.sigma)[None, :]
+        else:
+            xd, dxd = self.trajectory.targets(sigma_hat)
         flip = (xs * xd).sum(axis=1) < 0.0
         if flip.any():
             xs = np.where(flip[:, None], -xs, xs)
