@@ -1,0 +1,158 @@
+"""``dqcontrol table1``: run the thesis's Table 1 grid and write results/table1.md/.csv."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+
+__all__ = ["register"]
+
+_DESCRIPTION = """\
+Reproduce the thesis's Table 1: the circle at T_tot = 8, 4, 2, 1 s and the sinusoid at
+16, 8, 4, 2 s, each with the local method and the predictive method at p = 6 and p = 10;
+T = 0.05 s, tau_p = 1 s, the thesis's bounds (|qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s,
+|qdd| <= 10 rad/s^2), start configuration LBR4P_Q0, the library's gains (K = 10 1/s).
+
+The cases run in parallel on all cores (or on a Dask cluster with --scheduler) with a
+progress bar. Writes OUT/table1.md (settings, machine, wall time, our figures beside the
+thesis's) and OUT/table1.csv, both atomically, and each run's log to OUT/table1_runs/
+(unless --no-save-runs); prints the table at the end."""
+
+_EPILOG = """\
+examples:
+  dqcontrol table1                         full grid in MuJoCo (24 cases)
+  dqcontrol table1 --quick --simulator kinematic
+  dqcontrol table1 --periods 1 2 --workers 2
+  dqcontrol table1 --scheduler tcp://10.0.0.5:8786 --out /shared/results"""
+
+
+def register(subparsers) -> None:
+    """Add the ``table1`` subcommand."""
+    p = subparsers.add_parser(
+        "table1",
+        help="reproduce the thesis's Table 1 (circle and sinusoid, Local vs p = 6, 10)",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--out", default="results", metavar="DIR", help="results folder (default: results)"
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="reduced grid for CI: one period per trajectory (circle 1 s, sinusoid 2 s)",
+    )
+    p.add_argument(
+        "--periods",
+        nargs="+",
+        type=float,
+        metavar="T_TOT",
+        help="only these T_tot [s] of the grid (circle: 8 4 2 1; sinusoid: 16 8 4 2)",
+    )
+    p.add_argument(
+        "--trajectories",
+        nargs="+",
+        choices=("circle", "sinusoid"),
+        metavar="TRAJ",
+        help="only these trajectories (circle, sinusoid)",
+    )
+    p.add_argument(
+        "--controllers",
+        nargs="+",
+        choices=("local", "p6", "p10"),
+        metavar="CTRL",
+        help="only these controllers (local, p6, p10)",
+    )
+    p.add_argument(
+        "--simulator",
+        choices=("mujoco", "kinematic"),
+        default="mujoco",
+        help="closed loop: MuJoCo physics (default) or the ideal kinematic loop",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="processes of the local pool (default: all cores; 1 runs in this process)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs dask[distributed]"
+        "; the run logs are then written on the workers' file system: give a shared --out)",
+    )
+    p.add_argument(
+        "--no-save-runs",
+        dest="save_runs",
+        action="store_false",
+        help="do not keep each run's log (.npz + .json) in OUT/table1_runs/",
+    )
+    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.experiments.table1 import run_table1
+
+    if args.workers is not None and args.workers < 1:
+        raise ParameterError(f"--workers must be ≥ 1, got {args.workers}")
+    command = _command_line(args)
+    try:
+        result = run_table1(
+            args.out,
+            quick=args.quick,
+            periods=args.periods,
+            trajectories=args.trajectories,
+            controllers=args.controllers,
+            simulator=args.simulator,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            save_runs=args.save_runs,
+            progress=args.progress,
+            command=command,
+        )
+    except KeyboardInterrupt:
+        print(
+            f"dqcontrol table1: interrupted; the completed cases are in {args.out}/table1.md",
+            file=sys.stderr,
+        )
+        return 130
+    print(result.markdown)
+    print(
+        f"wrote {result.md_path} and {result.csv_path}"
+        + (f"; run logs in {result.runs_dir}" if result.runs_dir else "")
+    )
+    if result.failures:
+        print(
+            "dqcontrol table1: some runs stopped early: " + ", ".join(result.failures),
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _command_line(args: argparse.Namespace) -> str:
+    """The equivalent command line of the parsed options (quoted in the .md header)."""
+    parts = ["dqcontrol", "table1", "--out", args.out]
+    if args.quick:
+        parts.append("--quick")
+    for flag, values in (
+        ("--periods", [f"{v:g}" for v in args.periods or ()]),
+        ("--trajectories", args.trajectories or ()),
+        ("--controllers", args.controllers or ()),
+    ):
+        if values:
+            parts += [flag, *values]
+    parts += ["--simulator", args.simulator]
+    if args.workers is not None:
+        parts += ["--workers", str(args.workers)]
+    if args.scheduler:
+        parts += ["--scheduler", args.scheduler]
+    if not args.save_runs:
+        parts.append("--no-save-runs")
+    return shlex.join(parts)

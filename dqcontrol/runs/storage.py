@@ -1,0 +1,157 @@
+"""Saving and loading runs: a ``.npz`` of the log arrays and a ``.json`` of the rest.
+
+Every file is written atomically: the bytes go to a temporary file in the target's own
+folder (same file system), which is flushed, ``fsync``-ed and then renamed over the target
+with :func:`os.replace`. A crash, a full disk or Ctrl-C in the middle of a write therefore
+leaves either the previous file or the new one, never half a file, and the temporary file is
+removed on any exception.
+
+A run ``name`` in ``folder`` is two files:
+
+* ``name.npz`` — :meth:`RunLog.arrays` (``np.savez_compressed``, loadable without pickle);
+* ``name.json`` — ``{"format", "version", "name", "npz", "meta", "metrics", "interrupted",
+  "note"}``. Written after the ``.npz``, so a ``.json`` on disk always has its arrays.
+  Non-finite floats (e.g. the peak torque of a kinematic run, NaN) are stored as ``null``
+  (strict JSON, readable by any tool) and come back as ``None``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from dqcontrol.errors import ParameterError
+from dqcontrol.runs.log import RunLog
+
+__all__ = ["RUN_FORMAT", "atomic_write_bytes", "atomic_write_text", "load_run", "save_run"]
+
+#: Value of the ``"format"`` key of a run's ``.json``.
+RUN_FORMAT = "dqcontrol-run"
+_VERSION = 1
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (POSIX; silently skipped where unsupported)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # pragma: no cover - e.g. Windows cannot open a directory
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover
+        pass
+    finally:
+        os.close(fd)
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file, fsync, ``os.replace``).
+
+    The parent folder is created if needed. Returns the path written.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp_name, target)
+    except BaseException:
+        try:
+            os.unlink(tmp_name)
+        except FileNotFoundError:
+            pass
+        raise
+    _fsync_dir(target.parent)
+    return target
+
+
+def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> Path:
+    """Write ``text`` to ``path`` atomically (see :func:`atomic_write_bytes`)."""
+    return atomic_write_bytes(path, text.encode(encoding))
+
+
+def _jsonable(value):
+    """``value`` as strict-JSON data: numpy scalars/arrays to Python, non-finite to None."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return _jsonable(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    if value is None or isinstance(value, bool | int | float | str):
+        return value
+    return repr(value)
+
+
+def _check_name(name: str) -> str:
+    if not isinstance(name, str) or not name or name in (".", ".."):
+        raise ParameterError(f"run name must be a non-empty string, got {name!r}")
+    if "/" in name or "\\" in name or os.sep in name:
+        raise ParameterError(f"run name must not contain a path separator, got {name!r}")
+    return name
+
+
+def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, Path]:
+    """Save a :class:`~dqcontrol.sim.kinematic.RunResult` as ``folder/name.npz`` + ``.json``.
+
+    Both files are written atomically (the ``.npz`` first). Existing files of the same name
+    are replaced. Returns ``(npz_path, json_path)``.
+    """
+    name = _check_name(name)
+    folder = Path(folder)
+    log: RunLog = result.log
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **log.arrays())
+    npz_path = atomic_write_bytes(folder / f"{name}.npz", buffer.getvalue())
+    record = {
+        "format": RUN_FORMAT,
+        "version": _VERSION,
+        "name": name,
+        "npz": npz_path.name,
+        "meta": _jsonable(log.meta),
+        "metrics": _jsonable(result.metrics.as_dict()),
+        "interrupted": bool(result.interrupted),
+        "note": str(result.note),
+    }
+    text = json.dumps(record, indent=2, allow_nan=False) + "\n"
+    json_path = atomic_write_text(folder / f"{name}.json", text)
+    return npz_path, json_path
+
+
+def load_run(path: str | os.PathLike) -> tuple[RunLog, dict]:
+    """Load a run saved by :func:`save_run`.
+
+    ``path`` is the ``.json``, the ``.npz`` or their common stem. Returns the
+    :class:`RunLog` (with its ``meta``) and the ``.json`` record (``meta``, ``metrics``,
+    ``interrupted``, ``note`` …).
+
+    Raises:
+        FileNotFoundError: the ``.json`` or its ``.npz`` is missing.
+        ParameterError: the ``.json`` is not a dqcontrol run.
+    """
+    p = Path(path)
+    stem = p.with_suffix("") if p.suffix in (".json", ".npz") else p
+    json_path = stem.with_name(stem.name + ".json")
+    record = json.loads(json_path.read_text(encoding="utf-8"))
+    if not isinstance(record, dict) or record.get("format") != RUN_FORMAT:
+        raise ParameterError(f"{json_path} is not a dqcontrol run file (format {RUN_FORMAT!r})")
+    npz_path = json_path.with_name(record.get("npz") or stem.name + ".npz")
+    with np.load(npz_path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    log = RunLog.from_arrays(arrays, record.get("meta") or {})
+    return log, record

@@ -1,0 +1,332 @@
+"""Issue 4: run storage (atomic files), the ``table1`` experiment and command, the Dask
+path, and a short MuJoCo run of each of the four controllers.
+
+Runtime budget: well under a minute (reduced grids, short trajectories).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import pickle
+
+import numpy as np
+import pytest
+
+from dqcontrol.cli import main
+from dqcontrol.controllers import (
+    LocalController,
+    PredictiveController,
+    PredictiveNoScalingController,
+    ProportionalController,
+)
+from dqcontrol.errors import ParameterError
+from dqcontrol.experiments import table1 as t1
+from dqcontrol.model.library import LBR4P_Q0
+from dqcontrol.runs import storage
+from dqcontrol.runs.storage import atomic_write_text, load_run, save_run
+from dqcontrol.sim import run_kinematic, run_mujoco
+from dqcontrol.trajectories import Circle
+
+#: Metrics that measure the computer, not the control (differ between executors).
+_TIMING = {"solve_time_median_s", "step_time_median_s"}
+_THESIS_BOUNDS = {
+    "velocity_limits": np.array(t1.THESIS_VELOCITY_LIMITS),
+    "acceleration_limit": 10.0,
+}
+
+
+@pytest.fixture(scope="module")
+def short_run(lbr4p):
+    """A finished kinematic run (circle, 1 s, local method, thesis bounds)."""
+    ctrl = LocalController(lbr4p, Circle(1.0), 0.05, **_THESIS_BOUNDS)
+    return run_kinematic(ctrl, LBR4P_Q0, meta={"purpose": "test", "q0": LBR4P_Q0})
+
+
+def _same_metrics(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for key in a.keys() - _TIMING:
+        x, y = a[key], b[key]
+        if isinstance(x, float) and isinstance(y, float):
+            assert x == pytest.approx(y, rel=1e-9, abs=1e-12, nan_ok=True), key
+        else:
+            assert x == y, key
+
+
+# ---------------------------------------------------------------------------- storage
+def test_save_and_load_round_trip(tmp_path, short_run):
+    npz, js = save_run(short_run, tmp_path / "runs", "circle_local")
+    assert npz.name == "circle_local.npz" and js.name == "circle_local.json"
+    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == [js.name, npz.name]
+    for path in (js, npz, tmp_path / "runs" / "circle_local"):
+        log, record = load_run(path)
+        for name, arr in short_run.log.arrays().items():
+            got = getattr(log, name)
+            assert got.dtype == arr.dtype and got.shape == arr.shape, name
+            np.testing.assert_array_equal(got, arr, err_msg=name)
+        assert log.meta["purpose"] == "test"
+        assert log.meta["q0"] == pytest.approx(LBR4P_Q0.tolist())
+        assert record["interrupted"] is False and record["note"] == ""
+        metrics = short_run.metrics.as_dict()
+        # NaN (no torque in the kinematic loop) is stored as null: strict JSON
+        assert math.isnan(metrics["torque_peak_nm"]) and record["metrics"]["torque_peak_nm"] is None
+        for key, value in metrics.items():
+            if not (isinstance(value, float) and math.isnan(value)):
+                assert record["metrics"][key] == value, key
+    assert "NaN" not in js.read_text()
+
+
+def test_save_run_rejects_path_in_name(tmp_path, short_run):
+    with pytest.raises(ParameterError, match="separator"):
+        save_run(short_run, tmp_path, "a/b")
+
+
+@pytest.mark.parametrize("fail_at", ["write", "fsync", "replace", "interrupt"])
+def test_crash_while_writing_leaves_no_file(tmp_path, short_run, monkeypatch, fail_at):
+    """A failure in the middle of a write leaves no target file and no stray temp file."""
+
+    def bad_fsync(fd):
+        raise OSError(28, "No space left on device (simulated)")
+
+    def bad_replace(src, dst):
+        raise OSError(5, "I/O error (simulated)")
+
+    class Boom(BaseException):  # like KeyboardInterrupt: not an Exception
+        pass
+
+    if fail_at == "write":
+        real_fdopen = os.fdopen
+
+        class HalfWriter:
+            def __init__(self, fh):
+                self.fh = fh
+
+            def __enter__(self):
+                return self
+
+            def __exit__(self, *exc):
+                self.fh.close()
+
+            def write(self, data):
+                self.fh.write(data[: len(data) // 2])  # half the bytes reach the disk
+                raise OSError(28, "No space left on device (simulated)")
+
+            def __getattr__(self, name):
+                return getattr(self.fh, name)
+
+        monkeypatch.setattr(
+            storage.os, "fdopen", lambda fd, mode: HalfWriter(real_fdopen(fd, mode))
+        )
+        expected = OSError
+    elif fail_at == "fsync":
+        monkeypatch.setattr(storage.os, "fsync", bad_fsync)
+        expected = OSError
+    elif fail_at == "replace":
+        monkeypatch.setattr(storage.os, "replace", bad_replace)
+        expected = OSError
+    else:
+
+        def interrupted_fsync(fd):
+            raise Boom
+
+        monkeypatch.setattr(storage.os, "fsync", interrupted_fsync)
+        expected = Boom
+    folder = tmp_path / "runs"
+    with pytest.raises(expected):
+        save_run(short_run, folder, "crash")
+    assert list(folder.iterdir()) == []
+
+
+def test_crash_keeps_the_previous_version(tmp_path, monkeypatch):
+    target = tmp_path / "table.md"
+    atomic_write_text(target, "version 1\n")
+
+    def bad_replace(src, dst):
+        raise OSError(5, "I/O error (simulated)")
+
+    monkeypatch.setattr(storage.os, "replace", bad_replace)
+    with pytest.raises(OSError):
+        atomic_write_text(target, "version 2, longer\n")
+    assert target.read_text() == "version 1\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["table.md"]
+
+
+# ---------------------------------------------------------------------------- grid and job
+def test_grid_selection():
+    full = t1.table1_cases()
+    assert len(full) == 24
+    assert {(c.trajectory, c.duration_s) for c in full} == set(t1.THESIS_TABLE1)
+    quick = t1.table1_cases(quick=True)
+    assert len(quick) == 6 and len({(c.trajectory, c.duration_s) for c in quick}) == 2
+    two = t1.table1_cases(periods=[2], controllers=["local"])
+    assert [(c.trajectory, c.duration_s) for c in two] == [("circle", 2.0), ("sinusoid", 2.0)]
+    with pytest.raises(ParameterError, match="not in the thesis's grid"):
+        t1.table1_cases(periods=[3])
+    with pytest.raises(ParameterError, match="empty"):
+        t1.table1_cases(periods=[16], trajectories=["sinusoid"], quick=True)
+    with pytest.raises(ParameterError):
+        t1.Table1Case("square", 1.0, "local")
+    assert t1.Table1Case("circle", 1, "p10").thesis("e_mean") == 2.6e-3
+
+
+def test_job_is_picklable():
+    case, settings = t1.Table1Case("sinusoid", 2.0, "p6"), t1.Table1Settings()
+    for obj in (t1.run_case, case, settings):
+        assert pickle.loads(pickle.dumps(obj)) == obj
+    assert settings.velocity_limits == pytest.approx(
+        math.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5])
+    )
+    assert settings.acceleration_limit == 10.0 and settings.period_s == 0.05
+    assert settings.horizon_s == 1.0 and settings.simulator == "mujoco"
+
+
+def _read_csv(path):
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        return reader.fieldnames, list(reader)
+
+
+@pytest.mark.parametrize("simulator", ["kinematic", "mujoco"])
+def test_table1_command_reduced_grid(tmp_path, capsys, simulator):
+    out = tmp_path / "results"
+    argv = ["table1", "--quick", "--simulator", simulator, "--out", str(out)]
+    code = main([*argv, "--workers", "1", "--no-progress"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    header, rows = _read_csv(out / "table1.csv")
+    assert header == [k for k, _, _ in t1.COLUMNS]
+    assert len(rows) == 6
+    md = (out / "table1.md").read_text()
+    assert md in printed
+    for _, title, _ in t1.COLUMNS:
+        assert f" {title} |" in md, title
+    for needed in ("3.1416, 3.1416", "7.8540", "10 rad/s²", "T = 0.05 s", "τ_p = 1 s", "K = 10"):
+        assert needed in md, needed
+    assert "wall time" in md and "CPUs" in md
+    assert "## The thesis's claim at the short periods" in md
+    assert ("MuJoCo" if simulator == "mujoco" else "kinematic loop") in md
+    for row in rows:
+        assert row["completed"] == "yes"
+        assert row["viol_position"] == row["viol_velocity"] == row["viol_acceleration"] == "0"
+        assert row["e_mean_thesis"] and row["u_mean_thesis"] and row["s_mean_thesis"]
+        assert math.isfinite(float(row["e_mean"])) and 0.0 < float(row["s_mean"]) <= 1.0
+        torque = float(row["torque_peak_nm"]) if row["torque_peak_nm"] else math.nan
+        assert math.isfinite(torque) == (simulator == "mujoco")
+    runs = sorted(p.name for p in (out / "table1_runs").iterdir())
+    assert len(runs) == 12 and "circle_T1s_p10.npz" in runs
+    log, record = load_run(out / "table1_runs" / "sinusoid_T2s_local.json")
+    assert record["meta"]["simulator"] == simulator and len(log) == record["metrics"]["samples"]
+    assert not [p for p in out.rglob("*.tmp")]
+
+
+def test_bad_option_is_one_line_error(tmp_path, capsys):
+    assert main(["table1", "--periods", "3", "--out", str(tmp_path), "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert "not in the thesis's grid" in err and "Traceback" not in err
+
+
+def test_interrupt_keeps_completed_cases(tmp_path, monkeypatch):
+    real = t1.run_case
+    calls = []
+
+    def flaky(case, settings=None, save_dir=None):
+        calls.append(case)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(case, settings, save_dir)
+
+    monkeypatch.setattr(t1, "run_case", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        t1.run_table1(
+            tmp_path, quick=True, simulator="kinematic", workers=1, progress=False, save_runs=False
+        )
+    _, rows = _read_csv(tmp_path / "table1.csv")
+    assert len(rows) == 2
+    assert "Interrupted" in (tmp_path / "table1.md").read_text()
+
+
+# ---------------------------------------------------------------------------- executors
+@pytest.fixture(scope="module")
+def pool_results(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pool")
+    return t1.run_table1(
+        out,
+        quick=True,
+        simulator="kinematic",
+        workers=2,
+        progress=False,
+        save_runs=False,
+    )
+
+
+def test_process_pool_matches_in_process(pool_results):
+    assert pool_results.executor.startswith("process pool, 2 workers")
+    case = t1.Table1Case("circle", 1.0, "p10")
+    local = t1.run_case(case, t1.Table1Settings(simulator="kinematic"))
+    (remote,) = [r for r in pool_results.results if r["case"] == local["case"]]
+    _same_metrics(local["metrics"], remote["metrics"])
+
+
+def test_dask_cluster_matches_process_pool(tmp_path, pool_results):
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=50,
+    ) as cluster:
+        result = t1.run_table1(
+            tmp_path,
+            quick=True,
+            simulator="kinematic",
+            scheduler=cluster.scheduler_address,
+            progress=False,
+            save_runs=True,
+        )
+    assert result.executor.startswith("Dask distributed at tcp://")
+    assert len(result.results) == len(pool_results.results) == 6
+    by_case = {str(r["case"]): r for r in pool_results.results}
+    for r in result.results:
+        _same_metrics(r["metrics"], by_case[str(r["case"])]["metrics"])
+    for a, b in zip(result.rows, pool_results.rows, strict=True):  # same order, same table
+        for key in a.keys() - {"step_time_median_ms"}:
+            if isinstance(a[key], float):
+                assert a[key] == pytest.approx(b[key], rel=1e-9, nan_ok=True), key
+            else:
+                assert a[key] == b[key], key
+    assert len(list((tmp_path / "table1_runs").glob("*.json"))) == 6
+
+
+def test_unreachable_scheduler_is_a_clear_error(monkeypatch):
+    pytest.importorskip("dask.distributed")
+    from dqcontrol.errors import ConfigurationError
+
+    monkeypatch.setattr(t1, "DASK_CONNECT_TIMEOUT_S", 1.0)
+
+    with pytest.raises(ConfigurationError, match="cannot connect"):
+        t1._run_dask([], t1.Table1Settings(), None, "tcp://127.0.0.1:9", lambda r: None)
+
+
+# ---------------------------------------------------------------------------- controllers
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda r, t: ProportionalController(r, t, 0.05, **_THESIS_BOUNDS),
+        lambda r, t: LocalController(r, t, 0.05, **_THESIS_BOUNDS),
+        lambda r, t: PredictiveController(r, t, 0.05, num_instants=6, **_THESIS_BOUNDS),
+        lambda r, t: PredictiveNoScalingController(r, t, 0.05, num_instants=6, **_THESIS_BOUNDS),
+    ],
+    ids=["proportional", "local", "predictive", "predictive_noscale"],
+)
+def test_each_controller_runs_the_circle_in_mujoco(lbr4p, make):
+    duration = 2.0
+    result = run_mujoco(make(lbr4p, Circle(duration)), LBR4P_Q0)
+    m = result.metrics
+    assert not result.interrupted, result.note
+    assert m.completed and m.sigma_reached_s == pytest.approx(duration, abs=1e-9)
+    assert m.position_violations == m.velocity_violations == m.acceleration_violations == 0
+    assert not m.nan_seen and m.fallbacks == 0
+    assert np.all(np.isfinite(result.log.torque)) and np.all(np.isfinite(result.log.q))
+    assert m.path_deviation_max_m < 0.02  # the circle (R = 0.1 m) is followed
