@@ -1,0 +1,633 @@
+"""``dqcontrol run``: run controllers on a trajectory, print their metrics, write the results.
+
+The default is the README's first command: the thesis's KUKA LBR4p on the circle with
+``T_tot = 2 s``, the local and the predictive (p = 10) controllers simulated in MuJoCo with
+the thesis's bounds. Everything lands in ``OUT/<robot>_<trajectory>_T<T_tot>s_<simulator>/``:
+per controller its run (``<ctrl>.npz`` + ``.json``), its figures (``<ctrl>_<figure>.png``)
+and its replay (``<ctrl>_replay.html``), and ``comparison.png`` for two or more controllers.
+
+The helpers that turn options into a robot, a trajectory and controllers, and rebuild them
+from a saved run's ``meta``, are shared with ``dqcontrol view``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["register"]
+
+_DESCRIPTION = """\
+Run one or more controllers on a trajectory, print a table of their metrics, and write to
+OUT/<robot>_<trajectory>_T<T_tot>s_<simulator>/: each run (.npz + .json, reload with
+'dqcontrol view'), its figures (path in 2-D and 3-D, translation and rotation against the
+phase, joint velocities, angles and torques, s(t) and sigma(t)), a self-contained HTML
+replay that plays in any browser, and a figure comparing the controllers.
+
+Defaults: the LBR4p on the circle (R = 0.1 m) with T_tot = 2 s, the local and the
+predictive (p = 10) controllers, T = 0.05 s, tau_p = 1 s, K = 10 1/s, MuJoCo, the thesis's
+bounds |qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s and |qdd| <= 10 rad/s^2."""
+
+_EPILOG = """\
+controllers (comma-separated):
+  local         the local method with time scaling
+  p6, p10, pN   the predictive method with N prediction instants (N >= 2)
+  noscale       the predictive method without time scaling (p = 10; noscaleN for N)
+  proportional  the invariant-error proportional controller (clipped to the bounds)
+
+examples:
+  dqcontrol run
+  dqcontrol run --viewer --speed 0.5
+  dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10
+  dqcontrol run --period 0.001                      the 1 kHz controller
+  dqcontrol run --robot panda --simulator kinematic
+  dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0"""
+
+#: The thesis's joint-velocity bounds (eq. 4.13) [rad/s] and acceleration bound [rad/s²].
+THESIS_VELOCITY_LIMITS = tuple(math.pi * v for v in (1.0, 1.0, 1.0, 1.0, 2.5, 2.5, 2.5))
+THESIS_ACCELERATION_LIMIT = 10.0
+#: The physics step of the MuJoCo simulation [s]; ``T`` must be a multiple of it.
+PHYSICS_DT_S = 0.001
+_CONTROLLER_RE = re.compile(r"^(local|proportional|noscale(\d*)|p(\d+))$")
+
+
+# ---------------------------------------------------------------------- option types
+def _positive_float(unit: str):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number [{unit}], got {text!r}") from None
+        if not (math.isfinite(value) and value > 0.0):
+            raise argparse.ArgumentTypeError(f"must be finite and > 0 [{unit}], got {text!r}")
+        return value
+
+    return parse
+
+
+def _float_list(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.replace(" ", "").split(",") if v)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated numbers, got {text!r}"
+        ) from None
+    if not values or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected comma-separated finite numbers, got {text!r}")
+    return values
+
+
+def parse_controllers(text: str) -> tuple[str, ...]:
+    """``"local,p10"`` → ``("local", "p10")``; argparse error for an unknown name."""
+    names: list[str] = []
+    for raw in text.split(","):
+        name = raw.strip().lower()
+        if not name:
+            continue
+        match = _CONTROLLER_RE.match(name)
+        count = match and (match.group(2) or match.group(3))
+        if not match or (count and int(count) < 2):
+            raise argparse.ArgumentTypeError(
+                f"unknown controller {raw.strip()!r}; choose from local, p6, p10 (pN for any "
+                "N >= 2), noscale, proportional"
+            )
+        if name not in names:
+            names.append(name)
+    if not names:
+        raise argparse.ArgumentTypeError("give at least one controller, e.g. local,p10")
+    return tuple(names)
+
+
+# ---------------------------------------------------------------------- the parser
+def register(subparsers) -> None:
+    """Add the ``run`` subcommand."""
+    p = subparsers.add_parser(
+        "run",
+        help="run controllers (default: LBR4p, circle, local vs p = 10, MuJoCo) and write "
+        "metrics, figures and replays",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    g = p.add_argument_group("robot and task")
+    g.add_argument(
+        "--robot",
+        default="lbr4p",
+        metavar="ROBOT",
+        help="lbr4p (default), panda (example-robot-data), or the path of a URDF file",
+    )
+    g.add_argument(
+        "--ee-frame",
+        metavar="FRAME",
+        help="end-effector frame (required with a URDF path; default: lbr4p_flange, "
+        "panda_hand_tcp)",
+    )
+    g.add_argument(
+        "--q0",
+        type=_float_list,
+        metavar="Q1,...,QN",
+        help="initial joint angles [rad], e.g. --q0=-0.2,0.5,... (with '=' when the first is "
+        "negative; default: the robot's start posture; for a URDF, the middle of its limits)",
+    )
+    g.add_argument(
+        "--trajectory",
+        choices=("circle", "sinusoid"),
+        default="circle",
+        help="the thesis's circle (R = 0.1 m, default) or sinusoid (A = 0.1 m)",
+    )
+    g.add_argument(
+        "--duration",
+        type=_positive_float("s"),
+        default=2.0,
+        metavar="T_TOT",
+        help="nominal duration T_tot of the trajectory [s] (default: 2)",
+    )
+    g = p.add_argument_group("controllers")
+    g.add_argument(
+        "--controllers",
+        type=parse_controllers,
+        default=("local", "p10"),
+        metavar="LIST",
+        help="comma-separated controllers (default: local,p10; see below)",
+    )
+    g.add_argument(
+        "--period",
+        type=_positive_float("s"),
+        default=0.05,
+        metavar="T",
+        help="control period T [s] (default: 0.05; 0.001 runs the 1 kHz controller)",
+    )
+    g.add_argument(
+        "--gain",
+        type=_positive_float("1/s"),
+        metavar="K",
+        help="task gain K [1/s] of every controller (default: 10; noscale: its stable default)",
+    )
+    g.add_argument(
+        "--horizon",
+        type=_positive_float("s"),
+        default=1.0,
+        metavar="TAU_P",
+        help="prediction horizon tau_p of the predictive controllers [s] (default: 1)",
+    )
+    g.add_argument(
+        "--velocity-limits",
+        metavar="LIMITS",
+        help="joint velocity bounds [rad/s]: 'thesis' (pi*[1,1,1,1,2.5,2.5,2.5], default for "
+        "the LBR4p), 'urdf' (default for other robots) or comma-separated values",
+    )
+    g.add_argument(
+        "--acceleration-limit",
+        type=_positive_float("rad/s^2"),
+        default=THESIS_ACCELERATION_LIMIT,
+        metavar="A",
+        help="joint acceleration bound [rad/s^2] (default: 10)",
+    )
+    g = p.add_argument_group("simulation, viewer and output")
+    g.add_argument(
+        "--simulator",
+        choices=("mujoco", "kinematic"),
+        default="mujoco",
+        help="MuJoCo physics with torque-limited velocity servos (default) or the ideal "
+        "kinematic loop",
+    )
+    g.add_argument(
+        "--viewer",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="show the robot live in the browser (Meshcat; the URL is printed). Default: off",
+    )
+    g.add_argument(
+        "--speed",
+        type=_positive_float("x real time"),
+        default=1.0,
+        help="speed of the live viewer and of the replays (1 = real time, default)",
+    )
+    g.add_argument(
+        "--hold",
+        type=float,
+        metavar="SECONDS",
+        help="with --viewer: keep the viewer open this long after the runs, replaying the "
+        "last one (default: until Ctrl-C when run from a terminal, else not at all)",
+    )
+    g.add_argument(
+        "--out", default="results", metavar="DIR", help="results folder (default: results)"
+    )
+    g.add_argument("--svg", action="store_true", help="write the figures as SVG instead of PNG")
+    g.add_argument(
+        "--short",
+        action="store_true",
+        help="fast mode for CI: low-resolution figures and replays, no progress bars",
+    )
+    p.set_defaults(func=_main, _parser=p)
+
+
+# ---------------------------------------------------------------------- robots and tasks
+def load_robot(spec: str, ee_frame: str | None):
+    """The robot of ``--robot`` (lbr4p, panda or a URDF path) and its default ``q0``.
+
+    Returns ``(robot, q0, meta)`` where ``meta`` rebuilds it (:func:`robot_from_meta`).
+    Raises :class:`ValueError` with a message for the user when the option is wrong.
+    """
+    import numpy as np
+
+    from dqcontrol.errors import FrameError
+    from dqcontrol.model import (
+        LBR4P_Q0,
+        PANDA_Q0,
+        RobotModel,
+        lbr4p_urdf_path,
+        load_panda,
+    )
+
+    key = spec.strip().lower()
+    try:
+        if key == "lbr4p":
+            robot = RobotModel.from_urdf(lbr4p_urdf_path(), ee_frame or "lbr4p_flange")
+            return robot, LBR4P_Q0.copy(), {"robot": "lbr4p", "ee_frame": robot.ee_frame}
+        if key == "panda":
+            robot = load_panda(ee_frame or "panda_hand_tcp")
+            return robot, PANDA_Q0.copy(), {"robot": "panda", "ee_frame": robot.ee_frame}
+        path = Path(spec).expanduser()
+        if not path.is_file():
+            raise ValueError(f"--robot: {spec!r} is neither lbr4p, panda nor an existing URDF file")
+        if not ee_frame:
+            raise ValueError("--ee-frame is required with a URDF path (the end-effector frame)")
+        robot = RobotModel.from_urdf(path, ee_frame)
+    except FrameError as exc:
+        raise ValueError(f"--ee-frame: {exc}") from None
+    lim = robot.limits
+    finite = np.isfinite(lim.q_min) & np.isfinite(lim.q_max)
+    q0 = np.where(finite, 0.5 * (lim.q_min + lim.q_max), 0.0)
+    meta = {"robot": "urdf", "urdf": str(path.resolve()), "ee_frame": robot.ee_frame}
+    return robot, q0, meta
+
+
+def robot_from_meta(meta: dict):
+    """Rebuild the robot of a saved run from its ``meta`` (written by ``dqcontrol run``)."""
+    from dqcontrol.errors import ParameterError
+
+    kind = meta.get("robot")
+    spec = meta.get("urdf") if kind == "urdf" else kind
+    if spec is None:
+        raise ParameterError(
+            "this run does not say which robot it used (no 'robot' in its meta); it was "
+            "not written by 'dqcontrol run'"
+        )
+    try:
+        robot, _, _ = load_robot(spec, meta.get("ee_frame"))
+    except ValueError as exc:
+        raise ParameterError(f"cannot rebuild the robot of this run: {exc}") from None
+    return robot
+
+
+def make_trajectory(kind: str, duration_s: float):
+    """The thesis's circle or sinusoid, and the ``meta`` that rebuilds it."""
+    from dqcontrol.trajectories import Circle, Sinusoid
+
+    if kind == "circle":
+        traj = Circle(duration_s)
+        return traj, {"trajectory": "circle", "duration_s": duration_s, "radius_m": 0.1}
+    traj = Sinusoid(duration_s)
+    return traj, {
+        "trajectory": "sinusoid",
+        "duration_s": duration_s,
+        "amplitude_m": traj.amplitude_m,
+        "omega_x_rad_per_m": traj.omega_x_rad_per_m,
+    }
+
+
+def trajectory_from_meta(meta: dict, log):
+    """The anchored trajectory of a saved run, or ``None`` if its meta does not say."""
+    from dqcontrol.trajectories import Circle, Sinusoid
+
+    kind, duration = meta.get("trajectory"), meta.get("duration_s")
+    if duration is None or len(log) == 0:
+        return None
+    if kind == "circle":
+        traj = Circle(float(duration), float(meta.get("radius_m", 0.1)))
+    elif kind == "sinusoid":
+        traj = Sinusoid(
+            float(duration),
+            float(meta.get("amplitude_m", 0.1)),
+            float(meta.get("omega_x_rad_per_m", 60.0)),
+        )
+    else:
+        return None
+    return traj.anchored_at(log.target[0])  # target(0) is the anchor pose x0
+
+
+def make_controller(name: str, robot, trajectory, args, velocity_limits):
+    """The controller ``name`` (see :func:`parse_controllers`) with the options' settings."""
+    from dqcontrol.controllers import (
+        LocalController,
+        PredictiveController,
+        PredictiveNoScalingController,
+        ProportionalController,
+    )
+
+    common = {"velocity_limits": velocity_limits, "acceleration_limit": args.acceleration_limit}
+    if args.gain is not None:
+        common["gain_per_s"] = args.gain
+    period = args.period
+    if name == "local":
+        return LocalController(robot, trajectory, period, **common)
+    if name == "proportional":
+        return ProportionalController(robot, trajectory, period, **common)
+    match = _CONTROLLER_RE.match(name)
+    if name.startswith("noscale"):
+        p = int(match.group(2) or 10)
+        return PredictiveNoScalingController(
+            robot, trajectory, period, num_instants=p, horizon_s=args.horizon, **common
+        )
+    return PredictiveController(
+        robot,
+        trajectory,
+        period,
+        num_instants=int(match.group(3)),
+        horizon_s=args.horizon,
+        **common,
+    )
+
+
+# ---------------------------------------------------------------------- output helpers
+def progress_bar(label: str, total: float, enabled: bool):
+    """A tqdm bar over the phase σ [s]; shown only after one second, and on a terminal."""
+    from tqdm import tqdm
+
+    return tqdm(
+        total=round(total, 9),
+        desc=label,
+        unit="s",
+        delay=1.0,
+        leave=False,
+        disable=None if enabled else True,
+        bar_format="{desc}: {percentage:3.0f}%|{bar}| σ {n:.2f}/{total:.2f} s "
+        "[{elapsed}<{remaining}]",
+    )
+
+
+def watch_progress(controller, bar) -> None:
+    """Advance ``bar`` to the controller's phase after every step (wraps ``step``)."""
+    step = controller.step
+    total = bar.total or 0.0
+
+    def step_and_report(q, qd=None):
+        result = step(q, qd)
+        target = min(float(result.sigma_next), total)
+        if target > bar.n:
+            bar.update(target - bar.n)
+        return result
+
+    controller.step = step_and_report
+
+
+_COLUMNS = (
+    ("controller", "{:<12}", None),
+    ("done", "{:>4}", lambda m: "yes" if m.completed else "NO"),
+    ("t_exec", "{:>6}", lambda m: _fmt(m.execution_time_s, "{:.3f}")),
+    ("e_mean", "{:>8}", lambda m: _fmt(m.e_mean, "{:.5f}")),
+    ("e_max", "{:>8}", lambda m: _fmt(m.e_max, "{:.5f}")),
+    ("dev_mm", "{:>6}", lambda m: _fmt(1e3 * m.path_deviation_max_m, "{:.2f}")),
+    ("rot_deg", "{:>7}", lambda m: _fmt(math.degrees(m.rotation_error_max_rad), "{:.2f}")),
+    ("u_mean", "{:>6}", lambda m: _fmt(m.u_mean_rad_s, "{:.3f}")),
+    ("s_mean", "{:>6}", lambda m: _fmt(m.s_mean, "{:.3f}")),
+    ("tau_Nm", "{:>6}", lambda m: _fmt(m.torque_peak_nm, "{:.1f}")),
+    (
+        "viol",
+        "{:>7}",
+        lambda m: f"{m.position_violations}/{m.velocity_violations}/{m.acceleration_violations}",
+    ),
+    ("fb", "{:>3}", lambda m: str(m.fallbacks)),
+    ("step_ms", "{:>7}", lambda m: _fmt(1e3 * m.step_time_median_s, "{:.2f}")),
+)
+#: What the columns mean (printed under the table).
+TABLE_LEGEND = (
+    "t_exec: execution time [s]; e: ‖x_d - x‖; dev_mm: max path deviation [mm]; rot_deg: max "
+    "rotation error [deg];\nu_mean [rad/s]; tau_Nm: peak torque; viol: samples outside the "
+    "position/velocity/acceleration bounds;\nfb: QP fallbacks; step_ms: median control step [ms]"
+)
+
+
+def _fmt(value: float, spec: str) -> str:
+    return "-" if value is None or not math.isfinite(value) else spec.format(value)
+
+
+def metrics_table(rows: list[tuple[str, object]]) -> str:
+    """A plain-text table of ``(label, Metrics)`` rows (violations: position/velocity/accel.)."""
+    head = " ".join(fmt.format(name) for name, fmt, _ in _COLUMNS)
+    lines = [head, "-" * len(head)]
+    for label, metrics in rows:
+        cells = [_COLUMNS[0][1].format(label[:12])]
+        cells += [fmt.format(get(metrics)) for _, fmt, get in _COLUMNS[1:]]
+        lines.append(" ".join(cells))
+    return "\n".join(lines)
+
+
+def hold_viewer(viewer, hold: float | None) -> None:
+    """Keep a live viewer open ``hold`` seconds (``None``: until Ctrl-C on a terminal)."""
+    if hold is None:
+        if not sys.stdin or not sys.stdin.isatty():
+            return
+        print(f"Meshcat viewer still open at {viewer.url} (replaying); Ctrl-C to quit", flush=True)
+        hold = math.inf
+    if hold <= 0:
+        return
+    deadline = time.monotonic() + hold
+    try:
+        while time.monotonic() < deadline:
+            time.sleep(min(0.2, max(deadline - time.monotonic(), 0.0)))
+    except KeyboardInterrupt:
+        pass
+
+
+# ---------------------------------------------------------------------- the command
+def _check_options(args) -> tuple:
+    """Build robot, q0, bounds from the options; parser error (exit 2) when one is wrong."""
+    import numpy as np
+
+    parser = args._parser
+    try:
+        robot, q0, robot_meta = load_robot(args.robot, args.ee_frame)
+    except ValueError as exc:
+        parser.error(str(exc))
+    n = robot.nq
+    if args.q0 is not None:
+        if len(args.q0) != n:
+            parser.error(
+                f"--q0: the robot has {n} joints {robot.joint_names}, got {len(args.q0)} values"
+            )
+        q0 = np.array(args.q0, dtype=float)
+    spec = args.velocity_limits
+    if spec is None:
+        spec = "thesis" if robot_meta["robot"] == "lbr4p" else "urdf"
+    if spec == "thesis":
+        if n != len(THESIS_VELOCITY_LIMITS):
+            parser.error(
+                f"--velocity-limits thesis has 7 values; this robot has {n} joints (use 'urdf' "
+                "or give values)"
+            )
+        velocity = np.array(THESIS_VELOCITY_LIMITS)
+    elif spec == "urdf":
+        velocity = np.array(robot.limits.qd_max, dtype=float)
+        if not np.all(np.isfinite(velocity) & (velocity > 0)):
+            parser.error(
+                f"--velocity-limits urdf: the URDF's velocity limits {velocity.tolist()} are "
+                "not all > 0; give values"
+            )
+    else:
+        try:
+            values = _float_list(spec)
+        except argparse.ArgumentTypeError as exc:
+            parser.error(f"--velocity-limits: 'thesis', 'urdf' or numbers: {exc}")
+        if len(values) not in (1, n) or min(values) <= 0:
+            parser.error(f"--velocity-limits: give 1 or {n} values > 0 [rad/s], got {list(values)}")
+        velocity = np.broadcast_to(np.array(values, dtype=float), (n,)).copy()
+    if args.period > args.duration:
+        parser.error(f"--period T = {args.period:g} s is longer than T_tot = {args.duration:g} s")
+    if args.simulator == "mujoco":
+        steps = round(args.period / PHYSICS_DT_S)
+        if steps < 1 or abs(args.period - steps * PHYSICS_DT_S) > 1e-9:
+            parser.error(
+                f"--period: with --simulator mujoco, T must be a whole number of "
+                f"{PHYSICS_DT_S:g} s physics steps (e.g. 0.001, 0.01, 0.05), got {args.period:g}"
+            )
+    if args.hold is not None and not (args.hold >= 0):
+        parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
+    return robot, q0, robot_meta, velocity
+
+
+def _main(args: argparse.Namespace) -> int:
+    robot, q0, robot_meta, velocity = _check_options(args)
+
+    from dqcontrol.sim import run_kinematic, run_mujoco
+    from dqcontrol.viz.meshcat_viewer import MeshcatViewer
+
+    robot.check_q(q0, "--q0")
+    name = robot_meta["robot"] if robot_meta["robot"] != "urdf" else Path(args.robot).stem
+    stem = f"{name}_{args.trajectory}_T{args.duration:g}s_{args.simulator}"
+    out = Path(args.out) / stem
+    fmt = "svg" if args.svg else "png"
+    dpi = 60.0 if args.short else 110.0
+    fps = 10.0 if args.short else 30.0
+    progress = not args.short
+
+    viewer = MeshcatViewer(robot, q=q0) if args.viewer else None
+    try:
+        runs = []  # (label, result, anchored trajectory)
+        for label in args.controllers:
+            trajectory, traj_meta = make_trajectory(args.trajectory, args.duration)
+            controller = make_controller(label, robot, trajectory, args, velocity)
+            meta = {
+                **robot_meta,
+                **traj_meta,
+                "label": label,
+                "q0": [float(v) for v in q0],
+                "velocity_limits": [float(v) for v in velocity],
+                "acceleration_limit": args.acceleration_limit,
+                "gain_per_s": getattr(controller, "gain_per_s", None),
+                "horizon_s": getattr(controller, "horizon_s", None),
+                "command": "dqcontrol run",
+            }
+            bar = progress_bar(f"{label:>12}", args.duration, progress)
+            watch_progress(controller, bar)
+            try:
+                if args.simulator == "mujoco":
+                    on_sample = viewer.follow(controller, speed=args.speed) if viewer else None
+                    result = run_mujoco(controller, q0, meta=meta, on_sample=on_sample)
+                else:
+                    result = run_kinematic(controller, q0, meta=meta)
+                    if viewer is not None:
+                        viewer.play(
+                            result.log,
+                            speed=args.speed,
+                            path_points=controller.trajectory.path_positions(1000),
+                        )
+            finally:
+                bar.close()
+            if result.note:
+                print(f"{label}: {result.note}", file=sys.stderr)
+            runs.append((label, result, controller.trajectory))
+
+        written = _write_results(runs, robot, out, args, fmt, dpi, fps, progress, name)
+        print(
+            f"{name} on the {args.trajectory}, T_tot = {args.duration:g} s, T = "
+            f"{args.period:g} s, {args.simulator}"
+        )
+        print(metrics_table([(label, result.metrics) for label, result, _ in runs]))
+        print(TABLE_LEGEND)
+        print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
+        drawable = [(label, r.log, traj) for label, r, traj in runs if len(r.log)]
+        if viewer is not None and drawable:
+            label, log, traj = drawable[-1]
+            viewer.clear_trace()
+            viewer.show_path(traj.path_positions(1000))
+            viewer.set_animation(log, speed=args.speed)
+            hold_viewer(viewer, args.hold)
+    finally:
+        if viewer is not None:
+            viewer.close()
+    rows = [(label, result) for label, result, _ in runs]
+    incomplete = [label for label, r in rows if r.interrupted or not r.metrics.completed]
+    if incomplete:
+        print(
+            f"dqcontrol run: {', '.join(incomplete)} did not complete the trajectory",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _write_results(runs, robot, out, args, fmt, dpi, fps, progress, name) -> list[Path]:
+    """Save each run, its figures and replay, and the comparison figure (with a progress bar)."""
+    from tqdm import tqdm
+
+    from dqcontrol.runs.storage import save_run
+    from dqcontrol.viz.figures import plot_comparison, plot_run
+    from dqcontrol.viz.meshcat_viewer import export_replay_html
+
+    drawable = [(label, r, traj) for label, r, traj in runs if len(r.log)]
+    steps = 3 * len(drawable) + (len(drawable) >= 2)
+    written: list[Path] = []
+    with tqdm(
+        total=steps,
+        desc="writing results",
+        unit="file",
+        delay=1.0,
+        leave=False,
+        disable=None if progress else True,
+    ) as bar:
+        for label, result, traj in drawable:
+            written += save_run(result, out, label)
+            bar.update()
+            written += plot_run(result.log, out, name=label, trajectory=traj, fmt=fmt, dpi=dpi)
+            bar.update()
+            html = out / f"{label}_replay.html"
+            points = traj.path_positions(1000)
+            written.append(
+                export_replay_html(
+                    robot, result.log, html, path_points=points, fps=fps, speed=args.speed
+                )
+            )
+            bar.update()
+        if len(drawable) >= 2:
+            title = (
+                f"{name}, {args.trajectory}, T_tot = {args.duration:g} s, T = {args.period:g} s, "
+                f"{args.simulator}"
+            )
+            logs = {label: r.log for label, r, _ in drawable}
+            written.append(
+                plot_comparison(
+                    logs,
+                    out / f"comparison.{fmt}",
+                    trajectory=drawable[-1][2],
+                    dpi=dpi,
+                    title=title,
+                )
+            )
+            bar.update()
+    return written

@@ -1,0 +1,134 @@
+"""``dqcontrol view``: replay a saved run in the browser, and/or regenerate its replay HTML
+and figures."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["register"]
+
+_DESCRIPTION = """\
+Replay a run saved by 'dqcontrol run' (its .npz or .json): by default in the live Meshcat
+viewer (a local server; the URL is printed), where the browser plays the motion with the
+reference path, the end-effector trace and the target frame, and loops it. With --html and
+--figures it (re)writes the self-contained HTML replay and the figures of the run, without
+a server unless --viewer is also given."""
+
+_EPILOG = """\
+examples:
+  dqcontrol view results/lbr4p_circle_T2s_mujoco/p10.npz
+  dqcontrol view results/lbr4p_circle_T2s_mujoco/p10.npz --speed 0.25
+  dqcontrol view RUN.npz --no-viewer --html --figures --out /tmp/replay"""
+
+
+def register(subparsers) -> None:
+    """Add the ``view`` subcommand."""
+    p = subparsers.add_parser(
+        "view",
+        help="replay a saved run in the browser (and/or rewrite its HTML replay and figures)",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("run", metavar="RUN", help="a saved run: its .npz, its .json or their stem")
+    p.add_argument(
+        "--viewer",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="replay in the live browser viewer (default: on, unless --html or --figures is given)",
+    )
+    p.add_argument("--html", action="store_true", help="write the self-contained HTML replay")
+    p.add_argument("--figures", action="store_true", help="write the run's figures")
+    p.add_argument("--svg", action="store_true", help="figures as SVG instead of PNG")
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="folder for --html and --figures (default: the run's own folder)",
+    )
+    p.add_argument(
+        "--speed",
+        type=_positive_speed,
+        default=1.0,
+        help="replay speed (1 = real time, default)",
+    )
+    p.add_argument(
+        "--hold",
+        type=float,
+        metavar="SECONDS",
+        help="keep the live viewer open this long (default: until Ctrl-C when run from a "
+        "terminal, else not at all)",
+    )
+    p.set_defaults(func=_main, _parser=p)
+
+
+def _positive_speed(text: str) -> float:
+    from dqcontrol.cli.run_cmd import _positive_float
+
+    return _positive_float("x real time")(text)
+
+
+def _main(args: argparse.Namespace) -> int:
+    parser = args._parser
+    path = Path(args.run)
+    stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
+    json_path = stem.with_name(stem.name + ".json")
+    if not json_path.is_file():
+        parser.error(f"RUN: no saved run at {args.run!r} (expected {json_path})")
+    if args.hold is not None and not (args.hold >= 0):
+        parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
+    viewer_on = args.viewer if args.viewer is not None else not (args.html or args.figures)
+    if not (viewer_on or args.html or args.figures):
+        parser.error("nothing to do: give --viewer, --html or --figures")
+
+    from dqcontrol.cli.run_cmd import hold_viewer, robot_from_meta, trajectory_from_meta
+    from dqcontrol.dq.algebra import translation
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.runs.storage import load_run
+
+    try:
+        log, record = load_run(json_path)
+    except (OSError, ValueError) as exc:
+        raise ParameterError(f"cannot read the run {json_path}: {exc}") from None
+    if len(log) == 0:
+        raise ParameterError(f"the run {json_path} has no samples")
+    meta = log.meta
+    trajectory = trajectory_from_meta(meta, log)
+    path_points = trajectory.path_positions(1000) if trajectory is not None else None
+    out = Path(args.out) if args.out else json_path.parent
+    name = stem.name
+    written: list[Path] = []
+    robot = None
+    if args.html or viewer_on:
+        robot = robot_from_meta(meta)
+    if args.figures:
+        from dqcontrol.viz.figures import plot_run
+
+        fmt = "svg" if args.svg else "png"
+        written += plot_run(log, out, name=name, trajectory=trajectory, fmt=fmt)
+    if args.html:
+        from dqcontrol.viz.meshcat_viewer import export_replay_html
+
+        written.append(
+            export_replay_html(
+                robot, log, out / f"{name}_replay.html", path_points=path_points, speed=args.speed
+            )
+        )
+    if written:
+        print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
+    if viewer_on:
+        from dqcontrol.viz.meshcat_viewer import MeshcatViewer
+
+        with MeshcatViewer(robot, q=log.q[0]) as viewer:
+            points = path_points if path_points is not None else translation(log.target)
+            viewer.show_path(points)
+            viewer.frame_scene(points)
+            viewer.set_animation(log, speed=args.speed)
+            label = meta.get("label") or meta.get("controller") or name
+            print(f"replaying {label} ({len(log)} samples, {log.t_s[-1]:.2f} s)", flush=True)
+            hold = args.hold
+            if hold is None and not (sys.stdin and sys.stdin.isatty()):
+                print("not waiting (stdin is not a terminal); use --hold SECONDS to keep it open")
+            hold_viewer(viewer, hold)
+    return 0
