@@ -20,6 +20,10 @@ MAX_URDF_BYTES = 20_000_000
 
 _SUPPORTED_JOINTS = {"revolute", "prismatic", "fixed", "continuous", "floating", "planar"}
 
+#: Largest accepted coordinate of an ``<origin xyz>`` [m]: beyond it the kinematics lose all
+#: precision (and products of such lengths overflow), and no robot is that large.
+MAX_ORIGIN_M = 1e4
+
 
 @dataclass(frozen=True)
 class URDFSource:
@@ -51,6 +55,18 @@ def read_urdf(
     invalid values (see :func:`check_urdf_xml`).
     """
     dirs = tuple(Path(p) for p in (package_dirs or []))
+    if isinstance(urdf, bytes | bytearray):
+        if len(urdf) > MAX_URDF_BYTES:
+            raise URDFError(f"URDF text is {len(urdf)} bytes; refusing over {MAX_URDF_BYTES}")
+        urdf = bytes(urdf).decode("utf-8", errors="replace")
+    if not isinstance(urdf, str | os.PathLike):
+        kind = type(urdf).__name__
+        raise URDFError(f"urdf must be a path to a .urdf file or the XML text itself, got {kind}")
+    if isinstance(urdf, str) and not urdf.strip():
+        raise URDFError(
+            "the URDF is empty: pass a path to a .urdf file or the XML text itself (a string "
+            "starting with '<')"
+        )
     if isinstance(urdf, str) and urdf.lstrip().startswith("<"):
         xml = urdf
         path = None
@@ -66,14 +82,19 @@ def read_urdf(
             raise URDFError(
                 f"URDF file '{path}' is {size} bytes; refusing files over {MAX_URDF_BYTES} bytes"
             )
-        xml = path.read_text(encoding="utf-8", errors="replace")
+        try:
+            xml = path.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            raise URDFError(f"cannot read URDF file '{path}': {exc.strerror or exc}") from None
     if len(xml) > MAX_URDF_BYTES:
         raise URDFError(f"URDF text is {len(xml)} characters; refusing over {MAX_URDF_BYTES}")
     check_urdf_xml(xml, where=str(path) if path else "<string>")
     return URDFSource(xml=xml, path=path, package_dirs=dirs)
 
 
-def _floats(text: str | None, count: int, what: str, where: str) -> list[float]:
+def _floats(
+    text: str | None, count: int, what: str, where: str, max_abs: float | None = None
+) -> list[float]:
     if text is None:
         return [0.0] * count
     parts = text.split()
@@ -85,6 +106,8 @@ def _floats(text: str | None, count: int, what: str, where: str) -> list[float]:
         raise URDFError(f"{where}: {what} must hold numbers, got '{text}'") from None
     if not all(math.isfinite(v) for v in values):
         raise URDFError(f"{where}: {what} must be finite, got '{text}'")
+    if max_abs is not None and any(abs(v) > max_abs for v in values):
+        raise URDFError(f"{where}: {what} must lie within ±{max_abs:g} m, got '{text}'")
     return values
 
 
@@ -107,9 +130,10 @@ def check_urdf_xml(xml: str, where: str = "<string>") -> None:
     """Check a URDF document for the errors Pinocchio would report badly or not at all.
 
     Checked: well-formed XML with a ``<robot>`` root; every link and joint named, unique;
-    every joint's parent and child links exist; a single tree (one root); finite origins and
-    axes; non-negative finite masses and finite inertia with positive diagonal; joint limits with
-    ``lower ≤ upper`` and non-negative ``effort`` and ``velocity``.
+    every joint's parent and child links exist; a single tree (one root); finite origins
+    (positions within ±:data:`MAX_ORIGIN_M`) and axes; non-negative finite masses and finite
+    inertia with positive diagonal; joint limits with ``lower ≤ upper`` and non-negative
+    ``effort`` and ``velocity``.
     """
     try:
         root = ET.fromstring(xml)
@@ -136,7 +160,7 @@ def check_urdf_xml(xml: str, where: str = "<string>") -> None:
                 raise URDFError(f"{lw}: mass must be ≥ 0 kg, got {m}")
             origin = inertial.find("origin")
             if origin is not None:
-                _floats(origin.get("xyz"), 3, "inertial origin xyz", lw)
+                _floats(origin.get("xyz"), 3, "inertial origin xyz", lw, MAX_ORIGIN_M)
                 _floats(origin.get("rpy"), 3, "inertial origin rpy", lw)
             inertia = inertial.find("inertia")
             if inertia is not None:
@@ -175,7 +199,7 @@ def check_urdf_xml(xml: str, where: str = "<string>") -> None:
         children.add(child.get("link"))
         origin = joint.find("origin")
         if origin is not None:
-            _floats(origin.get("xyz"), 3, "origin xyz", jw)
+            _floats(origin.get("xyz"), 3, "origin xyz", jw, MAX_ORIGIN_M)
             _floats(origin.get("rpy"), 3, "origin rpy", jw)
         axis = joint.find("axis")
         if axis is not None:

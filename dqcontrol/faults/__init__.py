@@ -1,0 +1,44 @@
+"""Fault injection and the fault campaign (issue 6): the controllers under measurement
+noise and delay, model mismatch, torque saturation, impossible tasks, awkward starts and
+failing or contradictory QPs.
+
+- :mod:`~dqcontrol.faults.simulation` — :class:`FaultySimulation` (noise, delay, true-state
+  record) around any simulation, and :class:`KinematicSimulation`;
+- :mod:`~dqcontrol.faults.qp_faults` — QPs with contradictory bounds (:func:`contradictory`);
+- :mod:`~dqcontrol.faults.scenarios` — the controllers, trajectories and faults by name;
+- :mod:`~dqcontrol.faults.campaign` — :func:`run_campaign`, :func:`run_case` and the report.
+"""
+
+from dqcontrol.faults.campaign import (
+    CampaignResult,
+    CaseResult,
+    CaseSpec,
+    campaign_cases,
+    render_csv,
+    render_markdown,
+    run_campaign,
+    run_case,
+)
+from dqcontrol.faults.qp_faults import ContradictoryBoundsQP, contradictory
+from dqcontrol.faults.scenarios import CONTROLLERS, FAULTS, TRAJECTORIES, Fault, fault_by_name
+from dqcontrol.faults.simulation import FaultySimulation, KinematicSimulation
+
+__all__ = [
+    "CONTROLLERS",
+    "FAULTS",
+    "TRAJECTORIES",
+    "CampaignResult",
+    "CaseResult",
+    "CaseSpec",
+    "ContradictoryBoundsQP",
+    "Fault",
+    "FaultySimulation",
+    "KinematicSimulation",
+    "campaign_cases",
+    "contradictory",
+    "fault_by_name",
+    "render_csv",
+    "render_markdown",
+    "run_campaign",
+    "run_case",
+]

@@ -1,0 +1,167 @@
+"""QPs made infeasible on purpose: contradictory bounds handed to the real solver.
+
+The least invasive way to make a controller's QP infeasible is to leave the controller's
+code alone and corrupt the bounds on their way to the solver: :func:`contradictory` builds
+a subclass of any :class:`~dqcontrol.controllers.TrackingController` whose ``qp`` is a
+:class:`ContradictoryBoundsQP` proxy around the real solver (OSQP or DAQP). During a window
+of control steps the proxy rewrites the bounds:
+
+- ``"crossed"``: the applied command's box of one joint gets ``lower > upper`` (a QP with
+  no feasible point that every solver must refuse; OSQP refuses it at setup). Relaxing the
+  predicted instants cannot help, so the controller must use its safe fallback
+  (FORMULATION §6: brake within ``a_max``, ``s = 0``).
+- ``"coupled"`` (predictive controllers, ``p ≥ 2``): every box is consistent on its own, but
+  the second instant's box of one joint is moved beyond what the acceleration coupling
+  ``|qd_2 - qd_1| ≤ (τ_2 - τ_1) a_max`` allows from the first instant's box — a primal
+  infeasible QP. The controller's first remedy (dropping the predicted instants' boxes,
+  ``relaxed``) restores feasibility.
+
+Outside the window the bounds pass unchanged, so a run shows the transition into the
+fault and the recovery out of it.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+
+from dqcontrol.controllers.tracking import TrackingController
+from dqcontrol.errors import ParameterError
+
+__all__ = ["MODES", "ContradictoryBoundsQP", "contradictory"]
+
+#: The two ways of making the QP infeasible.
+MODES = ("crossed", "coupled")
+
+
+class ContradictoryBoundsQP:
+    """Proxy of a controller's QP solver that makes its bounds contradictory when ``active``.
+
+    Args:
+        inner: the real solver (:class:`~dqcontrol.controllers.qp_solver.OsqpQP` or
+            :class:`~dqcontrol.controllers.qp_daqp.DaqpQP`).
+        num_joints: ``n``; the variables are ``[qd_1, s_1, …, qd_p, s_p]``.
+        num_instants: ``p``.
+        mode: ``"crossed"`` or ``"coupled"`` (module docstring).
+        joint: the joint whose bounds are corrupted.
+        gap: how far the bounds are pushed apart [rad/s], > 0.
+
+    Every other attribute (``p_pattern``, ``a_matrix``, ``reset`` ...) is the inner solver's.
+    """
+
+    def __init__(
+        self,
+        inner,
+        num_joints: int,
+        num_instants: int,
+        mode: str = "crossed",
+        joint: int = 0,
+        gap: float = 0.5,
+    ) -> None:
+        if mode not in MODES:
+            raise ParameterError(f"mode must be one of {MODES}, got {mode!r}")
+        if mode == "coupled" and num_instants < 2:
+            raise ParameterError(
+                "mode 'coupled' needs a predictive controller (p ≥ 2 instants coupled by the "
+                f"acceleration bound), got p = {num_instants}"
+            )
+        if not 0 <= joint < num_joints:
+            raise ParameterError(f"joint must be in [0, {num_joints - 1}], got {joint}")
+        if not gap > 0.0:
+            raise ParameterError(f"gap must be > 0 [rad/s], got {gap!r}")
+        self.inner = inner
+        self.n = int(num_joints)
+        self.p = int(num_instants)
+        self.mode = mode
+        self.joint = int(joint)
+        self.gap = float(gap)
+        #: Corrupt the bounds of the next solves (set by the controller each step).
+        self.active = False
+        #: How many solves received contradictory bounds.
+        self.corrupted_solves = 0
+        #: How many of those the solver nevertheless reported as solved (a wrong answer:
+        #: the corrupted QPs have no feasible point).
+        self.false_successes = 0
+
+    def __getattr__(self, name: str):
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def corrupt(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Copies of ``lower``/``upper`` with the contradiction of :attr:`mode`, and whether
+        one was made (``"coupled"`` leaves a relaxed QP, whose instant 2 is free, alone)."""
+        lo, up = lower.copy(), upper.copy()
+        j, m = self.joint, self.n + 1
+        if self.mode == "crossed":
+            lo[j] = up[j] + self.gap
+            return lo, up, True
+        row = m + j  # qd_2 of joint j
+        if not (np.isfinite(lo[row]) and np.isfinite(up[row])):  # relaxed: leave it
+            return lo, up, False
+        coupling = self.p * m + j  # |qd_2 - qd_1| ≤ dv, row of joint j
+        # qd_2 ≥ up(qd_1) + dv + gap cannot be reached from any admissible qd_1
+        lo[row] = up[row] = up[j] + up[coupling] + self.gap
+        return lo, up, True
+
+    def solve(self, p_values, c, lower, upper, warm_x=None):
+        """Solve with contradictory bounds while :attr:`active`, else unchanged."""
+        contradicted = False
+        if self.active:
+            lower, upper, contradicted = self.corrupt(lower, upper)
+        sol = self.inner.solve(p_values, c, lower, upper, warm_x)
+        if contradicted:
+            self.corrupted_solves += 1
+            self.false_successes += int(sol.ok)
+        return sol
+
+
+@cache
+def contradictory(base: type[TrackingController]) -> type[TrackingController]:
+    """A subclass of ``base`` whose QP gets contradictory bounds during a window of steps.
+
+    The subclass takes two more keyword arguments:
+
+    - ``contradiction``: ``"crossed"`` or ``"coupled"`` (module docstring);
+    - ``window_steps``: ``(first, stop)``, the control steps ``first ≤ k < stop`` (counted
+      from :meth:`reset`, 0-based) whose QP is corrupted; default ``(10, 30)``.
+
+    Everything else — the QP, the fallback, the relaxation — is ``base``'s own code.
+    """
+    if not (isinstance(base, type) and issubclass(base, TrackingController)):
+        raise ParameterError(f"base must be a TrackingController subclass, got {base!r}")
+
+    class Contradictory(base):  # type: ignore[misc, valid-type]
+        def __init__(
+            self,
+            *args,
+            contradiction: str = "crossed",
+            window_steps: tuple[int, int] = (10, 30),
+            **kwargs,
+        ) -> None:
+            super().__init__(*args, **kwargs)
+            first, stop = (int(v) for v in window_steps)
+            if not 0 <= first <= stop:
+                raise ParameterError(
+                    f"window_steps must be (first, stop) with 0 ≤ first ≤ stop, got "
+                    f"{window_steps!r}"
+                )
+            self.window_steps = (first, stop)
+            self.qp = ContradictoryBoundsQP(self.qp, self.n, self.p, contradiction)
+            self._fault_step = 0
+
+        def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+            super()._reset_memory(q0, qd0)
+            self._fault_step = 0
+            self.qp.corrupted_solves = 0
+            self.qp.false_successes = 0
+
+        def _step(self, q: np.ndarray, qd: np.ndarray | None):
+            first, stop = self.window_steps
+            self.qp.active = first <= self._fault_step < stop
+            self._fault_step += 1
+            return super()._step(q, qd)
+
+    Contradictory.__name__ = Contradictory.__qualname__ = f"Contradictory{base.__name__}"
+    return Contradictory
