@@ -265,11 +265,6 @@ def test_massless_robot_loads_for_kinematics_but_not_for_dynamics():
     assert "lbr4p_link_1" in str(info.value)
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="finding: RobotModel._acceleration_limits returns the cap (50 rad/s²) where "
-    "M_jj = 0 instead of refusing; proposed fix in dqcontrol/model/robot.py",
-)
 def test_dynamics_aware_limits_refuse_a_singular_mass_matrix():
     robot = load(_massless_robot())
     with pytest.raises(ParameterError, match="M_jj"):
@@ -446,27 +441,16 @@ CONTROLLER_CLASSES = {
 }
 
 
-_NOSCALE_PERIOD_BUG = pytest.mark.xfail(
-    strict=False,
-    reason="finding: PredictiveNoScalingController computes its default gain from period_s "
-    "before validating it (TypeError / numpy LinAlgError); proposed fix in predictive.py",
-)
 _PERIODS = (0.0, -0.05, math.nan, math.inf, "50 ms", None)
 
 
-def _period_marks(cls: str, period) -> tuple:
-    crashes = cls == "noscale" and (not isinstance(period, float) or period == math.inf)
-    return (_NOSCALE_PERIOD_BUG,) if crashes else ()
-
-
 _BAD_PERIODS = [
-    pytest.param(cls, period, marks=_period_marks(cls, period), id=f"{cls}-{period!r}")
+    pytest.param(cls, period, id=f"{cls}-{period!r}")
     for cls in CONTROLLER_CLASSES
     for period in _PERIODS
 ]
 
 
-@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # numpy, in the xfail cases
 @pytest.mark.parametrize(("cls", "period"), _BAD_PERIODS)
 def test_bad_period_of_every_controller(lbr4p, cls, period):
     with pytest.raises(ParameterError, match=r"period_s \(T\) must be") as info:
@@ -503,11 +487,6 @@ def test_non_finite_or_negative_limits(lbr4p, cls, name, value):
     assert "> 0" in str(info.value)
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="finding: np.broadcast_to raises a bare numpy ValueError for limits of the wrong "
-    "shape (tracking.py, proportional.py); proposed fix: ParameterError naming the parameter",
-)
 @pytest.mark.parametrize("cls", list(CONTROLLER_CLASSES), ids=str)
 @pytest.mark.parametrize("name", ["velocity_limits", "acceleration_limit"])
 def test_limits_of_the_wrong_shape(lbr4p, cls, name):
@@ -515,18 +494,28 @@ def test_limits_of_the_wrong_shape(lbr4p, cls, name):
         CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), 0.05, **{name: np.ones(3)})
 
 
-def test_limits_of_the_wrong_shape_raise_a_value_error_at_least(lbr4p):
-    """Until the fix above: a ValueError at construction, not a crash later in a step."""
-    for cls in CONTROLLER_CLASSES.values():
-        with pytest.raises(ValueError):
-            cls(lbr4p, Circle(1.0), 0.05, velocity_limits=np.ones(3))
+@pytest.mark.parametrize("cls", list(CONTROLLER_CLASSES), ids=str)
+@pytest.mark.parametrize("margin", [-1e-3, math.nan, 3.5, "1 mrad"], ids=repr)
+def test_bad_position_margin(lbr4p, cls, margin):
+    with pytest.raises(ParameterError, match=r"position_margin_rad must be"):
+        CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), 0.05, position_margin_rad=margin)
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="finding: an unknown OSQP setting is accepted at construction, then every step "
-    "falls back (the arm never moves); proposed fix in qp_solver.py OsqpQP.__init__",
-)
+@pytest.mark.parametrize("cls", list(CONTROLLER_CLASSES), ids=str)
+@pytest.mark.parametrize("delay", [-1, 1.5, True, "2"], ids=repr)
+def test_bad_measurement_delay(lbr4p, cls, delay):
+    with pytest.raises(ParameterError, match=r"measurement_delay_periods must be an integer ≥ 0"):
+        CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), 0.05, measurement_delay_periods=delay)
+
+
+def test_unknown_daqp_setting_is_refused_at_construction(lbr4p):
+    pytest.importorskip("daqp")
+    with pytest.raises(ParameterError, match="iter_limitz"):
+        LocalController(
+            lbr4p, Circle(1.0), 0.05, solver="daqp", solver_settings={"iter_limitz": 10}
+        )
+
+
 def test_unknown_solver_setting_is_refused_at_construction(lbr4p):
     with pytest.raises(ParameterError, match="max_iterz"):
         LocalController(lbr4p, Circle(1.0), 0.05, solver_settings={"max_iterz": 10})

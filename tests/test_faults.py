@@ -39,7 +39,13 @@ from dqcontrol.faults import (
     run_case,
 )
 from dqcontrol.faults.campaign import CaseSpec
-from dqcontrol.faults.scenarios import CONTROLLERS, TRAJECTORIES, Fault, fault_by_name
+from dqcontrol.faults.scenarios import (
+    CONTROLLERS,
+    TRAJECTORIES,
+    ControllerSpec,
+    Fault,
+    fault_by_name,
+)
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.sim import MujocoSimulation, run_mujoco
 from dqcontrol.trajectories import Circle, Sinusoid
@@ -316,11 +322,6 @@ def test_coupled_contradiction_is_relaxed_and_the_task_completes(quick_campaign)
         assert r.completed and r.relaxed_steps == 20 and r.fallbacks == 0
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="finding: OsqpQP.solve ignores OSQP's rejected update (lower > upper) and "
-    "returns the previous bounds' solution as 'solved'; proposed fix in qp_solver.py",
-)
 def test_crossed_bounds_are_never_reported_solved(quick_campaign):
     for name in ("local", "predictive_p6", "predictive_noscale_p6"):
         r = _row(quick_campaign, "qp_crossed", name)
@@ -385,11 +386,6 @@ def test_short_mujoco_cases_hold_every_bound(fault, traj, controller):
     assert r.completed and not r.nan_seen and r.q_violations_true == 0
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="finding: in MuJoCo the velocity servo overshoots a joint driven exactly to its "
-    "limit by ≈0.4 mrad (the bounds keep no margin); proposed: a position margin in bounds.py",
-)
 def test_mujoco_near_the_limits_stays_within_them():
     spec = CaseSpec(
         CONTROLLERS["local"], TRAJECTORIES["circle"], fault_by_name("near_limits"), "mujoco",
@@ -398,22 +394,11 @@ def test_mujoco_near_the_limits_stays_within_them():
     assert run_case(spec).q_violations_true == 0
 
 
-def test_mujoco_overshoot_near_the_limits_is_sub_milliradian():
-    """What the finding above amounts to today: a fraction of a milliradian."""
-    spec = CaseSpec(
-        CONTROLLERS["local"], TRAJECTORIES["circle"], fault_by_name("near_limits"), "mujoco",
-        2.0,
-    )  # fmt: skip
-    r = run_case(spec)
-    assert r.safe or r.q_excess_true_rad < 1e-3
-    assert r.velocity_violations == r.acceleration_violations == 0 and not r.nan_seen
-
-
 @pytest.mark.parametrize("delay", [1, 2])
 def test_delay_near_the_limits_overshoots_by_at_most_d_periods_of_motion(lbr4p, delay):
     """A controller fed d-period-old positions bounds its command from a stale q: in the
     ideal loop the joints may pass a limit by up to d·T·qd_max (finding; the fix — predict
-    q from the commands sent since — is proposed for the controllers)."""
+    q from the commands sent since — is ``measurement_delay_periods``, tested below)."""
     fault = Fault("x", "task", "", start="near_limits", delay_periods=delay)
     r = run_case(CaseSpec(CONTROLLERS["local"], TRAJECTORIES["circle"], fault, "kinematic", 2.0))
     assert r.velocity_violations == r.acceleration_violations == 0 and not r.nan_seen
@@ -453,3 +438,15 @@ def test_cli_help_and_bad_options(capsys):
         main(["faults", "--workers", "0"])
     assert info.value.code == 2
     assert main(["faults", "--controllers", "pid", "--out", "/nonexistent"]) == 1
+
+
+@pytest.mark.parametrize("delay", [1, 2])
+def test_delay_compensation_keeps_the_joints_within_their_limits(delay):
+    """With ``measurement_delay_periods = d`` the controller works from q + T Σ(last d
+    commands): in the ideal loop that is the true q, so the limits hold exactly again."""
+    fault = Fault("x", "task", "", start="near_limits", delay_periods=delay)
+    local = ControllerSpec(
+        "local_compensated", LocalController, (("measurement_delay_periods", delay),)
+    )
+    r = run_case(CaseSpec(local, TRAJECTORIES["circle"], fault, "kinematic", 2.0))
+    assert r.q_violations_true == 0 and r.safe, r.row()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,7 +20,14 @@ from dqcontrol.errors import ConfigurationError, ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
-__all__ = ["Controller", "StepDiagnostics", "StepResult", "check_positive"]
+__all__ = [
+    "Controller",
+    "StepDiagnostics",
+    "StepResult",
+    "check_position_margin",
+    "check_positive",
+    "per_joint",
+]
 
 
 @dataclass(frozen=True)
@@ -90,6 +98,43 @@ def check_positive(name: str, value: float, unit: str, *, allow_zero: bool = Fal
     return v
 
 
+def per_joint(name: str, value, n: int, unit: str, *, allow_zero: bool = False) -> np.ndarray:
+    """``value`` (a scalar or one value per joint) as an array of shape ``(n,)``.
+
+    Raises :class:`ParameterError` naming the parameter, the accepted shapes, unit and range
+    for a wrong shape, a non-number, NaN/inf, or a value out of range (> 0, or ≥ 0).
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"{name} must be a number or {n} numbers [{unit}], got {value!r}"
+        ) from None
+    if arr.ndim > 1 or (arr.ndim == 1 and arr.size != n):
+        raise ParameterError(
+            f"{name} must be a scalar or have shape ({n},) (one per joint) [{unit}], "
+            f"got shape {arr.shape}"
+        )
+    arr = np.broadcast_to(arr, (n,)).copy()
+    ok = np.isfinite(arr) & ((arr >= 0.0) if allow_zero else (arr > 0.0))
+    if not ok.all():
+        rng = "≥ 0" if allow_zero else "> 0"
+        raise ParameterError(f"{name} must be finite and {rng} [{unit}], got {value!r}")
+    return arr
+
+
+def check_position_margin(margin_rad: float, q_min: np.ndarray, q_max: np.ndarray) -> float:
+    """Validate the joint-position margin [rad]: ``0 ≤ margin < (q_max - q_min) / 2``."""
+    m = check_positive("position_margin_rad", margin_rad, "rad", allow_zero=True)
+    half = float(np.min(q_max - q_min)) / 2.0
+    if m >= half:
+        raise ParameterError(
+            f"position_margin_rad must be < half the smallest joint range ({half:.4g} rad), "
+            f"got {margin_rad!r}"
+        )
+    return m
+
+
 class Controller(ABC):
     """Base class of the four controllers.
 
@@ -98,12 +143,22 @@ class Controller(ABC):
         trajectory: the task; if its ``reference`` is ``None`` it is anchored at the
             robot's pose at :meth:`reset` (FORMULATION §3 default reference frame).
         period_s: control period ``T`` [s].
+        measurement_delay_periods: ``d ≥ 0``; when the measured ``q`` is ``d`` periods old,
+            the controller works from ``q + T Σ(last d commands)``, its prediction of the
+            present (default 0: no compensation). Without it, a 2-period delay let a joint
+            pass its limit by up to ``d T qd_max`` in the fault campaign (docs/faults.md).
     """
 
     #: Short name used in logs and tables.
     name: str = "controller"
 
-    def __init__(self, robot: RobotModel, trajectory: Trajectory, period_s: float) -> None:
+    def __init__(
+        self,
+        robot: RobotModel,
+        trajectory: Trajectory,
+        period_s: float,
+        measurement_delay_periods: int = 0,
+    ) -> None:
         if not isinstance(robot, RobotModel):
             raise ParameterError(
                 f"robot must be a dqcontrol RobotModel, got {type(robot).__name__}"
@@ -119,6 +174,17 @@ class Controller(ABC):
         self.n = robot.nq
         self.sigma = 0.0
         self.qd_prev = np.zeros(self.n)
+        if (
+            isinstance(measurement_delay_periods, bool)
+            or not isinstance(measurement_delay_periods, int | np.integer)
+            or measurement_delay_periods < 0
+        ):
+            raise ParameterError(
+                "measurement_delay_periods must be an integer ≥ 0 [periods], got "
+                f"{measurement_delay_periods!r}"
+            )
+        self.measurement_delay_periods = int(measurement_delay_periods)
+        self._sent: deque[np.ndarray] = deque(maxlen=max(self.measurement_delay_periods, 1))
         self._reset_done = False
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray | None = None, sigma0: float = 0.0) -> None:
@@ -135,6 +201,7 @@ class Controller(ABC):
             self.trajectory = self.task
         self.sigma = check_positive("sigma0", sigma0, "s", allow_zero=True)
         self.qd_prev = qd0.copy()
+        self._sent.clear()
         self._reset_done = True
         self._reset_memory(q0, qd0)
 
@@ -159,8 +226,12 @@ class Controller(ABC):
         q = self.robot.check_q(q)
         if qd is not None:
             qd = self.robot.check_q(qd, "qd")
+        if self.measurement_delay_periods and self._sent:
+            q = q + self.period_s * np.sum(self._sent, axis=0)
         result = self._step(q, qd)
         self.qd_prev = result.qd_command
+        if self.measurement_delay_periods:
+            self._sent.append(result.qd_command)
         self.sigma = result.sigma_next
         return result
 

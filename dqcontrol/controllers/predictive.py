@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dqcontrol.controllers.base import check_positive
 from dqcontrol.controllers.prediction import integration_matrix, prediction_instants
 from dqcontrol.controllers.tracking import TrackingController
 from dqcontrol.model.robot import RobotModel
@@ -62,11 +63,11 @@ class PredictiveNoScalingController(PredictiveController):
     def __init__(
         self, robot: RobotModel, trajectory: Trajectory, period_s: float, **kwargs
     ) -> None:
+        period_s = check_positive("period_s (T)", period_s, "s")
         if kwargs.get("gain_per_s") is None:
             tau = prediction_instants(kwargs.get("num_instants", 10), kwargs.get("horizon_s", 1.0))
-            if period_s > 0:
-                rho = float(max(abs(np.linalg.eigvals(integration_matrix(tau, period_s)))))
-                kwargs["gain_per_s"] = min(10.0, 0.9 / rho)
+            rho = float(max(abs(np.linalg.eigvals(integration_matrix(tau, period_s)))))
+            kwargs["gain_per_s"] = min(10.0, 0.9 / rho)
         kwargs["scaling"] = False
         super().__init__(robot, trajectory, period_s, **kwargs)
         self.name = f"predictive_noscale_p{self.num_instants}"

@@ -14,10 +14,16 @@ import time
 
 import numpy as np
 
-from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult, check_positive
+from dqcontrol.controllers.base import (
+    Controller,
+    StepDiagnostics,
+    StepResult,
+    check_position_margin,
+    check_positive,
+    per_joint,
+)
 from dqcontrol.controllers.bounds import command_box
 from dqcontrol.dq.algebra import C8, haminus8, hamiplus8
-from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
@@ -37,6 +43,10 @@ class ProportionalController(Controller):
         damping: ``λ`` of the damped pseudo-inverse (dimensionless, ≥ 0).
         velocity_limits: ``qd_max`` [rad/s] (default: the URDF's).
         acceleration_limit: ``a_max`` [rad/s²] for the clipping box.
+        braking_aware: add the stop-before-the-limit position bound (bounds.py).
+        position_margin_rad: the position bounds stop this far inside the URDF's limits
+            [rad] (default 1 mrad).
+        measurement_delay_periods: see :class:`~dqcontrol.controllers.base.Controller`.
         saturate: clip the command to the hard bounds (default True).
     """
 
@@ -53,21 +63,20 @@ class ProportionalController(Controller):
         velocity_limits: float | np.ndarray | None = None,
         acceleration_limit: float | np.ndarray = 10.0,
         braking_aware: bool = True,
+        position_margin_rad: float = 1e-3,
+        measurement_delay_periods: int = 0,
         saturate: bool = True,
     ) -> None:
-        super().__init__(robot, trajectory, period_s)
+        super().__init__(robot, trajectory, period_s, measurement_delay_periods)
         self.gain_per_s = check_positive("gain_per_s (K)", gain_per_s, "1/s")
         self.damping = check_positive("damping (lambda)", damping, "-", allow_zero=True)
         lim = robot.limits
         qd_max = lim.qd_max if velocity_limits is None else velocity_limits
-        self.qd_max = np.broadcast_to(np.asarray(qd_max, dtype=float), (self.n,)).copy()
-        if np.any(~np.isfinite(self.qd_max)) or np.any(self.qd_max <= 0.0):
-            raise ParameterError(f"velocity_limits must be finite and > 0 [rad/s], got {qd_max}")
-        self.a_max = np.broadcast_to(np.asarray(acceleration_limit, dtype=float), (self.n,)).copy()
-        if np.any(~np.isfinite(self.a_max)) or np.any(self.a_max <= 0.0):
-            raise ParameterError(
-                f"acceleration_limit must be finite and > 0 [rad/s²], got {acceleration_limit}"
-            )
+        self.qd_max = per_joint("velocity_limits", qd_max, self.n, "rad/s")
+        self.a_max = per_joint("acceleration_limit", acceleration_limit, self.n, "rad/s²")
+        margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
+        self.position_margin_rad = margin
+        self.q_min, self.q_max = lim.q_min + margin, lim.q_max - margin
         self.braking_aware = bool(braking_aware)
         self.saturate = bool(saturate)
 
@@ -97,8 +106,8 @@ class ProportionalController(Controller):
             box = command_box(
                 q,
                 self.qd_prev,
-                self.robot.limits.q_min,
-                self.robot.limits.q_max,
+                self.q_min,
+                self.q_max,
                 self.qd_max,
                 self.a_max,
                 self.period_s,

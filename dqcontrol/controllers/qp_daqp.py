@@ -15,7 +15,8 @@ from ctypes import c_int
 import numpy as np
 import scipy.sparse as sp
 
-from dqcontrol.controllers.qp_solver import QPSolution
+from dqcontrol.controllers.qp_solver import QPSolution, invalid_bounds
+from dqcontrol.errors import ParameterError
 
 __all__ = ["DaqpQP"]
 
@@ -44,12 +45,18 @@ class DaqpQP:
         a_dense = self.a_matrix.toarray()
         nv = self.num_vars
         if not np.array_equal(a_dense[:nv], np.eye(nv)):
-            raise ValueError("DaqpQP needs A = [I; A_general]")
+            raise ParameterError("DaqpQP needs A = [I; A_general] (bounds on the variables first)")
         self._a_general = np.ascontiguousarray(a_dense[nv:])
         pat = self.p_pattern.tocoo()
         self._rows, self._cols = pat.row, pat.col
         self._h = np.zeros((nv, nv))
         self.settings = dict(settings or {})
+        known = daqp.Model().settings
+        unknown = sorted(set(self.settings) - set(known))
+        if unknown:
+            raise ParameterError(
+                f"solver_settings: DAQP has no setting {unknown}; it knows {sorted(known)}"
+            )
         self._model = None
         self.last_method = "daqp"
 
@@ -67,6 +74,9 @@ class DaqpQP:
     ) -> QPSolution:
         """Update the values and solve (warm start: the previous active set)."""
         start = time.perf_counter()
+        refused = invalid_bounds(lower, upper, start)
+        if refused is not None:
+            return refused
         h = self._h
         h[self._rows, self._cols] = p_values
         h[self._cols, self._rows] = p_values
@@ -81,8 +91,12 @@ class DaqpQP:
                 if self.settings:
                     model.settings = dict(self.settings)
                 self._model = model
-            else:
-                self._model.update(H=h, f=c, bupper=up, blower=lo)
+            elif self._model.update(H=h, f=c, bupper=up, blower=lo) < 0:
+                self._model = None
+                return QPSolution(
+                    None, None, False, "error: DAQP refused the update", 0,
+                    time.perf_counter() - start,
+                )  # fmt: skip
             x, _fval, flag, info = self._model.solve()
         except Exception as exc:  # noqa: BLE001 - never stop the control loop
             self._model = None

@@ -28,7 +28,9 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-__all__ = ["DEFAULT_OSQP_SETTINGS", "OsqpQP", "QPSolution"]
+from dqcontrol.errors import ParameterError
+
+__all__ = ["DEFAULT_OSQP_SETTINGS", "OsqpQP", "QPSolution", "invalid_bounds"]
 
 DEFAULT_OSQP_SETTINGS: dict = {
     "eps_abs": 1e-9,
@@ -58,6 +60,47 @@ class QPSolution:
     solve_time_s: float
 
 
+def invalid_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> QPSolution | None:
+    """A failed :class:`QPSolution` if some row has ``lower > upper`` or a NaN bound.
+
+    Solvers must never see such bounds: OSQP rejects the update (its Python wrapper ignores
+    the return code) and DAQP's ``update`` returns an error code, and both would then solve
+    the *previous* problem again and call it solved.
+    """
+    bad = ~(lower <= upper)  # True where either side is NaN too
+    if not bad.any():
+        return None
+    rows = np.flatnonzero(bad)
+    return QPSolution(
+        None,
+        None,
+        False,
+        f"invalid_bounds: lower > upper or NaN in rows {rows[:5].tolist()}",
+        0,
+        time.perf_counter() - start,
+    )
+
+
+def _check_osqp_settings(settings: dict) -> None:
+    """Refuse settings OSQP does not know (or values it rejects) at construction."""
+    probe = osqp.OSQP()
+    try:
+        probe.setup(
+            P=sp.csc_matrix(np.eye(1)),
+            q=np.zeros(1),
+            A=sp.csc_matrix(np.eye(1)),
+            l=-np.ones(1),
+            u=np.ones(1),
+            **settings,
+        )
+    except (TypeError, ValueError) as exc:
+        known = ", ".join(sorted(DEFAULT_OSQP_SETTINGS) + ["hot_start", "refine"])
+        raise ParameterError(
+            f"solver_settings rejected by OSQP: {exc} (settings we set: {known}; see OSQP's "
+            "documentation for the others)"
+        ) from None
+
+
 class OsqpQP:
     """An OSQP problem whose structure is fixed at construction.
 
@@ -82,6 +125,7 @@ class OsqpQP:
         self._solver: osqp.OSQP | None = None
         self.refine = bool(self.settings.pop("refine", True))
         self.hot_start = bool(self.settings.pop("hot_start", True))
+        _check_osqp_settings(self.settings)
         self._active: tuple[np.ndarray, np.ndarray] | None = None
         self.last_method = ""
         # dense views for the refinement
@@ -118,6 +162,10 @@ class OsqpQP:
         rarely. Otherwise OSQP solves (warm-started) and its result is refined.
         """
         start = time.perf_counter()
+        refused = invalid_bounds(lower, upper, start)
+        if refused is not None:
+            self._active = None
+            return refused
         if self.hot_start and self._active is not None:
             guess = self._kkt(p_values, c, lower, upper, *self._active)
             if guess is not None:

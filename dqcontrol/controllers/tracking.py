@@ -27,7 +27,14 @@ from typing import Literal, NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult, check_positive
+from dqcontrol.controllers.base import (
+    Controller,
+    StepDiagnostics,
+    StepResult,
+    check_position_margin,
+    check_positive,
+    per_joint,
+)
 from dqcontrol.controllers.bounds import (
     intersect_acceleration,
     safe_command,
@@ -88,6 +95,10 @@ class TrackingController(Controller):
             ``"dynamics"`` for Pinocchio's ``(τ_max - |g|)/M_jj`` clipped to
             ``[acceleration_floor, acceleration_cap]``.
         braking_aware: add the stop-before-the-limit position bound (bounds.py).
+        position_margin_rad: the position bounds stop this far inside the URDF's limits
+            [rad] (default 1 mrad: a real velocity servo overshoots a joint driven exactly
+            to its limit by ~0.4 mrad in MuJoCo; with encoder noise use ≥ 3σ).
+        measurement_delay_periods: see :class:`~dqcontrol.controllers.base.Controller`.
         scaling: optimise ``s`` (True) or hold ``s ≡ 1`` (FORMULATION §5.4).
         phase_prediction: ``"previous"`` integrates the previous ``s`` profile to predict
             ``σ̂_i``; ``"nominal"`` uses ``σ + τ_i`` (the thesis).
@@ -114,12 +125,14 @@ class TrackingController(Controller):
         acceleration_floor: float = 0.5,
         acceleration_cap: float = 50.0,
         braking_aware: bool = True,
+        position_margin_rad: float = 1e-3,
+        measurement_delay_periods: int = 0,
         scaling: bool = True,
         phase_prediction: Literal["previous", "nominal"] = "previous",
         solver: Literal["osqp", "daqp"] = "osqp",
         solver_settings: dict | None = None,
     ) -> None:
-        super().__init__(robot, trajectory, period_s)
+        super().__init__(robot, trajectory, period_s, measurement_delay_periods)
         if solver not in ("osqp", "daqp"):
             raise ParameterError(f"solver must be 'osqp' or 'daqp', got {solver!r}")
         self.solver = solver
@@ -148,7 +161,9 @@ class TrackingController(Controller):
         self.p = tau.size
 
         lim = robot.limits
-        self.q_min, self.q_max = lim.q_min, lim.q_max
+        margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
+        self.position_margin_rad = margin
+        self.q_min, self.q_max = lim.q_min + margin, lim.q_max - margin
         if velocity_limits is None:
             qd_max = lim.qd_max.copy()
             if np.any(qd_max <= 0.0) or not np.all(np.isfinite(qd_max)):
@@ -157,11 +172,7 @@ class TrackingController(Controller):
                     f"({lim.qd_max}); pass velocity_limits [rad/s]"
                 )
         else:
-            qd_max = np.broadcast_to(np.asarray(velocity_limits, dtype=float), (n,)).copy()
-            if np.any(~np.isfinite(qd_max)) or np.any(qd_max <= 0.0):
-                raise ParameterError(
-                    f"velocity_limits must be finite and > 0 [rad/s], got {velocity_limits!r}"
-                )
+            qd_max = per_joint("velocity_limits", velocity_limits, n, "rad/s")
         self.qd_max = qd_max
 
         self.dynamic_acceleration = isinstance(acceleration_limit, str)
@@ -182,13 +193,9 @@ class TrackingController(Controller):
                 )
             self.a_const = None
         else:
-            a = np.broadcast_to(np.asarray(acceleration_limit, dtype=float), (n,)).copy()
-            if np.any(~np.isfinite(a)) or np.any(a <= 0.0):
-                raise ParameterError(
-                    "acceleration_limit must be finite and > 0 [rad/s²] (or 'dynamics'), "
-                    f"got {acceleration_limit!r}"
-                )
-            self.a_const = a
+            self.a_const = per_joint(
+                "acceleration_limit", acceleration_limit, n, "rad/s² (or 'dynamics')"
+            )
 
         # ---- QP structure, built once
         p, m = self.p, n + 1
@@ -371,7 +378,9 @@ class TrackingController(Controller):
             s_now = 0.0
             self._horizon_qd = np.tile(qd_cmd, (p, 1))
             self._horizon_s = np.zeros(p)
-            self.qp.reset()
+            # the solver keeps its warm start: a cold restart after every failure locked a
+            # flaky solver in the fallback for good (docs/faults.md); the backends rebuild
+            # themselves after an exception
             fallback = True
             message = f"QP failed ({sol.status}); safe fallback: brake within a_max, s = 0"
         diag = StepDiagnostics(

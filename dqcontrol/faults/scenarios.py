@@ -12,7 +12,8 @@ simulation, a start configuration, a trajectory or a controller happens in
   singular configuration, a start within a degree of the joint limits;
 - *solver* (QP controllers only): contradictory bounds
   (:mod:`dqcontrol.faults.qp_faults`), a solver that fails (``max_iter``), one that times out
-  (``time_limit``), and one that fails now and then.
+  (``time_limit``), both started cold (a warm start kept across failures lets even one
+  iteration per step converge after ~100 steps), and one that fails now and then.
 """
 
 from __future__ import annotations
@@ -315,15 +316,15 @@ FAULTS: tuple[Fault, ...] = (
     Fault(
         "solver_fails",
         "solver",
-        "OSQP max_iter = 1: every solve fails",
-        solver_settings=(("max_iter", 1),),
+        "OSQP max_iter = 1, cold starts: every solve fails",
+        solver_settings=(("max_iter", 1), ("warm_starting", False)),
         expect_completion=False,
     ),
     Fault(
         "solver_timeout",
         "solver",
-        "OSQP time_limit = 1 ns: every solve times out",
-        solver_settings=(("time_limit", 1e-9),),
+        "OSQP time_limit = 1 ns, cold starts: every solve times out",
+        solver_settings=(("time_limit", 1e-9), ("warm_starting", False)),
         expect_completion=False,
     ),
     Fault(

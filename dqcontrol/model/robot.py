@@ -389,10 +389,16 @@ class RobotModel:
         m = pin.crba(self.model, self.data, q)
         g = pin.computeGeneralizedGravity(self.model, self.data, q)
         diag = np.diagonal(m)
+        if not np.all(diag > 0.0):
+            j = int(np.flatnonzero(~(diag > 0.0))[0])
+            name = self.joint_names[j] if len(self.joint_names) == diag.size else f"#{j}"
+            raise ParameterError(
+                f"joint '{name}' moves no mass or inertia (M_jj = {diag[j]}): "
+                "dynamics-aware acceleration limits need the URDF's inertias; pass a constant "
+                "acceleration_limit [rad/s²] instead"
+            )
         spare = effort_fraction * self.limits.effort_max - np.abs(g)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            amax = np.where(diag > 0.0, spare / diag, cap)
-        return np.clip(amax, floor, cap)
+        return np.clip(spare / diag, floor, cap)
 
     def random_configurations(self, count: int, seed: int, margin_rad: float = 0.0) -> np.ndarray:
         """``count`` uniformly drawn configurations within the limits (shrunk by a margin)."""

@@ -27,6 +27,9 @@ class RunResult:
     metrics: Metrics
     interrupted: bool = False
     note: str = ""
+    #: why the run was cut short: ``""`` (it was not), ``"user"`` (Ctrl-C) or
+    #: ``"simulation"`` (the simulator failed; the note says how).
+    reason: str = ""
 
 
 def run_kinematic(
@@ -56,7 +59,7 @@ def run_kinematic(
     info.update(meta or {})
     rec = LogRecorder(robot.nq, info)
     qd_meas = np.zeros(robot.nq)
-    interrupted, note = False, ""
+    interrupted, note, reason = False, "", ""
     try:
         for k in range(steps):
             result = controller.step(q, qd_meas)
@@ -66,7 +69,10 @@ def run_kinematic(
             if controller.done:
                 break
     except KeyboardInterrupt:
-        interrupted, note = True, f"interrupted after {len(rec)} samples"
+        interrupted, reason = True, "user"
+        note = f"interrupted by the user after {len(rec)} samples"
     log = rec.finish()
     metrics = compute_metrics(log, controller.trajectory, bounds_of(controller, log.q), period)
-    return RunResult(log=log, metrics=metrics, interrupted=interrupted, note=note)
+    if note:
+        log.meta["note"] = note
+    return RunResult(log, metrics, interrupted, note, reason)

@@ -63,7 +63,7 @@ def run_mujoco(
     }
     info.update(meta or {})
     rec = LogRecorder(robot.nq, info)
-    interrupted, note = False, ""
+    interrupted, note, reason = False, "", ""
     num = int(np.ceil(limit / period - 1e-9))
     try:
         for k in range(num):
@@ -76,11 +76,13 @@ def run_mujoco(
             if controller.done:
                 break
     except KeyboardInterrupt:
-        interrupted, note = True, f"interrupted by the user after {len(rec)} samples"
+        interrupted, reason = True, "user"
+        note = f"interrupted by the user after {len(rec)} samples"
     except DQControlError as exc:
-        interrupted, note = True, f"simulation stopped after {len(rec)} samples: {exc}"
+        interrupted, reason = True, "simulation"
+        note = f"simulation stopped after {len(rec)} samples: {exc}"
     log = rec.finish()
     if note:
         log.meta["note"] = note
     metrics = compute_metrics(log, controller.trajectory, bounds_of(controller, log.q), period)
-    return RunResult(log=log, metrics=metrics, interrupted=interrupted, note=note)
+    return RunResult(log, metrics, interrupted, note, reason)
