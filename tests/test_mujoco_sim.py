@@ -3,8 +3,6 @@ velocity servos that track and hold, torque limits, payload, input checks, speed
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -296,12 +294,11 @@ def test_payload_sits_at_the_end_effector(lbr4p):
     assert MujocoSimulation(lbr4p).payload_position() is None
 
 
-def test_1ms_loop_over_2s_is_fast(lbr4p_sim):
+def test_1ms_loop_over_2s_keeps_time(lbr4p_sim):
+    """2000 periods of 1 ms add up to 2 s of simulated time (its speed is measured by
+    ``dqcontrol bench``, not asserted here)."""
     lbr4p_sim.reset(LBR4P_Q0)
     command = np.full(7, 0.1)
-    start = time.perf_counter()
     for _ in range(2000):
         lbr4p_sim.step(command, 0.001)
-    elapsed = time.perf_counter() - start
     assert lbr4p_sim.time_s == pytest.approx(2.0)
-    assert elapsed < 1.0, f"2000 control steps took {elapsed:.2f} s"
