@@ -399,7 +399,7 @@ def test_delay_near_the_limits_overshoots_by_at_most_d_periods_of_motion(lbr4p, 
     """A controller fed d-period-old positions bounds its command from a stale q: in the
     ideal loop the joints may pass a limit by up to d·T·qd_max (finding; the fix — predict
     q from the commands sent since — is ``measurement_delay_periods``, tested below)."""
-    fault = Fault("x", "task", "", start="near_limits", delay_periods=delay)
+    fault = Fault("x", "task", "", start="near_limits", delay_periods=delay, compensated=False)
     r = run_case(CaseSpec(CONTROLLERS["local"], TRAJECTORIES["circle"], fault, "kinematic", 2.0))
     assert r.velocity_violations == r.acceleration_violations == 0 and not r.nan_seen
     assert 0.0 < r.q_excess_true_rad <= delay * 0.05 * lbr4p.limits.qd_max.max() + 1e-9
@@ -444,9 +444,16 @@ def test_cli_help_and_bad_options(capsys):
 def test_delay_compensation_keeps_the_joints_within_their_limits(delay):
     """With ``measurement_delay_periods = d`` the controller works from q + T Σ(last d
     commands): in the ideal loop that is the true q, so the limits hold exactly again."""
-    fault = Fault("x", "task", "", start="near_limits", delay_periods=delay)
+    fault = Fault("x", "task", "", start="near_limits", delay_periods=delay, compensated=False)
     local = ControllerSpec(
         "local_compensated", LocalController, (("measurement_delay_periods", delay),)
     )
     r = run_case(CaseSpec(local, TRAJECTORIES["circle"], fault, "kinematic", 2.0))
+    assert r.q_violations_true == 0 and r.safe, r.row()
+    # the campaign's own delay faults configure the controller the same way
+    r = run_case(
+        CaseSpec(CONTROLLERS["local"], TRAJECTORIES["circle"],
+                 Fault("y", "task", "", start="near_limits", delay_periods=delay),
+                 "kinematic", 2.0)
+    )  # fmt: skip
     assert r.q_violations_true == 0 and r.safe, r.row()

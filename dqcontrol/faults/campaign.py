@@ -283,7 +283,7 @@ def run_case(
     try:
         q0 = f.start_configuration(robot)
         traj = _build_trajectory(spec, robot, q0)
-        extra: dict = {}
+        extra: dict = f.controller_options()
         if ctrl_spec.qp and f.solver_settings:
             extra["solver_settings"] = dict(f.solver_settings)
         if ctrl_spec.qp and f.contradiction is not None:

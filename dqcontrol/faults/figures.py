@@ -6,7 +6,7 @@
   scaling;
 - ``faults_limits.png``: how far the most exposed joint goes beyond its limit when the
   arm starts within a degree of its limits, with exact, noisy and delayed measurements, and
-  with the proposed delay compensation and position margin
+  with the controller unaware of the fault and with the delay compensated
   (:mod:`dqcontrol.faults.analysis`).
 
 With ``--mitigations`` it also prints the what-if table of
@@ -16,6 +16,7 @@ With ``--mitigations`` it also prints the what-if table of
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -46,11 +47,11 @@ _LABELS = {
 }
 
 
-def _case(fault: str, traj: str, controller: str, simulator: str = "mujoco", hook=None):
+def _case(fault: str, traj: str, controller: str, simulator: str = "mujoco", hook=None, aware=True):
     spec = CaseSpec(
         CONTROLLERS[controller],
         TRAJECTORIES[traj],
-        fault_by_name(fault),
+        replace(fault_by_name(fault), compensated=aware),
         simulator,
         TRAJECTORIES[traj].duration_s,
     )
@@ -113,16 +114,37 @@ def limits_figure(path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    runs = [
-        ("MuJoCo, exact measurements", "near_limits", "mujoco", None, "tab:blue", "-"),
-        ("MuJoCo, noise 2 mrad", "near_limits_noise", "mujoco", None, "tab:purple", "-"),
-        ("MuJoCo, delay 2 T", "near_limits_delay_2", "mujoco", None, "tab:red", "-"),
-        ("kinematic, delay 2 T", "near_limits_delay_2", "kinematic", None, "tab:orange", "-"),
+    runs = [  # fmt: skip
         (
-            "MuJoCo, delay 2 T, compensated + 1 mrad margin",
+            "MuJoCo, exact measurements, no margin",
+            "near_limits",
+            "mujoco",
+            lambda c: position_margin(c, 0.0),
+            "tab:blue",
+            "-",
+        ),
+        (
+            "MuJoCo, noise 2 mrad, margin 5 mrad",
+            "near_limits_noise",
+            "mujoco",
+            None,
+            "tab:purple",
+            "-",
+        ),
+        ("MuJoCo, delay 2 T, unaware", "near_limits_delay_2", "mujoco", None, "tab:red", "-"),
+        (
+            "kinematic, delay 2 T, unaware",
+            "near_limits_delay_2",
+            "kinematic",
+            None,
+            "tab:orange",
+            "-",
+        ),
+        (
+            "MuJoCo, delay 2 T, compensated, 5 mrad margin",
             "near_limits_delay_2",
             "mujoco",
-            lambda c: position_margin(compensate_delay(c, 2), 1e-3),
+            lambda c: compensate_delay(c, 2),
             "tab:green",
             "--",
         ),
@@ -137,7 +159,7 @@ def limits_figure(path: Path) -> Path:
     ]
     fig, ax = plt.subplots(figsize=(8.0, 5.0))
     for label, fault, sim, hook, color, style in runs:
-        r = _case(fault, "circle", "local", sim, hook)
+        r = _case(fault, "circle", "local", sim, hook, aware=False)
         t, e = _excess_mrad(r)
         ax.plot(t, e, style, color=color, lw=1.3, label=f"{label}: max {max(e.max(), 0):.2f}")
     ax.axhline(0.0, color="k", lw=0.8)

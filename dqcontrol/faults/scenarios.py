@@ -163,6 +163,10 @@ class Fault:
         contradiction: ``"crossed"`` / ``"coupled"`` contradictory bounds, or ``None``.
         expect_completion: the task can be completed despite the fault (if ``False``, the
             run is given ``T_tot + 3 s`` and must stop safely instead).
+        compensated: the controller is told of the measurement faults, as a user who has
+            characterised their sensors would configure it: ``measurement_delay_periods =
+            delay_periods`` and ``position_margin_rad = max(5 mrad, 3 q_noise_rad)``.
+            ``False`` runs it unaware (the findings of docs/faults.md).
     """
 
     name: str
@@ -180,6 +184,18 @@ class Fault:
     solver_settings: tuple[tuple[str, object], ...] = field(default=())
     contradiction: str | None = None
     expect_completion: bool = True
+    compensated: bool = True
+
+    def controller_options(self) -> dict:
+        """Keyword arguments of the controller for this fault (see ``compensated``)."""
+        if not self.compensated:
+            return {}
+        options: dict = {}
+        if self.delay_periods:
+            options["measurement_delay_periods"] = self.delay_periods
+        if self.q_noise_rad > 0.0:
+            options["position_margin_rad"] = max(5e-3, 3.0 * self.q_noise_rad)
+        return options
 
     @property
     def mujoco_only(self) -> bool:
