@@ -10,9 +10,11 @@ reason the QP controllers exist.
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
+from scipy.linalg.lapack import dposv as _POSV
 
 from dqcontrol.controllers.base import (
     Controller,
@@ -22,7 +24,7 @@ from dqcontrol.controllers.base import (
     check_positive,
     per_joint,
 )
-from dqcontrol.controllers.bounds import command_box
+from dqcontrol.controllers.bounds import _vp_box, braking_constants, intersect_acceleration
 from dqcontrol.dq.algebra import C8, haminus8, hamiplus8
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -32,6 +34,16 @@ __all__ = ["ProportionalController"]
 _ONE = np.array([1.0, 0, 0, 0, 0, 0, 0, 0])
 _C8_DIAG = np.diagonal(C8).copy()
 _DIAG8 = np.arange(8)
+
+
+def _solve_spd(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``gram⁻¹ rhs`` for the damped Gram matrix (symmetric positive definite when the
+    damping is > 0): LAPACK's Cholesky solve, a third of ``np.linalg.solve``'s overhead;
+    an LU solve where Cholesky fails (no damping at a singularity)."""
+    _, sol, info = _POSV(gram, rhs, lower=False)
+    if info == 0:
+        return sol
+    return np.linalg.solve(gram, rhs)
 
 
 class ProportionalController(Controller):
@@ -79,44 +91,42 @@ class ProportionalController(Controller):
         self.q_min, self.q_max = lim.q_min + margin, lim.q_max - margin
         self.braking_aware = bool(braking_aware)
         self.saturate = bool(saturate)
+        self._damping_eye = self.damping**2 * np.eye(8)
+        self._brake = braking_constants(self.a_max, self.period_s) if braking_aware else None
+        self._accel_step = self.period_s * self.a_max
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
         x, jac = self.robot._pose_and_jacobian(q)
         sigma = self.sigma
-        traj = self.trajectory
-        xd, dxd = traj.target(sigma), traj.target_derivative(sigma)  # s = 1: d/dt = d/dσ
-        if x @ xd < 0.0:
+        pair = self.trajectory.target_pair(sigma)  # [x_d; dx_d/dσ], s = 1: d/dt = d/dσ
+        xd = pair[0]
+        if x.dot(xd) < 0.0:
             x, jac = -x, -jac
         # x* x_d and x* dx_d with one Hamilton matrix: H+8(x*) [x_d, dx_d]
-        prods = hamiplus8(_C8_DIAG * x) @ np.stack((xd, dxd), axis=1)
+        prods = hamiplus8(_C8_DIAG * x).dot(pair.T)
         err = _ONE - prods[:, 0]
-        n_mat = (haminus8(xd) * _C8_DIAG) @ jac  # H-8(x_d) C8 J
+        n_mat = (haminus8(xd) * _C8_DIAG).dot(jac)  # H-8(x_d) C8 J
         rhs = self.gain_per_s * err - prods[:, 1]
-        gram = n_mat @ n_mat.T
-        gram[_DIAG8, _DIAG8] += self.damping**2
-        qd_cmd = n_mat.T @ np.linalg.solve(gram, rhs)
+        gram = n_mat.dot(n_mat.T)
+        gram += self._damping_eye
+        qd_cmd = n_mat.T.dot(_solve_spd(gram, rhs))
         saturated = False
         conflict: tuple[int, ...] = ()
         message = ""
-        if not np.all(np.isfinite(qd_cmd)):
+        if not (math.isfinite(qd_cmd.dot(qd_cmd)) or np.isfinite(qd_cmd).all()):
             qd_cmd = np.zeros(self.n)
             message = "non-finite command replaced by zero"
         if self.saturate:
-            box = command_box(
-                q,
-                self.qd_prev,
-                self.q_min,
-                self.q_max,
-                self.qd_max,
-                self.a_max,
-                self.period_s,
-                self.braking_aware,
-            )
+            lo_vp, hi_vp = _vp_box(
+                q, self.q_min, self.q_max, self.qd_max, self.period_s, self._brake
+            )  # command_box() with the constants precomputed
+            box = intersect_acceleration(lo_vp, hi_vp, self.qd_prev, self._accel_step)
             clipped = box.project(qd_cmd)
-            saturated = bool(np.any(clipped != qd_cmd))
+            saturated = not np.array_equal(clipped, qd_cmd)
             qd_cmd = clipped
-            conflict = tuple(int(j) for j in np.flatnonzero(box.conflict))
+            if box.conflict.any():
+                conflict = tuple(np.flatnonzero(box.conflict).tolist())
         diag = StepDiagnostics(
             status="closed_form",
             step_time_s=time.perf_counter() - start,

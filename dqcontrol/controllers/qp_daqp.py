@@ -9,6 +9,7 @@ the previous step's active set. ``benchmarks/bench_controllers.py`` compares the
 
 from __future__ import annotations
 
+import math
 import time
 from ctypes import c_int
 
@@ -74,9 +75,8 @@ class DaqpQP:
     ) -> QPSolution:
         """Update the values and solve (warm start: the previous active set)."""
         start = time.perf_counter()
-        refused = invalid_bounds(lower, upper, start)
-        if refused is not None:
-            return refused
+        if not (lower <= upper).all():  # also catches NaN
+            return invalid_bounds(lower, upper, start)
         h = self._h
         h[self._rows, self._cols] = p_values
         h[self._cols, self._rows] = p_values
@@ -101,14 +101,18 @@ class DaqpQP:
         except Exception as exc:  # noqa: BLE001 - never stop the control loop
             self._model = None
             return QPSolution(None, None, False, f"error: {exc}", 0, time.perf_counter() - start)
-        ok = flag in (1, 2) and x is not None and bool(np.all(np.isfinite(x)))
+        # x is a new array at every solve; a dot product is NaN/inf iff some entry is (or
+        # it overflows): the cheap test first
+        ok = (
+            (flag == 1 or flag == 2)
+            and x is not None
+            and (math.isfinite(x.dot(x)) or bool(np.isfinite(x).all()))
+        )
         if not ok:
             self._model = None
+            x = None
         return QPSolution(
-            x=np.array(x) if ok else None,
-            y=None,
-            ok=ok,
-            status=_EXIT.get(int(flag), f"daqp_exit_{flag}"),
-            iterations=int(info.get("iterations", 0)) if isinstance(info, dict) else 0,
-            solve_time_s=time.perf_counter() - start,
-        )
+            x, None, ok, _EXIT.get(int(flag), f"daqp_exit_{flag}"),
+            int(info.get("iterations", 0)) if isinstance(info, dict) else 0,
+            time.perf_counter() - start,
+        )  # fmt: skip

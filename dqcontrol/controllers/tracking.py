@@ -36,9 +36,10 @@ from dqcontrol.controllers.base import (
     per_joint,
 )
 from dqcontrol.controllers.bounds import (
+    _vp_box,
+    braking_constants,
     intersect_acceleration,
     safe_command,
-    velocity_position_box,
 )
 from dqcontrol.controllers.prediction import integration_matrix
 from dqcontrol.controllers.qp_solver import OsqpQP
@@ -245,14 +246,21 @@ class TrackingController(Controller):
         if p > 1:
             self._w_int = integration_matrix(tau, self.period_s)
             self._shift = _interpolation_matrix(tau, self.period_s)
-        if self.a_const is not None:
-            self._a_const_batch = np.tile(self.a_const, (p, 1))
-            self._dv_const = (self._dtau[:, None] * self._a_const_batch[1:]).ravel()
+        # the diagonal D of the cost at the stored (upper-triangle) positions of P
+        self._diag_values = self._diag.ravel()[self._p_gather]
         # views of the bound vectors: the qd part of each instant's block, the coupling rows
         self._lower_qd = self._lower[: p * m].reshape(p, m)[:, :n]
         self._upper_qd = self._upper[: p * m].reshape(p, m)[:, :n]
         self._lower_cpl = self._lower[p * m :]
         self._upper_cpl = self._upper[p * m :]
+        if self.a_const is not None:  # constant a_max: the coupling bounds never change
+            self._a_const_batch = np.tile(self.a_const, (p, 1))
+            self._accel_step = self.period_s * self.a_const
+            self._brake_const = braking_constants(self._a_const_batch, self.period_s)
+            self._brake_const_1 = braking_constants(self.a_const, self.period_s)
+            dv = (self._dtau[:, None] * self._a_const_batch[1:]).ravel()
+            np.negative(dv, out=self._lower_cpl)
+            self._upper_cpl[:] = dv
         self._uses_warm = isinstance(self.qp, OsqpQP)
         self._horizon_qd = np.zeros((p, n))
         self._horizon_s = np.ones(p)
@@ -290,62 +298,75 @@ class TrackingController(Controller):
         )
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        # The hot path of every QP controller: each numpy call costs about a microsecond
+        # here, so the work is done in few, batched calls on preallocated arrays
+        # (docs/performance.md).
         start = time.perf_counter()
         n, m, p = self.n, self._m, self.p
-        q_hat, sigma_hat = self._predict(q)
-        if p == 1:
-            x, jac = self.robot._pose_and_jacobian(q)
-            xs, jacs = x[None, :], jac[None, :, :]
-        else:
-            xs, jacs = self.robot._poses_and_jacobians(q_hat)
-        if p == 1:
-            traj = self.trajectory
-            xd = traj.target(self.sigma)[None, :]
-            dxd = traj.target_derivative(self.sigma)[None, :]
-        else:
-            xd, dxd = self.trajectory.targets(sigma_hat)
-        flip = (xs * xd).sum(axis=1) < 0.0
-        if flip.any():
-            xs = np.where(flip[:, None], -xs, xs)
-            jacs = np.where(flip[:, None, None], -jacs, jacs)
-        w = dxd + self.gain_per_s * (xd - xs)
-
-        # cost: P = 2 (λ1 Gᵀ G + D), G_i = [J_i, -w_i]
         g = self._g
-        g[:, :, :n] = jacs
-        g[:, :, n] = -w
-        h = np.matmul(g.transpose(0, 2, 1), g)
-        h *= self.task_weight
-        h += self._diag
-        p_values = 2.0 * h.ravel()[self._p_gather]
+        if p == 1:
+            q_hat = q[None, :]
+            x, jac = self.robot._pose_and_jacobian(q)
+            pair = self.trajectory.target_pair(self.sigma)  # [x_d; dx_d/dσ]
+            xd = pair[0]
+            if x.dot(xd) < 0.0:
+                x, jac = -x, -jac
+            g0 = g[0]
+            g0[:, :n] = jac
+            g0[:, n] = self.gain_per_s * (x - xd) - pair[1]  # -w
+            h = g0.T.dot(g0)
+            x0, xd0 = x, xd
+        else:
+            q_hat, sigma_hat = self._predict(q)
+            xs, jacs = self.robot._poses_and_jacobians(q_hat)
+            xd, dxd = self.trajectory.targets(sigma_hat)
+            flip = (xs * xd).sum(axis=1) < 0.0
+            if flip.any():
+                sign = np.where(flip, -1.0, 1.0)
+                xs = xs * sign[:, None]
+                jacs = jacs * sign[:, None, None]
+            g[:, :, :n] = jacs
+            g[:, :, n] = self.gain_per_s * (xs - xd) - dxd  # -w_i
+            h = np.matmul(g.transpose(0, 2, 1), g)
+            x0, xd0 = xs[0], xd[0]
 
-        # bounds
+        # cost: P = 2 (λ1 Gᵀ G + D), G_i = [J_i, -w_i]; only the stored upper triangles
+        p_values = h.ravel().take(self._p_gather)
+        if self.task_weight != 1.0:
+            p_values *= self.task_weight
+        p_values += self._diag_values
+        p_values *= 2.0
+
+        # bounds: velocity/position boxes of every instant at once (predicted ones clipped
+        # to the limits), then the acceleration bound on the applied command
         a_max = self._acceleration(q_hat)
-        # velocity/position boxes of every instant at once (predicted ones clipped to the
-        # limits), then the acceleration bound on the applied command
         if p > 1:
             q_box = np.minimum(np.maximum(q_hat, self.q_min), self.q_max)
             q_box[0] = q
+            a_box = a_max
         else:
-            q_box = q[None, :]
-        lo_vp, hi_vp = velocity_position_box(
-            q_box, self.q_min, self.q_max, self.qd_max, self.period_s,
-            a_max if self.braking_aware else None,
-        )  # fmt: skip
-        box = intersect_acceleration(lo_vp[0], hi_vp[0], self.qd_prev, self.period_s * a_max[0])
+            q_box, a_box = q, a_max[0]
+        if not self.braking_aware:
+            brake = None
+        elif self.a_const is not None:
+            brake = self._brake_const if p > 1 else self._brake_const_1
+        else:
+            brake = braking_constants(a_box, self.period_s)
+        lo_vp, hi_vp = _vp_box(q_box, self.q_min, self.q_max, self.qd_max, self.period_s, brake)
+        if p > 1:
+            self._lower_qd[:] = lo_vp
+            self._upper_qd[:] = hi_vp
+            lo_vp, hi_vp = lo_vp[0], hi_vp[0]
+            if self.a_const is None:
+                dv = (self._dtau[:, None] * a_max[1:]).ravel()
+                np.negative(dv, out=self._lower_cpl)
+                self._upper_cpl[:] = dv
+        step = self._accel_step if self.a_const is not None else self.period_s * a_max[0]
+        box = intersect_acceleration(lo_vp, hi_vp, self.qd_prev, step)
         lower, upper = self._lower, self._upper
         self._lower_qd[0] = box.lower
         self._upper_qd[0] = box.upper
         warm = None
-        if p > 1:
-            self._lower_qd[1:] = lo_vp[1:]
-            self._upper_qd[1:] = hi_vp[1:]
-            if self.a_const is not None:
-                dv = self._dv_const
-            else:
-                dv = (self._dtau[:, None] * a_max[1:]).ravel()
-            np.negative(dv, out=self._lower_cpl)
-            self._upper_cpl[:] = dv
         if p > 1 and self._uses_warm:
             warm = np.empty(p * m)
             warm_view = warm.reshape(p, m)
@@ -362,27 +383,35 @@ class TrackingController(Controller):
             sol = self.qp.solve(p_values, self._c, lower, upper, None)
             relaxed = sol.ok
 
-        conflict = tuple(int(j) for j in np.flatnonzero(box.conflict))
+        conflict = tuple(np.flatnonzero(box.conflict).tolist()) if box.conflict.any() else ()
+        horizon_qd = horizon_s = None
         if sol.ok:
             z = sol.x.reshape(p, m)
             qd_cmd = box.project(z[0, :n])
-            s_now = float(min(max(z[0, n], 0.0), 1.0)) if self.scaling else 1.0
-            self._horizon_qd = z[:, :n].copy()
-            self._horizon_qd[0] = qd_cmd
-            self._horizon_s = np.clip(z[:, n], 0.0, 1.0) if self.scaling else np.ones(p)
+            s_now = min(max(float(z[0, n]), 0.0), 1.0) if self.scaling else 1.0
+            if p > 1:
+                self._horizon_qd = z[:, :n].copy()
+                self._horizon_qd[0] = qd_cmd
+                if self.scaling:
+                    self._horizon_s = np.minimum(np.maximum(z[:, n], 0.0), 1.0)
+                else:
+                    self._horizon_s = np.ones(p)
             fallback, message = False, ""
             if relaxed:
                 message = "predicted position bounds dropped to regain feasibility"
         else:
             qd_cmd = safe_command(box)
             s_now = 0.0
-            self._horizon_qd = np.tile(qd_cmd, (p, 1))
-            self._horizon_s = np.zeros(p)
+            if p > 1:
+                self._horizon_qd = np.tile(qd_cmd, (p, 1))
+                self._horizon_s = np.zeros(p)
             # the solver keeps its warm start: a cold restart after every failure locked a
             # flaky solver in the fallback for good (docs/faults.md); the backends rebuild
             # themselves after an exception
             fallback = True
             message = f"QP failed ({sol.status}); safe fallback: brake within a_max, s = 0"
+        if p > 1:
+            horizon_qd, horizon_s = self._horizon_qd.copy(), self._horizon_s.copy()
         diag = StepDiagnostics(
             status=sol.status,
             iterations=sol.iterations,
@@ -398,11 +427,11 @@ class TrackingController(Controller):
             s=s_now,
             sigma=self.sigma,
             sigma_next=self.sigma + self.period_s * s_now,
-            pose=xs[0].copy(),
-            target=xd[0].copy(),
+            pose=x0,  # fresh arrays of this step (views of the kinematics' output)
+            target=xd0,
             diagnostics=diag,
-            horizon_qd=self._horizon_qd.copy() if p > 1 else None,
-            horizon_s=self._horizon_s.copy() if p > 1 else None,
+            horizon_qd=horizon_qd,
+            horizon_s=horizon_s,
         )
 
     def last_problem(self) -> QPProblem:

@@ -85,6 +85,7 @@ _XYZW_FROM_WXYZ = [1, 2, 3, 0]
 _MAP = _pose_jacobian_map()
 _MAP_XYZW = np.ascontiguousarray(_MAP.reshape(56, 4, 4)[:, _XYZW_FROM_WXYZ, :]).reshape(56, 16)
 _TENSOR_2D = _MAP_XYZW.reshape(224, 4)
+_MAP_XYZW_T = np.ascontiguousarray(_MAP_XYZW.T)
 
 
 class RobotModel:
@@ -322,28 +323,27 @@ class RobotModel:
         return self._poses_and_jacobians(self.check_batch(qs))
 
     def _poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if qs.shape[0] == 0:
+        count = qs.shape[0]
+        if count == 0:
             return np.empty((0, 8)), np.empty((0, 8, self.nq))
-        model, data, fid = self.model, self.data, self._fid
-        jacobian, to_xyzquat, placement = (
-            pin.computeFrameJacobian,
-            pin.SE3ToXYZQUAT,
-            self._ee_placement,
-        )
+        # one Pinocchio call per configuration (≈1 µs each) is the floor; everything else is
+        # done once for the batch
+        model, data, fid, placement = self.model, self.data, self._fid, self._ee_placement
+        jacobian, to_xyzquat = pin.computeFrameJacobian, pin.SE3ToXYZQUAT
         j6s, xqs = [], []
         for qi in qs:
             j6s.append(jacobian(model, data, qi, fid, _LWA))
             xqs.append(to_xyzquat(placement))
-        xq = np.array(xqs)
-        neg = xq[:, 6] < 0.0
-        if neg.any():
-            xq[neg, 3:7] *= -1.0
+        # buf[i] = [1, t, r_xyzw] (the layout of the single path's buffer), r_w ≥ 0
+        buf = np.empty((count, 8))
+        buf[:, 0] = 1.0
+        buf[:, 1:] = xqs
+        r = buf[:, 4:]
+        r *= np.copysign(1.0, buf[:, 7:])
         # k[i] = r_xyzw ⊗ [1, t] (row-major 4×4), the layout of _MAP_XYZW's columns
-        k = np.empty((len(xqs), 4, 4))
-        k[:, :, 0] = xq[:, 3:7]
-        k[:, :, 1:] = xq[:, 3:7, None] * xq[:, None, 0:3]
-        out = k.reshape(-1, 16).dot(_MAP_XYZW.T)
-        return out[:, :8], np.matmul(out[:, 8:].reshape(-1, 8, 6), np.array(j6s))
+        k = r[:, :, None] * buf[:, None, :4]
+        out = k.reshape(count, 16).dot(_MAP_XYZW_T)
+        return out[:, :8], np.matmul(out[:, 8:].reshape(count, 8, 6), np.array(j6s))
 
     def poses(self, qs: np.ndarray) -> np.ndarray:
         """Batched end-effector poses ``(N, 8)``."""

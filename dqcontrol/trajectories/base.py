@@ -134,6 +134,28 @@ class Trajectory(ABC):
             return np.zeros(8)
         return h @ self.local_derivative(s)
 
+    def target_pair(self, sigma: float) -> np.ndarray:
+        """:meth:`target` and :meth:`target_derivative` at one ``σ`` as the rows of a ``(2, 8)``
+        array (one check, one ``(2, 8) @ (8, 8)`` product: the single-instant controllers'
+        hot path).
+
+        Raises:
+            ParameterError: if the trajectory has no reference yet, or ``σ`` is not finite.
+        """
+        h_t = self._ref_plus_t
+        if h_t is None:
+            raise self._not_anchored_error()
+        s = self._check_sigma(sigma)
+        if 0.0 <= s < self._duration:
+            return self._local_pair(s).dot(h_t)
+        pair = self._local_pair(min(max(s, 0.0), self._duration))
+        pair[1] = 0.0  # the task holds its end pose: zero derivative (see target_derivative)
+        return pair.dot(h_t)
+
+    def _local_pair(self, sigma: float) -> np.ndarray:
+        """``[traj(σ); dtraj/dσ]`` as a new ``(2, 8)`` array (subclasses may fuse the two)."""
+        return np.array((self.local_pose(sigma), self.local_derivative(sigma)))
+
     def targets(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Batched :meth:`target` and :meth:`target_derivative`: two ``(N, 8)`` arrays.
 
@@ -351,7 +373,7 @@ class Trajectory(ABC):
             s = float(sigma)
         except (TypeError, ValueError):
             raise ParameterError(f"sigma must be a finite number [s], got {sigma!r}") from None
-        if not np.isfinite(s):
+        if not math.isfinite(s):
             raise ParameterError(f"sigma must be a finite number [s], got {sigma!r}")
         return s
 

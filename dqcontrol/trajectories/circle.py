@@ -58,6 +58,15 @@ class Circle(Trajectory):
         h = self._half_r_omega
         return np.array([0.0, 0.0, 0.0, 0.0, 0.0, -h * math.sin(angle), h * math.cos(angle), 0.0])
 
+    def _local_pair(self, sigma: float) -> np.ndarray:
+        angle = self._omega * sigma
+        c, s = math.cos(angle), math.sin(angle)
+        h, hw = self._half_r, self._half_r_omega
+        return np.array(
+            ((1.0, 0.0, 0.0, 0.0, 0.0, h * c, h * s, 0.0),
+             (0.0, 0.0, 0.0, 0.0, 0.0, -hw * s, hw * c, 0.0))
+        )  # fmt: skip
+
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         angle = self._omega * np.asarray(sigmas, dtype=float)
         c = np.cos(angle)

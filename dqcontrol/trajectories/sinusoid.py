@@ -67,6 +67,16 @@ class Sinusoid(Trajectory):
         dz = self._amplitude * self._rate * math.cos(self._rate * sigma)
         return np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * self._speed, 0.0, 0.5 * dz])
 
+    def _local_pair(self, sigma: float) -> np.ndarray:
+        phase = self._rate * sigma
+        a, v = self._amplitude, self._speed
+        x, z = 0.5 * (v * sigma), 0.5 * (a * math.sin(phase))
+        dz = 0.5 * (a * self._rate * math.cos(phase))
+        return np.array(
+            ((1.0, 0.0, 0.0, 0.0, 0.0, x, 0.0, z),
+             (0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * v, 0.0, dz))
+        )  # fmt: skip
+
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         s = np.asarray(sigmas, dtype=float)
         phase = self._rate * s
