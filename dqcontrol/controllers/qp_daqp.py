@@ -1,10 +1,12 @@
 """DAQP (a dual active-set solver for dense QPs) behind the interface of :class:`OsqpQP`.
 
-An optional backend (``solver="daqp"``). The controllers' QPs are small and dense per block
-(p (n+1) variables), and an active-set method solves them exactly in a few iterations
-where a first-order method needs hundreds; the workspace is set up once
-(:class:`daqp.Model`) and later steps only update ``H``, ``f`` and the bounds, starting from
-the previous step's active set. ``benchmarks/bench_controllers.py`` compares the two.
+The default backend (``solver="daqp"``; OSQP stays selectable with ``solver="osqp"``).
+The controllers' QPs are small and dense per block (p (n+1) variables), and an active-set
+method solves them exactly in a few iterations where a first-order method needs hundreds;
+the workspace is set up once (:class:`daqp.Model`) and later steps only update ``H``, ``f``
+and the bounds, starting from the previous step's active set. Its cost is DAQP's dense
+factorisation of ``H`` at every update, cubic in p (n+1) (docs/performance.md).
+``dqcontrol bench`` compares the two backends.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import math
 import time
 from ctypes import c_int
+from functools import cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -19,7 +22,18 @@ import scipy.sparse as sp
 from dqcontrol.controllers.qp_solver import QPSolution, invalid_bounds
 from dqcontrol.errors import ParameterError
 
-__all__ = ["DaqpQP"]
+__all__ = ["DaqpQP", "daqp_setting_names"]
+
+
+@cache
+def daqp_setting_names() -> frozenset[str]:
+    """Names of DAQP's settings (empty if the package is missing)."""
+    try:
+        import daqp
+    except ImportError:
+        return frozenset()
+    return frozenset(daqp.Model().settings)
+
 
 _EXIT = {1: "solved", 2: "solved", -1: "primal_infeasible", -2: "cycling", -3: "unbounded",
          -4: "iteration_limit", -5: "nonconvex", -6: "initial_active_set_infeasible"}  # fmt: skip

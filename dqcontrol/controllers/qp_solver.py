@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import osqp
@@ -30,7 +31,13 @@ import scipy.sparse as sp
 
 from dqcontrol.errors import ParameterError
 
-__all__ = ["DEFAULT_OSQP_SETTINGS", "OsqpQP", "QPSolution", "invalid_bounds"]
+__all__ = [
+    "DEFAULT_OSQP_SETTINGS",
+    "OsqpQP",
+    "QPSolution",
+    "invalid_bounds",
+    "osqp_setting_names",
+]
 
 DEFAULT_OSQP_SETTINGS: dict = {
     "eps_abs": 1e-9,
@@ -79,6 +86,17 @@ def invalid_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> QPSolu
         0,
         time.perf_counter() - start,
     )
+
+
+@cache
+def osqp_setting_names() -> frozenset[str]:
+    """Names of OSQP's settings, and of ours (``refine``, ``hot_start``)."""
+    return frozenset(DEFAULT_OSQP_SETTINGS) | {
+        "refine", "hot_start", "time_limit", "rho", "sigma", "alpha", "delta", "scaling",
+        "scaled_termination", "polish_refine_iter", "linsys_solver", "adaptive_rho_interval",
+        "adaptive_rho_tolerance", "adaptive_rho_fraction", "rho_is_vec", "allocate_solution",
+        "cg_max_iter", "cg_tol_reduction", "cg_tol_fraction", "cg_precond", "device",
+    }  # fmt: skip
 
 
 def _check_osqp_settings(settings: dict) -> None:

@@ -47,7 +47,13 @@ from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
-__all__ = ["AccelerationLimit", "QPProblem", "TrackingController"]
+__all__ = [
+    "DEFAULT_SOLVER",
+    "AccelerationLimit",
+    "QPProblem",
+    "TrackingController",
+    "default_solver",
+]
 
 
 class QPProblem(NamedTuple):
@@ -81,6 +87,23 @@ def _interpolation_matrix(tau: np.ndarray, shift_s: float) -> np.ndarray:
     return out
 
 
+#: The QP backend used when none is named (docs/performance.md has the numbers).
+DEFAULT_SOLVER = "daqp"
+
+
+def default_solver(solver_settings: dict | None = None) -> str:
+    """:data:`DEFAULT_SOLVER`, or ``"osqp"`` if ``solver_settings`` name a setting DAQP does
+    not have but OSQP does (settings written for OSQP select OSQP)."""
+    if solver_settings:
+        from dqcontrol.controllers.qp_daqp import daqp_setting_names
+        from dqcontrol.controllers.qp_solver import osqp_setting_names
+
+        foreign = set(solver_settings) - daqp_setting_names()
+        if foreign and foreign <= osqp_setting_names():
+            return "osqp"
+    return DEFAULT_SOLVER
+
+
 class TrackingController(Controller):
     """Shared implementation of the local and predictive QP controllers.
 
@@ -103,8 +126,12 @@ class TrackingController(Controller):
         scaling: optimise ``s`` (True) or hold ``s ≡ 1`` (FORMULATION §5.4).
         phase_prediction: ``"previous"`` integrates the previous ``s`` profile to predict
             ``σ̂_i``; ``"nominal"`` uses ``σ + τ_i`` (the thesis).
-        solver: ``"osqp"`` (default; refined to the exact optimum, ``qp_solver.py``) or
-            ``"daqp"`` (dual active-set, ``qp_daqp.py``; needs the ``daqp`` package).
+        solver: ``"daqp"`` (the default: dual active-set, ``qp_daqp.py``) or ``"osqp"``
+            (ADMM refined to the exact optimum, ``qp_solver.py``). Both give the same
+            commands (to ~1e-10 rad/s over a run); DAQP is 4–8× faster on these QPs
+            (docs/performance.md). ``None`` picks DAQP, or OSQP when ``solver_settings``
+            name a setting only OSQP knows (``max_iter``, ``time_limit`` …), so settings
+            written for OSQP keep selecting it.
         solver_settings: settings overriding the solver's defaults.
     """
 
@@ -130,10 +157,12 @@ class TrackingController(Controller):
         measurement_delay_periods: int = 0,
         scaling: bool = True,
         phase_prediction: Literal["previous", "nominal"] = "previous",
-        solver: Literal["osqp", "daqp"] = "osqp",
+        solver: Literal["osqp", "daqp"] | None = None,
         solver_settings: dict | None = None,
     ) -> None:
         super().__init__(robot, trajectory, period_s, measurement_delay_periods)
+        if solver is None:
+            solver = default_solver(solver_settings)
         if solver not in ("osqp", "daqp"):
             raise ParameterError(f"solver must be 'osqp' or 'daqp', got {solver!r}")
         self.solver = solver
