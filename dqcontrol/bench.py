@@ -1,20 +1,34 @@
 """Benchmarks of the control step (``dqcontrol bench``, ``benchmarks/bench_controllers.py``).
 
-Figures are medians (and 99th percentiles) of per-step wall times measured inside a real
-closed loop (kinematic, LBR4p, circle), so every step sees a changing state, a changing
-active set and the warm start a real loop gives it. Peers are measured in the same run and
-reported as ratios: DQ Robotics's ``fkm`` + ``pose_jacobian`` and its
-``DQ_ClassicQPController`` step (a local QP without scaling; its QP solved by quadprog
-through DQ Robotics's Python solver interface), when the ``dqrobotics`` package is present.
+Every figure of issue 7 in one run, on the machine it runs on:
+
+- the step time of the four controllers at ``T = 1 ms`` (local with scaling, predictive
+  p = 6 and p = 10, proportional), prediction, QP build and solve included: medians and
+  99th percentiles of per-step wall times measured inside a real closed loop (kinematic,
+  LBR4p, the 2 s circle), so every step sees a changing state, a changing active set and
+  the warm start a real loop gives it; both QP backends, with the solver's own time beside;
+- the peers, measured in the same run and reported as ratios: DQ Robotics's
+  ``DQ_ClassicQPController`` step (a local QP without scaling, its QP solved by quadprog
+  through DQ Robotics's Python solver interface) against our local step, and ten of its
+  ``fkm`` + ``pose_jacobian`` calls against our batched kinematics of 10 configurations;
+- how far the two backends' applied commands differ over a run (equal accuracy);
+- the MuJoCo closed loop, predictive p = 10 at ``T = 1 ms`` on the 2 s circle: its
+  real-time factor (simulated time / wall time);
+- the step time against p (2 … 20) and against the number of joints.
+
+Each target of the issue is printed as met or not met beside its figure. Timings are
+medians over repeated runs; the machine is shared, so they move by ±10–20 % between runs.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import time
 import timeit
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -25,23 +39,80 @@ from dqcontrol.controllers import (
     PredictiveNoScalingController,
     ProportionalController,
 )
+from dqcontrol.controllers.tracking import DEFAULT_SOLVER
 from dqcontrol.model import LBR4P_Q0, RobotModel, load_lbr4p
 from dqcontrol.trajectories import Circle
 
-__all__ = ["bench_controllers", "bench_dqrobotics", "bench_kinematics", "long_chain_urdf", "main"]
+__all__ = [
+    "TARGETS",
+    "bench_agreement",
+    "bench_controllers",
+    "bench_dqrobotics",
+    "bench_kinematics",
+    "bench_mujoco",
+    "bench_scaling",
+    "format_report",
+    "long_chain_urdf",
+    "machine",
+    "main",
+    "run_all",
+    "step_times",
+]
 
 THESIS_VEL = np.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5])
 LBR4P_DH = {
     "d": [0.2, 0, 0.4, 0, 0.39, 0, 0.078],
     "alpha": [np.pi / 2, -np.pi / 2, np.pi / 2, -np.pi / 2, np.pi / 2, -np.pi / 2, 0],
 }
+#: Control period of the step figures [s] (the issue's 1 kHz).
+PERIOD_S = 0.001
+#: Issue 7's targets: (figure, comparison, bound, unit).
+TARGETS: dict[str, tuple[str, str, float, str]] = {
+    "local": ("local step (scaling), median", "<=", 100.0, "µs"),
+    "predictive_p6": ("predictive p = 6 step, median", "<=", 300.0, "µs"),
+    "predictive_p10": ("predictive p = 10 step, median", "<=", 500.0, "µs"),
+    "proportional": ("proportional step, median", "<=", 50.0, "µs"),
+    "p99_over_median": ("99th percentile / median (worst of the four)", "<=", 2.0, "×"),
+    "local_vs_dqr_classic_qp": ("local step / DQR ClassicQP step", "<=", 1.0, "×"),
+    "batch10_vs_10x_dqr": ("batched kinematics p=10 / 10 DQR fkm+J", "<=", 0.5, "×"),
+    "mujoco_realtime_factor": ("MuJoCo p=10, T=1 ms: sim time / wall time", ">=", 1.0, "×"),
+}
+STEP_KINDS = (("local", 1), ("predictive", 6), ("predictive", 10))
 
 
 def _median_us(fn, number: int, repeat: int = 7) -> float:
     return float(np.median(timeit.repeat(fn, number=number, repeat=repeat)) / number * 1e6)
 
 
-def _make(kind: str, robot: RobotModel, traj, period_s: float, solver: str, p: int = 10):
+def _version(dist: str) -> str | None:
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def machine() -> dict:
+    """CPU model, cores, Python and the versions of the packages that set the figures."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    packages = ("dqcontrol", "numpy", "scipy", "pin", "daqp", "osqp", "mujoco", "dqrobotics")
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "packages": {name: _version(name) for name in packages},
+    }
+
+
+def _make(kind: str, robot: RobotModel, traj, period_s: float, solver: str | None, p: int = 10):
     n = robot.nq
     vel = THESIS_VEL if n == 7 else np.full(n, np.pi)
     kw = {"velocity_limits": vel, "acceleration_limit": 10.0}
@@ -56,20 +127,32 @@ def _make(kind: str, robot: RobotModel, traj, period_s: float, solver: str, p: i
     return PredictiveController(robot, traj, period_s, num_instants=p, solver=solver, **kw)
 
 
-def step_times(controller, q0: np.ndarray, steps: int) -> dict:
-    """Per-step wall time [µs] over a kinematic closed loop (median, p99, solver median)."""
-    q = np.array(q0, dtype=float)
-    controller.reset(q)
-    times, solves, iters = [], [], []
-    for _ in range(steps):
-        t0 = time.perf_counter()
-        res = controller.step(q)
-        times.append(time.perf_counter() - t0)
-        solves.append(res.diagnostics.solve_time_s)
-        iters.append(res.diagnostics.iterations)
-        q = q + controller.period_s * res.qd_command
-        if controller.done:
-            controller.reset(q)
+def _name(kind: str, p: int) -> str:
+    return kind if kind in ("local", "proportional") else f"{kind}_p{p}"
+
+
+def step_times(controller, q0: np.ndarray, steps: int, repeats: int = 1) -> dict:
+    """Per-step wall time [µs] over ``repeats`` kinematic closed loops of ``steps`` steps.
+
+    Median, 99th percentile and their ratio over all steps pooled; the solver's median
+    time; and the spread of the runs' medians.
+    """
+    times, solves, iters, run_medians = [], [], [], []
+    for _ in range(repeats):
+        q = np.array(q0, dtype=float)
+        controller.reset(q)
+        run = []
+        for _ in range(steps):
+            t0 = time.perf_counter()
+            res = controller.step(q)
+            run.append(time.perf_counter() - t0)
+            solves.append(res.diagnostics.solve_time_s)
+            iters.append(res.diagnostics.iterations)
+            q = q + controller.period_s * res.qd_command
+            if controller.done:
+                controller.reset(q)
+        times += run
+        run_medians.append(float(np.median(run) * 1e6))
     t = np.array(times) * 1e6
     return {
         "median_us": float(np.median(t)),
@@ -77,39 +160,91 @@ def step_times(controller, q0: np.ndarray, steps: int) -> dict:
         "p99_over_median": float(np.percentile(t, 99) / np.median(t)),
         "solver_median_us": float(np.median(solves) * 1e6),
         "iterations_median": float(np.median(iters)),
-        "steps": steps,
+        "run_medians_us": run_medians,
+        "steps": steps * repeats,
     }
 
 
-def bench_controllers(steps: int = 300, period_s: float = 0.05) -> dict:
-    """Step times of every controller on the LBR4p (circle T_tot = 2 s), both QP backends."""
+def bench_controllers(steps: int = 2000, repeats: int = 3, period_s: float = PERIOD_S) -> dict:
+    """Step times of the four controllers on the LBR4p (circle T_tot = 2 s), both backends.
+
+    Keys ``"<controller>[<solver>]"`` and ``"proportional"``.
+    """
     robot = load_lbr4p()
     out: dict = {}
-    for solver in ("osqp", "daqp"):
-        for kind, p in (("local", 1), ("predictive", 6), ("predictive", 10), ("noscale", 10)):
-            name = kind if kind == "local" else f"{kind}_p{p}"
+    for solver in ("daqp", "osqp"):
+        for kind, p in STEP_KINDS:
             ctrl = _make(kind, robot, Circle(2.0), period_s, solver, p)
-            out[f"{name}[{solver}]"] = step_times(ctrl, LBR4P_Q0, steps)
-    out["proportional"] = step_times(
-        _make("proportional", robot, Circle(2.0), period_s, "osqp"), LBR4P_Q0, steps
-    )
+            out[f"{_name(kind, p)}[{solver}]"] = step_times(ctrl, LBR4P_Q0, steps, repeats)
+    ctrl = _make("proportional", robot, Circle(2.0), period_s, None)
+    out["proportional"] = step_times(ctrl, LBR4P_Q0, steps, repeats)
     return out
 
 
-def bench_scaling(steps: int = 120, solver: str = "daqp") -> dict:
-    """Predictive step time against p (2…20) on the LBR4p, and against the joint count."""
+def bench_agreement(steps: int = 2000, period_s: float = PERIOD_S) -> dict:
+    """Largest difference of the applied command [rad/s] and of ``s`` between the DAQP and
+    the OSQP backend over one closed loop (both controllers stepped at the same states)."""
+    robot = load_lbr4p()
+    out = {}
+    for kind, p in STEP_KINDS:
+        a = _make(kind, robot, Circle(2.0), period_s, "daqp", p)
+        b = _make(kind, robot, Circle(2.0), period_s, "osqp", p)
+        q = LBR4P_Q0.copy()
+        a.reset(q)
+        b.reset(q)
+        dqd = ds = 0.0
+        for _ in range(steps):
+            ra, rb = a.step(q), b.step(q)
+            dqd = max(dqd, float(np.abs(ra.qd_command - rb.qd_command).max()))
+            ds = max(ds, abs(ra.s - rb.s))
+            q = q + period_s * ra.qd_command
+            if a.done:
+                break
+        out[_name(kind, p)] = {"max_abs_qd_diff": dqd, "max_abs_s_diff": ds}
+    return out
+
+
+def bench_scaling(
+    steps: int = 500,
+    repeats: int = 2,
+    solver: str = DEFAULT_SOLVER,
+    ps: tuple[int, ...] = (2, 4, 6, 8, 10, 14, 20),
+    joints: tuple[int, ...] = (7, 14, 21),
+    period_s: float = PERIOD_S,
+) -> dict:
+    """Predictive step time against p on the LBR4p, and at p = 10 against the joint count
+    (the LBR4p, then :func:`long_chain_urdf` chains), with a power-law fit of each."""
     robot = load_lbr4p()
     by_p = {}
-    for p in (2, 4, 6, 10, 14, 20):
-        ctrl = _make("predictive", robot, Circle(2.0), 0.05, solver, p)
-        by_p[p] = step_times(ctrl, LBR4P_Q0, steps)["median_us"]
+    for p in ps:
+        ctrl = _make("predictive", robot, Circle(2.0), period_s, solver, p)
+        res = step_times(ctrl, LBR4P_Q0, steps, repeats)
+        by_p[p] = {k: res[k] for k in ("median_us", "solver_median_us", "p99_over_median")}
     by_n = {}
-    for n in (7, 14):
+    for n in joints:
         rob = robot if n == 7 else RobotModel.from_urdf(long_chain_urdf(n), "flange")
-        q0 = LBR4P_Q0 if n == 7 else np.tile(LBR4P_Q0 * 0.5, n // 7)
-        ctrl = _make("predictive", rob, Circle(2.0), 0.05, solver, 10)
-        by_n[n] = step_times(ctrl, q0, steps)["median_us"]
-    return {"median_us_by_p": by_p, "median_us_by_joints_p10": by_n, "solver": solver}
+        q0 = LBR4P_Q0 if n == 7 else np.resize(LBR4P_Q0 * 0.5, n)
+        ctrl = _make("predictive", rob, Circle(2.0), period_s, solver, 10)
+        res = step_times(ctrl, q0, steps, repeats)
+        by_n[n] = {k: res[k] for k in ("median_us", "solver_median_us", "p99_over_median")}
+    return {
+        "solver": solver,
+        "by_p": by_p,
+        "by_joints_p10": by_n,
+        "fit_p": _power_fit(by_p),
+        "fit_joints": _power_fit(by_n),
+    }
+
+
+def _power_fit(table: dict) -> dict:
+    """Exponents ``k`` of ``t ≈ a x^k`` for the whole step and for the solver alone
+    (least squares in log-log over the measured points)."""
+    xs = np.log([float(x) for x in table])
+    out = {}
+    for key in ("median_us", "solver_median_us"):
+        ys = np.log([max(v[key], 1e-3) for v in table.values()])
+        out[key] = float(np.polyfit(xs, ys, 1)[0]) if len(xs) > 1 else float("nan")
+    return out
 
 
 def long_chain_urdf(n: int) -> str:
@@ -138,19 +273,19 @@ def long_chain_urdf(n: int) -> str:
     return '<robot name="chain">' + "".join(links + joints) + "</robot>"
 
 
-def bench_kinematics() -> dict:
-    """Pose + pose Jacobian of the LBR4p, single and batched (p = 10) [µs]."""
+def bench_kinematics(number: int = 2000, repeat: int = 9) -> dict:
+    """Pose + pose Jacobian of the LBR4p, single and batched (p = 10 configurations) [µs]."""
     robot = load_lbr4p()
     rng = np.random.default_rng(0)
     q = LBR4P_Q0 + rng.uniform(-0.1, 0.1, 7)
     qs = LBR4P_Q0 + rng.uniform(-0.3, 0.3, (10, 7))
     return {
-        "single_us": _median_us(lambda: robot._pose_and_jacobian(q), 5000),
-        "batch10_us": _median_us(lambda: robot._poses_and_jacobians(qs), 1000),
+        "single_us": _median_us(lambda: robot._pose_and_jacobian(q), number, repeat),
+        "batch10_us": _median_us(lambda: robot._poses_and_jacobians(qs), number // 10, repeat),
     }
 
 
-def bench_dqrobotics() -> dict | None:
+def bench_dqrobotics(number: int = 2000, repeat: int = 9) -> dict | None:
     """DQ Robotics peers measured in this run, or ``None`` if the package is missing."""
     try:
         import quadprog
@@ -185,85 +320,228 @@ def bench_dqrobotics() -> dict | None:
     ctrl.set_inequality_constraint(
         np.vstack([np.eye(7), -np.eye(7)]), np.concatenate([THESIS_VEL, THESIS_VEL])
     )
-    q = LBR4P_Q0.copy()
+    rng = np.random.default_rng(0)
+    q = LBR4P_Q0 + rng.uniform(-0.1, 0.1, 7)
+    qs = LBR4P_Q0 + rng.uniform(-0.3, 0.3, (10, 7))
     target = (arm.fkm(q) * (1 + E_ * 0.5 * 0.01 * k_)).vec8()
+    fkm, jac = arm.fkm, arm.pose_jacobian
 
     def kin() -> None:
-        arm.fkm(q)
-        arm.pose_jacobian(q)
+        fkm(q)
+        jac(q)
+
+    def kin_ten() -> None:
+        for qi in qs:
+            fkm(qi)
+            jac(qi)
 
     return {
-        "fkm_pose_jacobian_us": _median_us(kin, 5000),
+        "version": _version("dqrobotics"),
+        "fkm_pose_jacobian_us": _median_us(kin, number, repeat),
+        "ten_fkm_pose_jacobian_us": _median_us(kin_ten, number // 10, repeat),
         "classic_qp_step_us": _median_us(
-            lambda: ctrl.compute_setpoint_control_signal(q, target), 500
+            lambda: ctrl.compute_setpoint_control_signal(q, target), number // 4, repeat
         ),
     }
 
 
-def run_all(quick: bool = False) -> dict:
-    """Every figure of the benchmark, with peer ratios and the machine."""
-    steps = 60 if quick else 300
-    out = {
-        "machine": {
-            "platform": platform.platform(),
-            "processor": platform.processor() or platform.machine(),
-            "cpus": os.cpu_count(),
-            "python": platform.python_version(),
-        },
-        "kinematics": bench_kinematics(),
-        "controllers": bench_controllers(steps=steps),
+def bench_mujoco(duration_s: float = 2.0, period_s: float = PERIOD_S, repeats: int = 1) -> dict:
+    """Wall time of the MuJoCo closed loop, predictive p = 10 (default backend) on the circle
+    of ``duration_s``, ``T = period_s``: real-time factor = simulated / wall time."""
+    from dqcontrol.sim.mujoco_loop import run_mujoco
+    from dqcontrol.sim.mujoco_sim import MujocoSimulation
+
+    robot = load_lbr4p()
+    walls, sims, completed = [], [], True
+    for _ in range(repeats):
+        ctrl = _make("predictive", robot, Circle(duration_s), period_s, None, 10)
+        sim = MujocoSimulation(robot)
+        t0 = time.perf_counter()
+        res = run_mujoco(ctrl, LBR4P_Q0, simulation=sim, max_time_s=2.0 * duration_s)
+        walls.append(time.perf_counter() - t0)
+        sims.append(len(res.log) * period_s)
+        completed &= bool(ctrl.done)
+    wall = float(np.median(walls))
+    simulated = float(np.median(sims))
+    return {
+        "circle_s": duration_s,
+        "period_s": period_s,
+        "simulated_s": simulated,
+        "wall_s": wall,
+        "realtime_factor": simulated / wall,
+        "completed": completed,
+        "wall_runs_s": walls,
     }
-    if not quick:
-        out["scaling"] = bench_scaling()
-    peers = bench_dqrobotics()
-    out["dqrobotics"] = peers
-    if peers:
-        kin = out["kinematics"]
-        ctl = out["controllers"]
-        out["ratios"] = {
-            "single_kinematics_vs_dqr": kin["single_us"] / peers["fkm_pose_jacobian_us"],
-            "batch10_vs_10x_dqr": kin["batch10_us"] / (10 * peers["fkm_pose_jacobian_us"]),
-            "local_step_vs_dqr_classic_qp": min(
-                ctl["local[osqp]"]["median_us"], ctl["local[daqp]"]["median_us"]
-            )
-            / peers["classic_qp_step_us"],
-        }
+
+
+def _targets(res: dict) -> dict:
+    """Each target of :data:`TARGETS` with its figure and whether it is met."""
+    ctl = res["controllers"]
+    d = DEFAULT_SOLVER
+    fig = {
+        "local": ctl[f"local[{d}]"]["median_us"],
+        "predictive_p6": ctl[f"predictive_p6[{d}]"]["median_us"],
+        "predictive_p10": ctl[f"predictive_p10[{d}]"]["median_us"],
+        "proportional": ctl["proportional"]["median_us"],
+        "p99_over_median": max(
+            ctl[k]["p99_over_median"]
+            for k in (f"local[{d}]", f"predictive_p6[{d}]", f"predictive_p10[{d}]", "proportional")
+        ),
+    }
+    ratios = res.get("ratios") or {}
+    fig["local_vs_dqr_classic_qp"] = ratios.get("local_step_vs_dqr_classic_qp")
+    fig["batch10_vs_10x_dqr"] = ratios.get("batch10_vs_10x_dqr")
+    if res.get("mujoco"):
+        fig["mujoco_realtime_factor"] = res["mujoco"]["realtime_factor"]
+    out = {}
+    for key, (label, op, bound, unit) in TARGETS.items():
+        value = fig.get(key)
+        met = None if value is None else (value <= bound if op == "<=" else value >= bound)
+        out[key] = {"label": label, "value": value, "target": f"{op} {bound:g} {unit}", "met": met}
     return out
 
 
+def run_all(quick: bool = False) -> dict:
+    """Every figure of the benchmark, with peer ratios, targets and the machine.
+
+    ``quick`` (seconds, for tests and CI) runs few steps, a short MuJoCo run and a reduced
+    scaling sweep: its figures are indicative only.
+    """
+    if quick:
+        steps, repeats, kin_n = 150, 1, 200
+    else:
+        steps, repeats, kin_n = 2000, 3, 2000
+    out: dict = {
+        "machine": machine(),
+        "quick": quick,
+        "period_s": PERIOD_S,
+        "default_solver": DEFAULT_SOLVER,
+        "kinematics": bench_kinematics(number=kin_n, repeat=5 if quick else 9),
+        "controllers": bench_controllers(steps=steps, repeats=repeats),
+        "agreement": bench_agreement(steps=100 if quick else 2000),
+    }
+    peers = bench_dqrobotics(number=kin_n, repeat=5 if quick else 9)
+    out["dqrobotics"] = peers
+    if peers:
+        kin = out["kinematics"]
+        local = out["controllers"][f"local[{DEFAULT_SOLVER}]"]["median_us"]
+        out["ratios"] = {
+            "single_kinematics_vs_dqr": kin["single_us"] / peers["fkm_pose_jacobian_us"],
+            "batch10_vs_10x_dqr": kin["batch10_us"] / peers["ten_fkm_pose_jacobian_us"],
+            "local_step_vs_dqr_classic_qp": local / peers["classic_qp_step_us"],
+        }
+    out["mujoco"] = bench_mujoco(duration_s=0.5 if quick else 2.0, repeats=1 if quick else 3)
+    if quick:
+        out["scaling"] = bench_scaling(steps=60, repeats=1, ps=(2, 10), joints=(7, 14))
+    else:
+        out["scaling"] = bench_scaling()
+    out["targets"] = _targets(out)
+    return out
+
+
+def _fmt(value, unit: str) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "—"
+    return f"{value:.3g} {unit}" if unit == "×" else f"{value:.0f} {unit}"
+
+
 def format_report(res: dict) -> str:
-    """Human-readable table of :func:`run_all`'s figures."""
-    lines = [f"machine: {res['machine']}", "", "kinematics (LBR4p) [µs, median]"]
-    for k, v in res["kinematics"].items():
-        lines.append(f"  {k:28s} {v:9.1f}")
-    lines += ["", f"{'control step (LBR4p, T = 50 ms)':40s} {'median':>9s} {'p99':>9s} "
-              f"{'p99/med':>8s} {'solver':>9s} {'iters':>6s}  [µs]"]  # fmt: skip
+    """Human-readable report of :func:`run_all`'s figures."""
+    m = res["machine"]
+    pk = ", ".join(f"{k} {v}" for k, v in m["packages"].items() if v)
+    lines = [
+        f"machine: {m['cpu']}, {m['cores']} cores, Python {m['python']} ({m['platform']})",
+        f"packages: {pk}",
+    ]
+    if res.get("quick"):
+        lines.append("QUICK MODE: few steps, indicative figures only")
+    lines += ["", "targets (issue 7)"]
+    for t in res["targets"].values():
+        unit = t["target"].split()[-1]
+        state = {True: "met", False: "NOT MET", None: "not measured"}[t["met"]]
+        lines.append(
+            f"  {t['label']:48s} {_fmt(t['value'], unit):>10s}  {t['target']:>10s}  {state}"
+        )
+    period_ms = res["period_s"] * 1e3
+    lines += [
+        "",
+        f"control step, LBR4p, circle T_tot = 2 s, T = {period_ms:g} ms (default backend: "
+        f"{res['default_solver']})",
+        f"  {'controller[backend]':28s} {'median':>8s} {'p99':>8s} {'p99/med':>8s} "
+        f"{'solver':>8s} {'iters':>6s}  [µs]",
+    ]
     for k, v in res["controllers"].items():
         lines.append(
-            f"  {k:38s} {v['median_us']:9.1f} {v['p99_us']:9.1f} {v['p99_over_median']:8.2f} "
-            f"{v['solver_median_us']:9.1f} {v['iterations_median']:6.0f}"
+            f"  {k:28s} {v['median_us']:8.1f} {v['p99_us']:8.1f} {v['p99_over_median']:8.2f} "
+            f"{v['solver_median_us']:8.1f} {v['iterations_median']:6.0f}"
         )
-    if "scaling" in res:
-        sc = res["scaling"]
-        lines += ["", f"predictive step vs p ({sc['solver']}) [µs]: {sc['median_us_by_p']}"]
-        lines.append(f"predictive p=10 vs joints [µs]: {sc['median_us_by_joints_p10']}")
-    if res.get("dqrobotics"):
-        lines += ["", f"DQ Robotics (same run) [µs]: {res['dqrobotics']}"]
-        lines += [f"ratios: {json.dumps({k: round(v, 3) for k, v in res['ratios'].items()})}"]
+    lines += ["", "backends agree (max over a run, DAQP vs OSQP + refinement)"]
+    for k, v in res["agreement"].items():
+        lines.append(
+            f"  {k:16s} |Δqd| {v['max_abs_qd_diff']:.1e} rad/s   |Δs| {v['max_abs_s_diff']:.1e}"
+        )
+    kin = res["kinematics"]
+    lines += ["", "kinematics (pose + pose Jacobian, LBR4p) [µs, median]"]
+    lines.append(f"  ours single {kin['single_us']:.1f}, batch of 10 {kin['batch10_us']:.1f}")
+    peers = res.get("dqrobotics")
+    if peers:
+        lines.append(
+            f"  DQ Robotics {peers['version']}: "
+            f"fkm + pose_jacobian {peers['fkm_pose_jacobian_us']:.1f}, "
+            f"ten of them {peers['ten_fkm_pose_jacobian_us']:.1f}; "
+            f"DQ_ClassicQPController step {peers['classic_qp_step_us']:.1f}"
+        )
+        r = res["ratios"]
+        lines.append(
+            f"  ratios: single kinematics {r['single_kinematics_vs_dqr']:.2f}×, batch of 10 vs "
+            f"ten DQR calls {r['batch10_vs_10x_dqr']:.2f}×, local step vs ClassicQP step "
+            f"{r['local_step_vs_dqr_classic_qp']:.2f}×"
+        )
     else:
-        lines += ["", "DQ Robotics not installed: no peer ratios (pip install dqrobotics)"]
+        lines.append("  DQ Robotics not installed: no peer ratios (pip install dqrobotics)")
+    mj = res["mujoco"]
+    lines += [
+        "",
+        f"MuJoCo closed loop, predictive p = 10, T = {mj['period_s'] * 1e3:g} ms, "
+        f"{mj['circle_s']:g} s circle: {mj['simulated_s']:.2f} s simulated in "
+        f"{mj['wall_s']:.2f} s wall (real-time factor {mj['realtime_factor']:.2f}"
+        f"{'' if mj['completed'] else ', circle NOT completed'})",
+    ]
+    sc = res["scaling"]
+    lines += ["", f"predictive step against p (LBR4p, {sc['solver']}) [µs]: median (solver)"]
+    lines.append(
+        "  "
+        + ", ".join(
+            f"p={p}: {v['median_us']:.0f} ({v['solver_median_us']:.0f})"
+            for p, v in sc["by_p"].items()
+        )
+    )
+    lines.append(
+        f"  fit t ∝ p^k: step k = {sc['fit_p']['median_us']:.2f}, "
+        f"solver k = {sc['fit_p']['solver_median_us']:.2f}"
+    )
+    lines.append("predictive p = 10 against the number of joints [µs]: median (solver)")
+    lines.append(
+        "  "
+        + ", ".join(
+            f"n={n}: {v['median_us']:.0f} ({v['solver_median_us']:.0f})"
+            for n, v in sc["by_joints_p10"].items()
+        )
+    )
+    lines.append(
+        f"  fit t ∝ n^k: step k = {sc['fit_joints']['median_us']:.2f}, "
+        f"solver k = {sc['fit_joints']['solver_median_us']:.2f}"
+    )
     return "\n".join(lines)
 
 
 def main(out: str | os.PathLike | None = "results/bench.json", quick: bool = False) -> dict:
     """Run, print and (atomically) write ``results/bench.json``."""
+    from dqcontrol.runs import atomic_write_text
+
     res = run_all(quick=quick)
     print(format_report(res))
     if out:
-        path = Path(out)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(path.suffix + ".tmp")
-        tmp.write_text(json.dumps(res, indent=2))
-        os.replace(tmp, path)
+        path = atomic_write_text(Path(out), json.dumps(res, indent=2, default=str) + "\n")
         print(f"\nwritten: {path}")
     return res

@@ -148,9 +148,9 @@ class Trajectory(ABC):
         s = self._check_sigma(sigma)
         if 0.0 <= s < self._duration:
             return self._local_pair(s).dot(h_t)
-        pair = self._local_pair(min(max(s, 0.0), self._duration))
-        pair[1] = 0.0  # the task holds its end pose: zero derivative (see target_derivative)
-        return pair.dot(h_t)
+        # outside the path the task holds its end pose: zero derivative (target_derivative)
+        pose = self.local_pose(min(max(s, 0.0), self._duration))
+        return np.array((pose, np.zeros(8))).dot(h_t)
 
     def _local_pair(self, sigma: float) -> np.ndarray:
         """``[traj(σ); dtraj/dσ]`` as a new ``(2, 8)`` array (subclasses may fuse the two)."""

@@ -1,0 +1,132 @@
+"""The fast paths of the control step equal the straightforward computations they replace
+(issue 7): batched kinematics, the fused target pair, the stacked bound computation, the
+Cholesky solve of the proportional controller, the default QP backend rule, and the
+benchmark's JSON (its figures are timings: never asserted here)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dqcontrol.bench import long_chain_urdf
+from dqcontrol.controllers.bounds import (
+    braking_speed,
+    command_box,
+    intersect_acceleration,
+    velocity_position_box,
+)
+from dqcontrol.controllers.proportional import _solve_spd
+from dqcontrol.controllers.tracking import DEFAULT_SOLVER, default_solver
+from dqcontrol.model import RobotModel
+from dqcontrol.trajectories import Circle, FunctionTrajectory, Sinusoid, WaypointTrajectory
+
+
+@pytest.fixture(scope="module")
+def chain14() -> RobotModel:
+    return RobotModel.from_urdf(long_chain_urdf(14), "flange")
+
+
+@pytest.mark.parametrize("robot_name", ["lbr4p", "chain14"])
+def test_batched_kinematics_equal_single_calls(robot_name, request):
+    robot = request.getfixturevalue(robot_name)
+    qs = robot.random_configurations(50, seed=3)
+    xs, jacs = robot.poses_and_jacobians(qs)
+    for q, x, jac in zip(qs, xs, jacs, strict=True):
+        x1, jac1 = robot.pose_and_jacobian(q)
+        np.testing.assert_allclose(x, x1, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(jac, jac1, rtol=0, atol=1e-12)
+        assert x[0] >= 0.0  # r_w ≥ 0, as the single path
+
+
+def _trajectories():
+    ref = np.array([1.0, 0, 0, 0, 0, 0.05, -0.1, 0.2])
+    yield Circle(2.0, reference=ref)
+    yield Sinusoid(4.0, reference=ref)
+    yield WaypointTrajectory(
+        np.array([[0, 0, 0], [0.1, 0, 0], [0.1, 0.1, 0.05]]), duration_s=3.0, reference=ref
+    )
+    circle = Circle(2.0)
+    yield FunctionTrajectory(circle.local_pose, None, 2.0, reference=ref)
+
+
+@pytest.mark.parametrize("traj", list(_trajectories()), ids=lambda t: type(t).__name__)
+def test_target_pair_equals_target_and_derivative(traj):
+    duration = traj.duration
+    for sigma in (-0.3, 0.0, 0.1234, 0.5 * duration, duration - 1e-9, duration, duration + 1):
+        pair = traj.target_pair(sigma)
+        np.testing.assert_allclose(pair[0], traj.target(sigma), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(pair[1], traj.target_derivative(sigma), rtol=0, atol=1e-15)
+
+
+def _reference_box(q, q_min, q_max, qd_max, period_s, a_max):
+    """The bounds as first written (one side at a time), the oracle of the stacked pass."""
+    lo = np.maximum(-qd_max, (q_min - q) / period_s)
+    hi = np.minimum(qd_max, (q_max - q) / period_s)
+    if a_max is not None:
+        hi = np.minimum(hi, braking_speed(q_max - q, a_max, period_s))
+        lo = np.maximum(lo, -braking_speed(q - q_min, a_max, period_s))
+    hi = np.maximum(hi, np.minimum(lo, qd_max))
+    lo = np.minimum(lo, hi)
+    return lo, hi
+
+
+@pytest.mark.parametrize("braking", [True, False])
+@pytest.mark.parametrize("shape", [(7,), (10, 7)])
+def test_stacked_bounds_equal_the_reference(braking, shape):
+    rng = np.random.default_rng(7)
+    q_min, q_max = -np.full(7, 2.9), np.full(7, 2.9)
+    qd_max = rng.uniform(1.0, 3.0, 7)
+    for _ in range(50):
+        q = rng.uniform(-3.2, 3.2, shape)  # some beyond the limits
+        a = rng.uniform(0.5, 40.0, shape) if braking else None
+        for period in (0.001, 0.05):
+            got = velocity_position_box(q, q_min, q_max, qd_max, period, a)
+            want = _reference_box(q, q_min, q_max, qd_max, period, a)
+            np.testing.assert_array_equal(got[0], want[0])
+            np.testing.assert_array_equal(got[1], want[1])
+    q = rng.uniform(-3.0, 3.0, 7)
+    box = command_box(q, np.zeros(7), q_min, q_max, qd_max, np.full(7, 10.0), 0.001)
+    lo, hi = _reference_box(q, q_min, q_max, qd_max, 0.001, np.full(7, 10.0))
+    want = intersect_acceleration(lo, hi, np.zeros(7), np.full(7, 0.01))
+    np.testing.assert_array_equal(box.lower, want.lower)
+    np.testing.assert_array_equal(box.upper, want.upper)
+
+
+def test_cholesky_solve_equals_lu_and_falls_back():
+    rng = np.random.default_rng(1)
+    n_mat = rng.normal(size=(8, 7))
+    gram = n_mat @ n_mat.T + 1e-6 * np.eye(8)
+    rhs = rng.normal(size=8)
+    np.testing.assert_allclose(_solve_spd(gram, rhs), np.linalg.solve(gram, rhs), rtol=1e-9)
+    indefinite = np.diag([1.0, -1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0])
+    np.testing.assert_allclose(_solve_spd(indefinite, rhs), np.linalg.solve(indefinite, rhs))
+
+
+def test_default_solver_rule():
+    assert DEFAULT_SOLVER == "daqp"
+    assert default_solver(None) == "daqp"
+    assert default_solver({"iter_limit": 100}) == "daqp"
+    # settings written for OSQP keep selecting OSQP
+    assert default_solver({"max_iter": 1, "warm_starting": False}) == "osqp"
+    assert default_solver({"time_limit": 1e-9, "warm_starting": False}) == "osqp"
+
+
+def test_quick_bench_writes_every_figure(tmp_path):
+    from dqcontrol.bench import TARGETS, main
+
+    out = tmp_path / "bench.json"
+    res = main(out=out, quick=True)
+    data = json.loads(out.read_text())
+    assert data["quick"] is True and data["default_solver"] == "daqp"
+    assert set(data["targets"]) == set(TARGETS)
+    for key in ("cpu", "cores", "python", "packages"):
+        assert key in data["machine"]
+    for name in ("local[daqp]", "predictive_p6[daqp]", "predictive_p10[daqp]", "proportional"):
+        assert data["controllers"][name]["median_us"] > 0.0
+    assert data["mujoco"]["realtime_factor"] > 0.0
+    assert data["scaling"]["by_p"] and data["scaling"]["by_joints_p10"]
+    for v in data["agreement"].values():
+        assert v["max_abs_qd_diff"] < 1e-8  # accuracy, not time: the backends agree
+    assert res["targets"].keys() == data["targets"].keys()
