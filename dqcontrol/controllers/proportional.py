@@ -57,7 +57,7 @@ class ProportionalController(Controller):
         acceleration_limit: ``a_max`` [rad/s²] for the clipping box.
         braking_aware: add the stop-before-the-limit position bound (bounds.py).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
-            [rad] (default 1 mrad).
+            [rad] (default 5 mrad, see TrackingController).
         measurement_delay_periods: see :class:`~dqcontrol.controllers.base.Controller`.
         saturate: clip the command to the hard bounds (default True).
     """
@@ -75,7 +75,7 @@ class ProportionalController(Controller):
         velocity_limits: float | np.ndarray | None = None,
         acceleration_limit: float | np.ndarray = 10.0,
         braking_aware: bool = True,
-        position_margin_rad: float = 1e-3,
+        position_margin_rad: float = 5e-3,
         measurement_delay_periods: int = 0,
         saturate: bool = True,
     ) -> None:

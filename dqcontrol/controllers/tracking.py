@@ -120,8 +120,9 @@ class TrackingController(Controller):
             ``[acceleration_floor, acceleration_cap]``.
         braking_aware: add the stop-before-the-limit position bound (bounds.py).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
-            [rad] (default 1 mrad: a real velocity servo overshoots a joint driven exactly
-            to its limit by ~0.4 mrad in MuJoCo; with encoder noise use ≥ 3σ).
+            [rad] (default 5 mrad = 0.29°: a velocity servo lags its command, so a joint
+            braked to its limit overshoots — by up to 2.2 mrad in the MuJoCo fault campaign,
+            docs/faults.md; with encoder noise use ≥ 3σ).
         measurement_delay_periods: see :class:`~dqcontrol.controllers.base.Controller`.
         scaling: optimise ``s`` (True) or hold ``s ≡ 1`` (FORMULATION §5.4).
         phase_prediction: ``"previous"`` integrates the previous ``s`` profile to predict
@@ -153,7 +154,7 @@ class TrackingController(Controller):
         acceleration_floor: float = 0.5,
         acceleration_cap: float = 50.0,
         braking_aware: bool = True,
-        position_margin_rad: float = 1e-3,
+        position_margin_rad: float = 5e-3,
         measurement_delay_periods: int = 0,
         scaling: bool = True,
         phase_prediction: Literal["previous", "nominal"] = "previous",
