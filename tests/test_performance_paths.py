@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from dqcontrol.bench import long_chain_urdf
+from dqcontrol.controllers import LocalController
 from dqcontrol.controllers.bounds import (
     braking_speed,
     command_box,
@@ -19,6 +20,7 @@ from dqcontrol.controllers.bounds import (
 )
 from dqcontrol.controllers.proportional import _solve_spd
 from dqcontrol.controllers.tracking import DEFAULT_SOLVER, default_solver
+from dqcontrol.errors import ParameterError
 from dqcontrol.model import RobotModel
 from dqcontrol.trajectories import Circle, FunctionTrajectory, Sinusoid, WaypointTrajectory
 
@@ -104,13 +106,17 @@ def test_cholesky_solve_equals_lu_and_falls_back():
     np.testing.assert_allclose(_solve_spd(indefinite, rhs), np.linalg.solve(indefinite, rhs))
 
 
-def test_default_solver_rule():
+def test_default_solver_rule(lbr4p):
     assert DEFAULT_SOLVER == "daqp"
     assert default_solver(None) == "daqp"
-    assert default_solver({"iter_limit": 100}) == "daqp"
-    # settings written for OSQP keep selecting OSQP
-    assert default_solver({"max_iter": 1, "warm_starting": False}) == "osqp"
-    assert default_solver({"time_limit": 1e-9, "warm_starting": False}) == "osqp"
+    assert default_solver({"max_iter": 1}) == "daqp"  # settings never pick the backend
+    traj = Circle(2.0)
+    with pytest.raises(ParameterError, match="DAQP has no setting.*max_iter"):
+        LocalController(lbr4p, traj, period_s=0.05, solver_settings={"max_iter": 1})
+    ctrl = LocalController(
+        lbr4p, traj, period_s=0.05, solver="osqp", solver_settings={"max_iter": 1}
+    )
+    assert type(ctrl.qp).__name__ == "OsqpQP"
 
 
 def test_quick_bench_writes_every_figure(tmp_path):

@@ -92,15 +92,12 @@ DEFAULT_SOLVER = "daqp"
 
 
 def default_solver(solver_settings: dict | None = None) -> str:
-    """:data:`DEFAULT_SOLVER`, or ``"osqp"`` if ``solver_settings`` name a setting DAQP does
-    not have but OSQP does (settings written for OSQP select OSQP)."""
-    if solver_settings:
-        from dqcontrol.controllers.qp_daqp import daqp_setting_names
-        from dqcontrol.controllers.qp_solver import osqp_setting_names
+    """The backend used when ``solver=None``: always :data:`DEFAULT_SOLVER`.
 
-        foreign = set(solver_settings) - daqp_setting_names()
-        if foreign and foreign <= osqp_setting_names():
-            return "osqp"
+    ``solver_settings`` never choose the backend: settings written for OSQP (``max_iter``,
+    ``time_limit`` …) must come with ``solver="osqp"``; given to DAQP they are refused
+    with the list of DAQP's settings."""
+    del solver_settings
     return DEFAULT_SOLVER
 
 
@@ -130,9 +127,8 @@ class TrackingController(Controller):
         solver: ``"daqp"`` (the default: dual active-set, ``qp_daqp.py``) or ``"osqp"``
             (ADMM refined to the exact optimum, ``qp_solver.py``). Both give the same
             commands (to ~1e-10 rad/s over a run); DAQP is 4–8× faster on these QPs
-            (docs/performance.md). ``None`` picks DAQP, or OSQP when ``solver_settings``
-            name a setting only OSQP knows (``max_iter``, ``time_limit`` …), so settings
-            written for OSQP keep selecting it.
+            (docs/performance.md). ``None`` picks DAQP; settings written for OSQP need
+            ``solver="osqp"`` (DAQP refuses them, naming the settings it knows).
         solver_settings: settings overriding the solver's defaults.
     """
 

@@ -285,6 +285,7 @@ def run_case(
         traj = _build_trajectory(spec, robot, q0)
         extra: dict = f.controller_options()
         if ctrl_spec.qp and f.solver_settings:
+            extra["solver"] = "osqp"  # the solver faults are written in OSQP's settings
             extra["solver_settings"] = dict(f.solver_settings)
         if ctrl_spec.qp and f.contradiction is not None:
             extra["contradiction"] = f.contradiction
