@@ -285,7 +285,8 @@ def test_quick_campaign_qp_controllers_hold_every_bound(quick_campaign):
         assert (r.velocity_violations, r.acceleration_violations) == (0, 0), where
         assert r.q_violations_true == 0 and r.q_violations_measured == 0, where
         assert r.sigma_monotone and r.s_in_range, where  # σ never decreases
-        assert r.status in ("completed", "stopped", "moving"), where
+        # graceful degradation: never moving without the task advancing
+        assert r.status in ("completed", "stopped", "advancing"), where
         if r.status == "completed":
             assert r.sigma_reached_s == pytest.approx(r.duration_s)
 
@@ -303,6 +304,7 @@ def test_unreachable_path_stalls_near_the_path_instead_of_deforming_it(quick_cam
         r = _row(quick_campaign, "unreachable", name)
         assert not r.completed and r.sigma_reached_s < 0.3 * r.duration_s
         assert r.s_end < 0.02
+        assert r.status == "stopped" and r.speed_end_rad_s < 0.05  # at rest, on the path
         assert r.path_dev_max_m < 0.02 and r.path_dev_end_m < 0.02
     assert _row(quick_campaign, "unreachable", "proportional").path_dev_max_m > 0.2
     assert _row(quick_campaign, "unreachable", "predictive_noscale_p6").path_dev_max_m > 0.2

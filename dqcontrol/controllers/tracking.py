@@ -111,6 +111,16 @@ class TrackingController(Controller):
         task_weight: ``λ1`` (dimensionless, > 0).
         scaling_weight: ``λ2`` (≥ 0); ``λ2 ≪ λ1`` puts the task before the speed.
         regularization: ``μ`` [same unit as λ1], the small damping on ``‖qd‖²``.
+        stall_damping: extra damping ``μ_stall`` on ``‖qd‖²`` [same unit as λ1] while the
+            task is stalled (default 1e-3; 0 gives FORMULATION §5 exactly). When the last
+            applied ``s`` is below ``stall_scaling`` the cost gets
+            ``μ_stall (1 - s/stall_scaling) ‖qd‖²`` on every instant: a path point the arm
+            cannot reach drives ``s`` to 0, and without it the QP keeps chasing the
+            unreachable target at the acceleration bound (a two-period chatter of
+            ``a_max T / 2``); with it the arm comes to rest at the closest point it can
+            hold (docs/faults.md). Above ``stall_scaling`` the cost is the thesis's.
+        stall_scaling: the ``s`` below which ``stall_damping`` ramps in (default 0.05, in
+            ``(0, 1]``).
         velocity_limits: ``qd_max`` [rad/s], scalar or per joint; default: the URDF's.
         acceleration_limit: constant ``a_max`` [rad/s²] (scalar or per joint) or
             ``"dynamics"`` for Pinocchio's ``(τ_max - |g|)/M_jj`` clipped to
@@ -145,6 +155,8 @@ class TrackingController(Controller):
         task_weight: float = 1.0,
         scaling_weight: float = 1e-3,
         regularization: float = 1e-6,
+        stall_damping: float = 1e-3,
+        stall_scaling: float = 0.05,
         velocity_limits: float | np.ndarray | None = None,
         acceleration_limit: AccelerationLimit = 10.0,
         acceleration_floor: float = 0.5,
@@ -172,6 +184,12 @@ class TrackingController(Controller):
         self.regularization = check_positive(
             "regularization (mu)", regularization, "-", allow_zero=True
         )
+        self.stall_damping = check_positive(
+            "stall_damping", stall_damping, "- (same unit as lambda1)", allow_zero=True
+        )
+        self.stall_scaling = check_positive("stall_scaling", stall_scaling, "-")
+        if self.stall_scaling > 1.0:
+            raise ParameterError(f"stall_scaling must be in (0, 1], got {stall_scaling!r}")
         if phase_prediction not in ("previous", "nominal"):
             raise ParameterError(
                 f"phase_prediction must be 'previous' or 'nominal', got {phase_prediction!r}"
@@ -274,6 +292,11 @@ class TrackingController(Controller):
             self._shift = _interpolation_matrix(tau, self.period_s)
         # the diagonal D of the cost at the stored (upper-triangle) positions of P
         self._diag_values = self._diag.ravel()[self._p_gather]
+        # where the qd diagonal entries sit among the stored values (stall damping)
+        qd_diag = np.zeros((p, m, m), dtype=bool)
+        qd_diag[:, idx, idx] = True
+        self._qd_diag_pos = np.flatnonzero(qd_diag.ravel()[self._p_gather])
+        self._s_applied = 1.0
         # views of the bound vectors: the qd part of each instant's block, the coupling rows
         self._lower_qd = self._lower[: p * m].reshape(p, m)[:, :n]
         self._upper_qd = self._upper[: p * m].reshape(p, m)[:, :n]
@@ -296,6 +319,7 @@ class TrackingController(Controller):
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
         self._horizon_qd = np.tile(qd0, (self.p, 1))
         self._horizon_s = np.ones(self.p)
+        self._s_applied = 1.0
         self.qp.reset()
 
     # ------------------------------------------------------------------ pieces of a step
@@ -361,6 +385,10 @@ class TrackingController(Controller):
         if self.task_weight != 1.0:
             p_values *= self.task_weight
         p_values += self._diag_values
+        if self._s_applied < self.stall_scaling and self.scaling:
+            p_values[self._qd_diag_pos] += self.stall_damping * (
+                1.0 - self._s_applied / self.stall_scaling
+            )
         p_values *= 2.0
 
         # bounds: velocity/position boxes of every instant at once (predicted ones clipped
@@ -438,6 +466,7 @@ class TrackingController(Controller):
             message = f"QP failed ({sol.status}); safe fallback: brake within a_max, s = 0"
         if p > 1:
             horizon_qd, horizon_s = self._horizon_qd.copy(), self._horizon_s.copy()
+        self._s_applied = s_now
         diag = StepDiagnostics(
             status=sol.status,
             iterations=sol.iterations,

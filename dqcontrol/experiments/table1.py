@@ -142,7 +142,8 @@ class Table1Settings:
         simulator: ``"mujoco"`` (torque-limited velocity servos) or ``"kinematic"``.
         q0: start configuration [rad] (default :data:`LBR4P_Q0`).
         controller_options: extra keyword arguments for every controller, as ``(name,
-            value)`` pairs (default none: the library's gains and weights).
+            value)`` pairs (default: the library's gains and weights with the stall
+            damping off, so that the cost is FORMULATION §5's exactly, as in the thesis).
     """
 
     period_s: float = 0.05
@@ -151,7 +152,7 @@ class Table1Settings:
     acceleration_limit: float = THESIS_ACCELERATION_LIMIT
     simulator: str = "mujoco"
     q0: tuple[float, ...] | None = None
-    controller_options: tuple[tuple[str, object], ...] = ()
+    controller_options: tuple[tuple[str, object], ...] = (("stall_damping", 0.0),)
 
     def __post_init__(self) -> None:
         if self.simulator not in ("mujoco", "kinematic"):
@@ -560,7 +561,7 @@ def _settings_lines(settings: Table1Settings, physics_dt_s: float | None = None)
         if settings.simulator == "mujoco"
         else "kinematic loop (ideal velocity tracking, q += T qd)"
     )
-    extra = dict(settings.controller_options)
+    extra = {k: v for k, v in settings.controller_options if k != "stall_damping"}
     return [
         f"- simulator: {sim}",
         "- robot: KUKA LBR4p (`robots/lbr4p/lbr4p.urdf`), end-effector `lbr4p_flange`; "
@@ -578,7 +579,10 @@ def _settings_lines(settings: Table1Settings, physics_dt_s: float | None = None)
         + "); position bounds: the URDF's joint limits",
         f"- gains and weights: K = {local.gain_per_s:g} 1/s (T·K = "
         f"{settings.period_s * local.gain_per_s:g}), λ1 = {local.task_weight:g}, "
-        f"λ2 = {local.scaling_weight:g}, μ = {local.regularization:g}; phase prediction "
+        f"λ2 = {local.scaling_weight:g}, μ = {local.regularization:g}, stall damping "
+        f"{local.stall_damping:g}"
+        + (" (off: FORMULATION §5's cost exactly)" if local.stall_damping == 0.0 else "")
+        + f"; phase prediction "
         f"'{pred.phase_prediction}', solver '{pred.solver}'"
         + (f"; extra options {extra}" if extra else ""),
         "- the thesis: CoppeliaSim, same T and τ_p, K = 200·T_tot (circle) and 500/P "

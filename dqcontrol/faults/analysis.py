@@ -9,7 +9,10 @@ controller *unaware* of the fault and then with the safeguard on:
   (:func:`position_margin` sets it on an instance, 0 switches it off);
 - ``measurement_delay_periods``: the controller predicts the present joint positions from a
   ``d``-period-old measurement and the commands sent since (:func:`compensate_delay`);
-- ``regularization`` ``μ``: more damping at the workspace's singular boundary.
+- ``stall_damping`` (default 1e-3): extra damping on ``‖qd‖²`` while ``s`` is near 0, so
+  that an arm stalled on an unreachable path comes to rest instead of chattering at its
+  acceleration bound (0 switches it off; a larger constant ``regularization`` ``μ``, the
+  alternative first tried, is measured beside it).
 
 (The two solver fixes — crossed bounds refused before the solver, the warm start kept after
 a failed solve — have no switch; their before/after figures are in docs/faults.md.)
@@ -104,14 +107,18 @@ def mitigation_table(simulator: str = "mujoco") -> list[dict]:
     spec = _spec("delay_2", "sinusoid", "local", simulator)
     add("delay_2/sinusoid", "unaware of the delay", _run(spec))
     add("delay_2/sinusoid", "delay compensated", _run(spec, lambda c: compensate_delay(c, 2)))
-    # the singular boundary of the workspace: more damping
-    for ctrl in ("local", "predictive_p6"):
+    # the singular boundary of the workspace: damping while stalled, or a larger μ
+    for ctrl in ("local", "predictive_p6", "predictive_p10"):
         case = f"unreachable/circle/{ctrl}"
-        add(case, "as is (μ = 1e-6)", _run(_spec("unreachable", "circle", ctrl, simulator)))
-        for mu in (1e-5, 1e-4):
-            base = CONTROLLERS[ctrl]
-            tuned = replace(base, kwargs=base.kwargs + (("regularization", mu),))
-            add(case, f"μ = {mu:g}", _run(_spec("unreachable", "circle", tuned, simulator)))
+        base = CONTROLLERS[ctrl]
+        variants = [
+            ("no stall damping (μ = 1e-6)", (("stall_damping", 0.0),)),
+            ("stall damping 1e-3 (default)", ()),
+            ("no stall damping, μ = 1e-5", (("stall_damping", 0.0), ("regularization", 1e-5))),
+        ]
+        for label, extra in variants:
+            tuned = replace(base, kwargs=base.kwargs + extra)
+            add(case, label, _run(_spec("unreachable", "circle", tuned, simulator)))
     return rows
 
 
