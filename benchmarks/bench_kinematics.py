@@ -7,7 +7,9 @@ Run::
 Prints the median wall time [µs] over ``--repeat`` ``timeit.repeat`` runs of:
 
 * ``RobotModel._pose_and_jacobian(q)`` (unchecked hot path) and ``pose_and_jacobian(q)``;
-* ``RobotModel.poses_and_jacobians(qs)`` for a batch of 10 configurations;
+* ``RobotModel.poses_and_jacobians(qs)`` for a batch of 10 configurations (the closed form
+  of ``dqcontrol.model.chain_batch`` for the LBR4p), and the same batch by the Pinocchio
+  loop every other model takes (checked input in both);
 * if ``dqrobotics`` is importable: ``DQ_SerialManipulatorDH`` with the thesis's DH table,
   one ``fkm(q)`` + ``pose_jacobian(q)``, and ten of them (the same work as our batch);
 * Pinocchio's bare ``computeFrameJacobian`` as a floor (the one C++ call ours wraps).
@@ -99,6 +101,9 @@ def run(repeat: int) -> dict:
     us["ours_single_unchecked"] = median_us(lambda: model._pose_and_jacobian(q), number, repeat)
     us["ours_single_public"] = median_us(lambda: model.pose_and_jacobian(q), number, repeat)
     us["ours_batch10"] = median_us(lambda: model.poses_and_jacobians(qs), number // 10, repeat)
+    results["batch_path"] = "pinocchio loop" if model._chain is None else "closed form"
+    check, loop = model.check_batch, model._poses_and_jacobians_pinocchio
+    us["ours_batch10_pinocchio_loop"] = median_us(lambda: loop(check(qs)), number // 10, repeat)
     us["pinocchio_frame_jacobian_floor"] = median_us(
         lambda: pin.computeFrameJacobian(pmodel, pdata, q, fid, lwa), number, repeat
     )
@@ -131,6 +136,7 @@ def run(repeat: int) -> dict:
             "single_unchecked_vs_dqr": us["ours_single_unchecked"] / us["dqr_single"],
             "single_public_vs_dqr": us["ours_single_public"] / us["dqr_single"],
             "batch10_vs_dqr_ten": us["ours_batch10"] / us["dqr_ten"],
+            "batch10_pinocchio_loop_vs_dqr_ten": us["ours_batch10_pinocchio_loop"] / us["dqr_ten"],
         }
     return results
 
@@ -140,7 +146,9 @@ def report(results: dict) -> None:
     print(f"LBR4p pose + pose Jacobian, median of {results['repeat']} runs [µs per call]")
     print(f"  ours  _pose_and_jacobian (unchecked) {us['ours_single_unchecked']:8.2f}")
     print(f"  ours  pose_and_jacobian (public)     {us['ours_single_public']:8.2f}")
-    print(f"  ours  poses_and_jacobians, N = {BATCH}    {us['ours_batch10']:8.2f}")
+    batch, path = us["ours_batch10"], results["batch_path"]
+    print(f"  ours  poses_and_jacobians, N = {BATCH}    {batch:8.2f}  ({path})")
+    print(f"  ours  same batch, Pinocchio loop     {us['ours_batch10_pinocchio_loop']:8.2f}")
     print(f"  pin   computeFrameJacobian (floor)   {us['pinocchio_frame_jacobian_floor']:8.2f}")
     if "dqr_single" not in us:
         print("  dqrobotics not importable: no comparison")
@@ -156,6 +164,7 @@ def report(results: dict) -> None:
     print(f"  single, unchecked   {r['single_unchecked_vs_dqr']:.2f}×  (target ≤ 1.0×)")
     print(f"  single, public      {r['single_public_vs_dqr']:.2f}×  (target ≤ 1.0×)")
     print(f"  batch of {BATCH} vs ten  {r['batch10_vs_dqr_ten']:.2f}×  (target ≤ 0.5×)")
+    print(f"  (Pinocchio loop      {r['batch10_pinocchio_loop_vs_dqr_ten']:.2f}×)")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -9,7 +9,12 @@ FORMULATION §2: the end-effector pose ``x`` (``vec8``) comes from Pinocchio's p
 
 Both are bilinear in ``(r, [1, t])``; the model precomputes one constant 56×16 matrix that
 maps ``r ⊗ [1, t]`` to ``[vec8(x), A]`` with ``J = A [Jv; Jw]``, so one call costs one
-Pinocchio call and three small numpy products, and a batch of configurations shares them.
+Pinocchio call and three small numpy products.
+
+A batch of configurations (:meth:`RobotModel.poses_and_jacobians`) of a chain of at most
+eight revolute joints is computed in closed form without Pinocchio
+(:mod:`dqcontrol.model.chain_batch`: a fixed handful of numpy calls for the whole batch);
+other models loop over Pinocchio and share the numpy part. The choice is made at load time.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import pinocchio as pin
 
 from dqcontrol.dq.algebra import haminus4, hamiplus4, qmul
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
+from dqcontrol.model.chain_batch import ChainBatch
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
 
 __all__ = ["JointLimits", "RobotModel"]
@@ -156,6 +162,9 @@ class RobotModel:
         self._buf[0] = 1.0
         self._buf_t1 = self._buf[:4]  # [1, tx, ty, tz]
         self._buf_r = self._buf[4:]  # [qx, qy, qz, qw]
+        # closed-form batched kinematics (None: loop on Pinocchio). Its tables are read from
+        # the model here, once: a model edited in place afterwards needs a new RobotModel.
+        self._chain = self._build_chain()
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -272,7 +281,9 @@ class RobotModel:
             raise ConfigurationError(
                 f"{name} must have shape (N, {self.nq}), got shape {arr.shape}"
             )
-        if not np.isfinite(arr).all():
+        # as in check_q: the dot product is finite unless some entry is not (or it overflows)
+        flat = arr.ravel()
+        if not math.isfinite(flat.dot(flat)) and not np.isfinite(arr).all():
             raise ConfigurationError(f"{name} must be finite")
         return arr
 
@@ -318,14 +329,39 @@ class RobotModel:
         """Batched pose and Jacobian for N configurations: ``(N, 8)`` and ``(N, 8, n)``.
 
         The predictive controller calls this with its p predicted configurations every
-        step; the numpy part runs once for the whole batch.
+        step. A chain of at most eight revolute joints is computed in closed form for the
+        whole batch (:mod:`dqcontrol.model.chain_batch`); any other model loops over
+        Pinocchio. Both give the single-configuration result (to rounding), ``r_w ≥ 0``.
         """
         return self._poses_and_jacobians(self.check_batch(qs))
 
     def _poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        count = qs.shape[0]
-        if count == 0:
+        if qs.shape[0] == 0:
             return np.empty((0, 8)), np.empty((0, 8, self.nq))
+        if self._chain is not None:
+            return self._chain(qs)
+        return self._poses_and_jacobians_pinocchio(qs)
+
+    def _build_chain(self) -> ChainBatch | None:
+        """The closed-form batch of this model, if it applies and agrees with Pinocchio."""
+        chain = ChainBatch.build(self.model, self._fid)
+        if chain is None:
+            return None
+        # a safety net against a joint convention the tables got wrong: never trust them
+        # without checking them against Pinocchio on a few configurations
+        qs = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(4, self.nq))
+        xs, jacs = chain(qs)
+        xs_ref, jacs_ref = self._poses_and_jacobians_pinocchio(qs)
+        if not (
+            np.allclose(xs, xs_ref, rtol=0, atol=1e-12)
+            and np.allclose(jacs, jacs_ref, rtol=0, atol=1e-12)
+        ):
+            return None
+        return chain
+
+    def _poses_and_jacobians_pinocchio(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The batch by one Pinocchio call per configuration (any model; ``N ≥ 1``)."""
+        count = qs.shape[0]
         # one Pinocchio call per configuration (≈1 µs each) is the floor; everything else is
         # done once for the batch
         model, data, fid, placement = self.model, self.data, self._fid, self._ee_placement
@@ -343,7 +379,9 @@ class RobotModel:
         # k[i] = r_xyzw ⊗ [1, t] (row-major 4×4), the layout of _MAP_XYZW's columns
         k = r[:, :, None] * buf[:, None, :4]
         out = k.reshape(count, 16).dot(_MAP_XYZW_T)
-        return out[:, :8], np.matmul(out[:, 8:].reshape(count, 8, 6), np.array(j6s))
+        # reshape: for n = 1 Pinocchio returns each Jacobian as a (6,) vector
+        j6 = np.array(j6s).reshape(count, 6, self.nq)
+        return out[:, :8], np.matmul(out[:, 8:].reshape(count, 8, 6), j6)
 
     def poses(self, qs: np.ndarray) -> np.ndarray:
         """Batched end-effector poses ``(N, 8)``."""

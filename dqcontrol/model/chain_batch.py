@@ -1,0 +1,176 @@
+"""Batched pose and pose Jacobian of a serial chain of revolute joints, in closed form.
+
+For a chain of revolute joints the end-effector pose is a product of constant dual
+quaternions and joint rotations ``cos(θ_j/2) + sin(θ_j/2) a_j``, so ``vec8(x)`` is a
+multilinear polynomial in the pairs ``(cos(θ_j/2), sin(θ_j/2))``; its partial derivatives
+are too (``∂/∂θ_j`` swaps the pair to ``½(-sin, cos)``). The pose and the whole pose
+Jacobian are therefore one constant matrix ``T`` times a basis of ``2^m`` products, with
+``m`` the joints that move the end-effector.
+
+The basis is built from two groups of joints (the first half ``A`` and the rest ``B``): in
+each group the products of half-angle cosines and sines are written as cosines and sines of
+signed sums of half-angles (product-to-sum), ``2^(g-1)`` phases per group of ``g`` joints.
+A batch of N configurations then costs a fixed handful of numpy calls, independent of N and
+of the number of joints::
+
+    phases = qs · E + offsets          (one matrix product, one addition)
+    v      = sin(phases)               ([cos, sin] of every phase of both groups)
+    k      = v_A ⊗ v_B                 (2^m products per configuration)
+    out    = k · T                     ([vec8(x), J] for every configuration)
+
+followed by the sign convention ``r_w ≥ 0`` (FORMULATION §1) applied to each row. The size
+of ``T`` is ``2^m × 8(n+1)``, so this only pays for short chains (``MAX_JOINTS``); longer
+ones and any other joint type stay with Pinocchio.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from dqcontrol.dq.algebra import dq_from_se3, dq_mul
+
+__all__ = ["MAX_JOINTS", "ChainBatch"]
+
+#: Longest chain handled in closed form: ``T`` has ``2^m`` rows, and past 8 joints its
+#: product costs more than the per-configuration Pinocchio calls it replaces.
+MAX_JOINTS = 8
+
+_ONE = np.ones((1, 1))  # copysign with an array operand skips a scalar conversion
+
+_AXES = {
+    "JointModelRX": (1.0, 0.0, 0.0),
+    "JointModelRY": (0.0, 1.0, 0.0),
+    "JointModelRZ": (0.0, 0.0, 1.0),
+}
+
+
+def _revolute_axis(joint) -> np.ndarray | None:
+    """Unit axis of a 1-DoF revolute joint in its own frame, ``None`` for any other joint."""
+    name = joint.shortname()
+    if name in _AXES:
+        return np.array(_AXES[name])
+    if name == "JointModelRevoluteUnaligned":
+        axis = np.array(joint.extract().axis, dtype=float)
+        return axis / np.linalg.norm(axis)
+    return None
+
+
+def _fourier(count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Product-to-sum map of a group of ``count`` joints.
+
+    Returns ``signs`` (``F × count``, entries ±1, ``F = max(1, 2^(count-1))`` phases
+    ``φ_k = Σ_j signs[k, j] θ_j / 2``) and ``M`` (``2^count × 2F``) such that the products
+    ``g_b = Π_j (cos if b_j = 0 else sin)(θ_j/2)`` (``b`` read as a binary number, first
+    joint most significant) equal ``M @ [cos φ_1..F, sin φ_1..F]``. With no joint the only
+    product is the constant 1 = ``cos 0``.
+    """
+    if count == 0:
+        return np.zeros((1, 0)), np.array([[1.0, 0.0]])
+    # cos = (e^{iθ} + e^{-iθ})/2, sin = (e^{iθ} - e^{-iθ})/(2i): rows b_j, columns ε_j = +, -
+    w1 = np.array([[0.5, 0.5], [-0.5j, 0.5j]])
+    w = np.ones((1, 1), dtype=complex)
+    for _ in range(count):
+        w = np.kron(w, w1)
+    half = 2 ** (count - 1)
+    # ε with ε_1 = + are the first half; the term of -ε is the complex conjugate, so
+    # W e^{iφ} + conj(W) e^{-iφ} = 2 Re(W) cos φ - 2 Im(W) sin φ
+    m = np.concatenate((2.0 * w[:, :half].real, -2.0 * w[:, :half].imag), axis=1)
+    bits = (np.arange(half)[:, None] >> np.arange(count - 1, -1, -1)[None, :]) & 1
+    signs = 1.0 - 2.0 * bits
+    return signs, m
+
+
+class ChainBatch:
+    """Closed-form batched ``[vec8(x), J]`` of a frame carried by a chain of revolute joints.
+
+    Build with :meth:`build` (``None`` when the model is not such a chain); call with a
+    checked ``(N, n)`` array of configurations.
+    """
+
+    def __init__(self, nq: int, e: np.ndarray, offsets: np.ndarray, size_a: int, t: np.ndarray):
+        self.nq = nq
+        self._e = e
+        self._offsets = offsets
+        self._size_a = size_a
+        self._t = t
+        self._products = t.shape[0]
+
+    @classmethod
+    def build(cls, model: pin.Model, frame_id: int) -> ChainBatch | None:
+        """Tables for ``model``'s frame ``frame_id``, or ``None`` if it is not supported.
+
+        Supported: every joint between the root and the frame is a 1-DoF revolute joint
+        about a fixed axis (``RX/RY/RZ/RevoluteUnaligned``), with at most
+        :data:`MAX_JOINTS` of them; joints off that path only give zero Jacobian columns.
+        The joint placements, axes and the frame placement are read once, here.
+        """
+        frame = model.frames[frame_id]
+        parent = int(frame.parentJoint)
+        chain = [int(j) for j in model.supports[parent]][1:]
+        if not 0 < len(chain) <= MAX_JOINTS or model.nq != model.nv:
+            return None
+        axes = []
+        for j in chain:
+            axis = _revolute_axis(model.joints[j])
+            if axis is None or model.joints[j].nq != 1:
+                return None
+            axes.append(axis)
+        columns = [int(model.joints[j].idx_q) for j in chain]
+
+        # C[b] (b a binary number over the chain, first joint most significant): vec8 of
+        # P_1 u_1 P_2 u_2 … u_m P_ee with u_j = 1 (b_j = 0) or the axis a_j (b_j = 1)
+        coeffs = np.zeros((1, 8))
+        coeffs[0, 0] = 1.0
+        for j, axis in zip(chain, axes, strict=True):
+            coeffs = dq_mul(coeffs, dq_from_se3(model.jointPlacements[j]))
+            pure = np.zeros(8)
+            pure[1:4] = axis
+            coeffs = np.stack((coeffs, dq_mul(coeffs, pure)), axis=1).reshape(-1, 8)
+        coeffs = dq_mul(coeffs, dq_from_se3(frame.placement))
+
+        m = len(chain)
+        size = (2,) * m
+        tensor = coeffs.reshape(size + (8,))
+        # ∂/∂θ_j maps the pair (cos, sin)(θ_j/2) to ½(-sin, cos): the coefficient of a
+        # product with b_j = 0 becomes ½ C[b_j = 1], with b_j = 1 it becomes -½ C[b_j = 0]
+        n = int(model.nq)
+        outputs = np.zeros((2**m, 8, n + 1))
+        outputs[:, :, 0] = coeffs
+        for p, col in enumerate(columns):
+            moved = np.moveaxis(tensor, p, 0)
+            deriv = np.stack((0.5 * moved[1], -0.5 * moved[0]))
+            outputs[:, :, 1 + col] = np.moveaxis(deriv, 0, p).reshape(2**m, 8)
+        # columns of out: vec8(x) (8), then J row-major (8 × n)
+        flat = np.concatenate((outputs[:, :, 0], outputs[:, :, 1:].reshape(2**m, 8 * n)), axis=1)
+
+        m_a = m // 2
+        signs_a, map_a = _fourier(m_a)
+        signs_b, map_b = _fourier(m - m_a)
+        size_a, size_b = map_a.shape[1], map_b.shape[1]
+        flat = flat.reshape(2**m_a, 2 ** (m - m_a), -1)
+        t = np.einsum("abo,ak,bl->klo", flat, map_a, map_b).reshape(size_a * size_b, -1)
+
+        # phases: [φ_A, φ_A, φ_B, φ_B] with offsets π/2 on the first copy (cos = sin(· + π/2))
+        e = np.zeros((n, size_a + size_b))
+        for signs, start, group in ((signs_a, 0, columns[:m_a]), (signs_b, size_a, columns[m_a:])):
+            phases = signs.shape[0]
+            for k, col in enumerate(group):
+                e[col, start : start + phases] = 0.5 * signs[:, k]
+                e[col, start + phases : start + 2 * phases] = 0.5 * signs[:, k]
+        offsets = np.zeros(size_a + size_b)
+        offsets[: size_a // 2] = 0.5 * np.pi
+        offsets[size_a : size_a + size_b // 2] = 0.5 * np.pi
+        return cls(n, e, offsets, size_a, np.ascontiguousarray(t))
+
+    def __call__(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(N, 8)`` poses and ``(N, 8, n)`` pose Jacobians of checked configurations."""
+        count = qs.shape[0]
+        v = qs.dot(self._e)
+        v += self._offsets
+        np.sin(v, out=v)
+        a = self._size_a
+        k = v[:, :a, None] * v[:, None, a:]
+        out = k.reshape(count, self._products).dot(self._t)
+        out *= np.copysign(_ONE, out[:, :1])  # r_w ≥ 0, Jacobian row flipped with x
+        return out[:, :8], out[:, 8:].reshape(count, 8, self.nq)
