@@ -103,10 +103,10 @@ def _assert_matches_single_and_pinocchio(robot: RobotModel, qs: np.ndarray) -> N
     assert jacs.shape == (len(qs), 8, robot.nq)
     _assert_same(xs, jacs, *robot._poses_and_jacobians_pinocchio(qs))
     assert (xs[:, 0] >= 0.0).all()  # r_w ≥ 0, the Jacobian flipped with x
-    if robot.nq == 1:
-        return  # the single path returns an (8,) Jacobian for one joint (Pinocchio's shape)
     for q, x, jac in zip(qs, xs, jacs, strict=True):
-        _assert_same(x, jac, *robot.pose_and_jacobian(q))
+        x1, jac1 = robot.pose_and_jacobian(q)
+        assert jac1.shape == (8, robot.nq)  # also for one joint (Pinocchio gives (6,) there)
+        _assert_same(x, jac, x1, jac1)
 
 
 @pytest.mark.parametrize("name", list(MODELS))

@@ -102,6 +102,8 @@ class RobotModel:
 
     Attributes:
         model, data: the Pinocchio model and its workspace (the model may be reduced).
+            Treat ``model`` as read-only: tables for the batched kinematics are built from
+            it once, at construction; to change the robot, build a new ``RobotModel``.
         ee_frame: name of the end-effector frame (a ``tool`` offset adds ``<ee>_tool``).
         nq: number of controlled joints ``n``.
         joint_names: names of the controlled joints, in ``q`` order.
@@ -158,6 +160,7 @@ class RobotModel:
             qd_max=np.array(model.velocityLimit, dtype=float),
             effort_max=np.array(model.effortLimit, dtype=float),
         )
+        self._one_dof = model.nv == 1
         self._buf = np.zeros(8)
         self._buf[0] = 1.0
         self._buf_t1 = self._buf[:4]  # [1, tx, ty, tz]
@@ -323,7 +326,10 @@ class RobotModel:
         if buf[7] < 0.0:
             self._buf_r *= -1.0
         out = _TENSOR_2D.dot(self._buf_t1).reshape(56, 4).dot(self._buf_r)
-        return out[:8], out[8:].reshape(8, 6).dot(j6)
+        jac = out[8:].reshape(8, 6).dot(j6)
+        if self._one_dof:  # Pinocchio returns a (6,) Jacobian for a one-joint model
+            jac = jac.reshape(8, 1)
+        return out[:8], jac
 
     def poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Batched pose and Jacobian for N configurations: ``(N, 8)`` and ``(N, 8, n)``.
