@@ -61,8 +61,23 @@ def test_stall_damping_leaves_a_feasible_task_alone(lbr4p):
         ({"stall_damping": float("nan")}, "stall_damping"),
         ({"stall_scaling": 0.0}, "stall_scaling must be finite and > 0"),
         ({"stall_scaling": 1.5}, r"stall_scaling must be in \(0, 1\]"),
+        ({"stall_delay_s": -0.1}, "stall_delay_s must be finite and ≥ 0"),
     ],
 )
 def test_stall_parameters_are_checked(lbr4p, kwargs, match):
     with pytest.raises(ParameterError, match=match):
         LocalController(lbr4p, Circle(2.0), 0.05, **kwargs)
+
+
+def test_a_slow_start_is_not_a_stall(lbr4p):
+    """At 1 kHz the arm needs many periods to accelerate, so s starts below stall_scaling:
+    the damping must wait (stall_delay_s) and the run equal the thesis's cost's."""
+    runs = [
+        run_kinematic(
+            LocalController(lbr4p, Circle(0.3), 0.001, stall_damping=d), LBR4P_Q0, max_time_s=3.0
+        )
+        for d in (0.0, 1e-3)
+    ]
+    assert runs[1].metrics.completed
+    assert runs[0].log.s[:10].max() < 0.05  # it does start slowly
+    np.testing.assert_array_equal(runs[0].log.qd_command, runs[1].log.qd_command)

@@ -21,6 +21,7 @@ Variables are stored block by block (``[qd_1, s_1, qd_2, s_2, …]``); the thesi
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Literal, NamedTuple
 
@@ -112,15 +113,18 @@ class TrackingController(Controller):
         scaling_weight: ``λ2`` (≥ 0); ``λ2 ≪ λ1`` puts the task before the speed.
         regularization: ``μ`` [same unit as λ1], the small damping on ``‖qd‖²``.
         stall_damping: extra damping ``μ_stall`` on ``‖qd‖²`` [same unit as λ1] while the
-            task is stalled (default 1e-3; 0 gives FORMULATION §5 exactly). When the last
-            applied ``s`` is below ``stall_scaling`` the cost gets
-            ``μ_stall (1 - s/stall_scaling) ‖qd‖²`` on every instant: a path point the arm
-            cannot reach drives ``s`` to 0, and without it the QP keeps chasing the
-            unreachable target at the acceleration bound (a two-period chatter of
-            ``a_max T / 2``); with it the arm comes to rest at the closest point it can
-            hold (docs/faults.md). Above ``stall_scaling`` the cost is the thesis's.
-        stall_scaling: the ``s`` below which ``stall_damping`` ramps in (default 0.05, in
+            task is stalled (default 1e-3; 0 gives FORMULATION §5 exactly). Once the
+            applied ``s`` has stayed below ``stall_scaling`` for ``stall_delay_s``, the cost
+            gets ``μ_stall (1 - s/stall_scaling) ‖qd‖²`` on every instant (``s``: the last
+            applied one): a path point the arm cannot reach drives ``s`` to 0, and without
+            it the QP keeps chasing the unreachable target at the acceleration bound (a
+            two-period chatter of ``a_max T / 2``); with it the arm comes to rest near the
+            path (docs/faults.md). Otherwise the cost is the thesis's.
+        stall_scaling: the ``s`` below which the task counts as stalled (default 0.05, in
             ``(0, 1]``).
+        stall_delay_s: how long ``s`` must stay below ``stall_scaling`` before the damping
+            acts [s] (default 0.5 s, ≥ 0): a task that starts slowly because the arm is
+            still accelerating is not a stalled one.
         velocity_limits: ``qd_max`` [rad/s], scalar or per joint; default: the URDF's.
         acceleration_limit: constant ``a_max`` [rad/s²] (scalar or per joint) or
             ``"dynamics"`` for Pinocchio's ``(τ_max - |g|)/M_jj`` clipped to
@@ -157,6 +161,7 @@ class TrackingController(Controller):
         regularization: float = 1e-6,
         stall_damping: float = 1e-3,
         stall_scaling: float = 0.05,
+        stall_delay_s: float = 0.5,
         velocity_limits: float | np.ndarray | None = None,
         acceleration_limit: AccelerationLimit = 10.0,
         acceleration_floor: float = 0.5,
@@ -190,6 +195,8 @@ class TrackingController(Controller):
         self.stall_scaling = check_positive("stall_scaling", stall_scaling, "-")
         if self.stall_scaling > 1.0:
             raise ParameterError(f"stall_scaling must be in (0, 1], got {stall_scaling!r}")
+        self.stall_delay_s = check_positive("stall_delay_s", stall_delay_s, "s", allow_zero=True)
+        self._stall_steps = math.ceil(self.stall_delay_s / self.period_s - 1e-9)
         if phase_prediction not in ("previous", "nominal"):
             raise ParameterError(
                 f"phase_prediction must be 'previous' or 'nominal', got {phase_prediction!r}"
@@ -297,6 +304,7 @@ class TrackingController(Controller):
         qd_diag[:, idx, idx] = True
         self._qd_diag_pos = np.flatnonzero(qd_diag.ravel()[self._p_gather])
         self._s_applied = 1.0
+        self._stalled_steps = 0  # steps for which s has been below stall_scaling
         # views of the bound vectors: the qd part of each instant's block, the coupling rows
         self._lower_qd = self._lower[: p * m].reshape(p, m)[:, :n]
         self._upper_qd = self._upper[: p * m].reshape(p, m)[:, :n]
@@ -320,6 +328,7 @@ class TrackingController(Controller):
         self._horizon_qd = np.tile(qd0, (self.p, 1))
         self._horizon_s = np.ones(self.p)
         self._s_applied = 1.0
+        self._stalled_steps = 0  # steps for which s has been below stall_scaling
         self.qp.reset()
 
     # ------------------------------------------------------------------ pieces of a step
@@ -385,7 +394,7 @@ class TrackingController(Controller):
         if self.task_weight != 1.0:
             p_values *= self.task_weight
         p_values += self._diag_values
-        if self._s_applied < self.stall_scaling and self.scaling:
+        if self._stalled_steps >= self._stall_steps and self.scaling and self.stall_damping:
             p_values[self._qd_diag_pos] += self.stall_damping * (
                 1.0 - self._s_applied / self.stall_scaling
             )
@@ -467,6 +476,10 @@ class TrackingController(Controller):
         if p > 1:
             horizon_qd, horizon_s = self._horizon_qd.copy(), self._horizon_s.copy()
         self._s_applied = s_now
+        if s_now < self.stall_scaling:
+            self._stalled_steps += 1
+        else:
+            self._stalled_steps = 0
         diag = StepDiagnostics(
             status=sol.status,
             iterations=sol.iterations,

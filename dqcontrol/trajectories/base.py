@@ -153,7 +153,8 @@ class Trajectory(ABC):
         return np.array((pose, np.zeros(8))).dot(h_t)
 
     def _local_pair(self, sigma: float) -> np.ndarray:
-        """``[traj(σ); dtraj/dσ]`` as a new ``(2, 8)`` array (subclasses may fuse the two)."""
+        """``[traj(σ); dtraj/dσ]`` as a ``(2, 8)`` array (subclasses may fuse the two and
+        return a buffer they reuse: the caller reads it before the next call)."""
         return np.array((self.local_pose(sigma), self.local_derivative(sigma)))
 
     def targets(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -353,6 +354,9 @@ class Trajectory(ABC):
 
     def _copy_with(self, reference: np.ndarray) -> Trajectory:
         new = copy.copy(self)
+        buffer = getattr(self, "_pair_buffer", None)
+        if buffer is not None:  # a scratch buffer of _local_pair: each copy owns its own
+            new._pair_buffer = buffer.copy()
         new._set_reference(reference)
         return new
 

@@ -37,6 +37,8 @@ class Circle(Trajectory):
         self._omega = 2.0 * math.pi / self.duration
         self._half_r = 0.5 * self._radius
         self._half_r_omega = 0.5 * self._radius * self._omega
+        self._pair_buffer = np.zeros((2, 8))
+        self._pair_buffer[0, 0] = 1.0
 
     @property
     def radius_m(self) -> float:
@@ -62,10 +64,12 @@ class Circle(Trajectory):
         angle = self._omega * sigma
         c, s = math.cos(angle), math.sin(angle)
         h, hw = self._half_r, self._half_r_omega
-        return np.array(
-            ((1.0, 0.0, 0.0, 0.0, 0.0, h * c, h * s, 0.0),
-             (0.0, 0.0, 0.0, 0.0, 0.0, -hw * s, hw * c, 0.0))
-        )  # fmt: skip
+        buf = self._pair_buffer  # rows [1, 0, 0, 0, 0, x, y, 0] and [0, …, dx, dy, 0]
+        buf[0, 5] = h * c
+        buf[0, 6] = h * s
+        buf[1, 5] = -hw * s
+        buf[1, 6] = hw * c
+        return buf
 
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         angle = self._omega * np.asarray(sigmas, dtype=float)

@@ -42,6 +42,8 @@ class Sinusoid(Trajectory):
         self._omega_x = positive("omega_x_rad_per_m", omega_x_rad_per_m, "rad/m")
         self._speed = self.LENGTH_X_M / self.duration
         self._rate = self._omega_x * self._speed  # Ω_x v [rad/s]
+        self._pair_buffer = np.zeros((2, 8))
+        self._pair_buffer[0, 0] = 1.0
 
     @property
     def amplitude_m(self) -> float:
@@ -72,10 +74,12 @@ class Sinusoid(Trajectory):
         a, v = self._amplitude, self._speed
         x, z = 0.5 * (v * sigma), 0.5 * (a * math.sin(phase))
         dz = 0.5 * (a * self._rate * math.cos(phase))
-        return np.array(
-            ((1.0, 0.0, 0.0, 0.0, 0.0, x, 0.0, z),
-             (0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * v, 0.0, dz))
-        )  # fmt: skip
+        buf = self._pair_buffer  # rows [1, 0, 0, 0, 0, x, 0, z] and [0, …, dx, 0, dz]
+        buf[0, 5] = x
+        buf[0, 7] = z
+        buf[1, 5] = 0.5 * v
+        buf[1, 7] = dz
+        return buf
 
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         s = np.asarray(sigmas, dtype=float)
