@@ -136,3 +136,11 @@ def test_quick_bench_writes_every_figure(tmp_path):
     for v in data["agreement"].values():
         assert v["max_abs_qd_diff"] < 1e-8  # accuracy, not time: the backends agree
     assert res["targets"].keys() == data["targets"].keys()
+    if data["dqrobotics"] is not None:  # a dev extra: the peers are measured interleaved
+        assert data["dqrobotics"]["rounds"] >= 3
+        assert set(data["ratios"]) == {
+            "single_kinematics_vs_dqr",
+            "batch10_vs_10x_dqr",
+            "local_step_vs_dqr_classic_qp",
+        }
+        assert all(v > 0.0 for v in data["ratios"].values())
