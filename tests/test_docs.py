@@ -17,25 +17,24 @@ def test_api_page_is_up_to_date():
     assert current == expected, "docs/api.md is stale: run `python docs/generate_api.py`"
 
 
-def _local_links(page: Path) -> list[str]:
+def _local_links(page: Path) -> list[Path]:
+    """Files a page points to: markdown links and images (relative to the page) and
+    backticked repository paths (relative to the repository's root)."""
     text = page.read_text(encoding="utf-8")
-    links = re.findall(r"\]\(([^)#\s]+)\)", text)  # markdown links and images
-    links += re.findall(r"`((?:docs|robots|demos|benchmarks)/[\w./-]+\.\w+)`", text)
-    return [link for link in links if not re.match(r"[a-z]+://", link)]
+    links = re.findall(r"\]\(([^)#\s]+)\)", text)
+    out = [page.parent / link for link in links if not re.match(r"[a-z]+://", link)]
+    named = re.findall(r"`((?:docs|robots|demos|benchmarks|tests|dqcontrol)/[\w./-]+\.\w+)`", text)
+    return out + [ROOT / path for path in named]
 
 
 def test_every_linked_file_exists():
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-    missing = []
-    for page in pages:
-        for link in _local_links(page):
-            base = (
-                ROOT
-                if page.name == "README.md" or link.startswith(("docs/", "robots/"))
-                else page.parent
-            )
-            if not (base / link).exists():
-                missing.append(f"{page.relative_to(ROOT)} → {link}")
+    missing = [
+        f"{page.relative_to(ROOT)} → {target.relative_to(ROOT)}"
+        for page in pages
+        for target in _local_links(page)
+        if not target.exists()
+    ]
     assert not missing, "broken links:\n" + "\n".join(missing)
 
 
