@@ -39,6 +39,15 @@ _EXIT = {1: "solved", 2: "solved", -1: "primal_infeasible", -2: "cycling", -3: "
          -4: "iteration_limit", -5: "nonconvex", -6: "initial_active_set_infeasible"}  # fmt: skip
 
 
+def _kept(c: np.ndarray) -> np.ndarray | None:
+    """``c`` if DAQP keeps this very array as its ``f`` (C-contiguous float64: the wrapper
+    then stores no copy), else ``None``."""
+    return c if (c.dtype == np.float64 and c.flags.c_contiguous) else None
+
+
+_REFUSED = "error: DAQP refused the update"
+
+
 class DaqpQP:
     """Same contract as :class:`~dqcontrol.controllers.qp_solver.OsqpQP`.
 
@@ -73,6 +82,7 @@ class DaqpQP:
                 f"solver_settings: DAQP has no setting {unknown}; it knows {sorted(known)}"
             )
         self._model = None
+        self._f_given: np.ndarray | None = None  # the f DAQP holds (not a copy of)
         self.last_method = "daqp"
 
     def reset(self) -> None:
@@ -96,25 +106,86 @@ class DaqpQP:
         h[self._cols, self._rows] = p_values
         lo = np.maximum(lower, -1e30)
         up = np.minimum(upper, 1e30)
+        x, ok, status, iterations = self._solve(h, c, lo, up, lower == upper)
+        return QPSolution(x, None, ok, status, iterations, time.perf_counter() - start)
+
+    def solve_dense(
+        self, h: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> tuple[np.ndarray | None, bool, str, int, float]:
+        """:meth:`solve` for a caller that has the whole ``H`` and checked bounds: the local
+        controller's hot path (one instant, no :class:`QPSolution`).
+
+        ``h`` is the full symmetric ``H`` (C-contiguous; DAQP keeps it until the next
+        update: do not write to it afterwards). The caller guarantees what :meth:`solve`
+        checks and clamps: ``-1e30 ≤ lower ≤ upper ≤ 1e30`` in every row, no NaN (bounds
+        that fail it must go through :meth:`solve`, which refuses them as
+        ``invalid_bounds``). Returns ``(x, ok, status, iterations, solve_time_s)``, ``x``
+        ``None`` unless ``ok``.
+        """
+        start = time.perf_counter()
+        model = self._model
+        if model is None or c is not self._f_given:
+            x, ok, status, iterations = self._solve(h, c, lower, upper, None)
+            return x, ok, status, iterations, time.perf_counter() - start
+        # the usual step, as _solve() with the same f: written out here (this path runs at
+        # 1 kHz and every Python call counts)
         try:
-            if self._model is None:
+            if model.update(H=h, bupper=upper, blower=lower) < 0:
+                self._model = None
+                return None, False, _REFUSED, 0, time.perf_counter() - start
+            x, _fval, flag, info = model.solve()
+        except Exception as exc:  # noqa: BLE001 - never stop the control loop
+            self._model = None
+            return None, False, f"error: {exc}", 0, time.perf_counter() - start
+        if (flag == 1 or flag == 2) and x is not None and math.isfinite(x.dot(x)):
+            iterations = info.get("iterations", 0) if isinstance(info, dict) else 0
+            return x, True, "solved", int(iterations), time.perf_counter() - start
+        x, ok, status, iterations = self._outcome(x, flag, info)
+        return x, ok, status, iterations, time.perf_counter() - start
+
+    def _solve(
+        self,
+        h: np.ndarray,
+        c: np.ndarray,
+        lo: np.ndarray,
+        up: np.ndarray,
+        equal: np.ndarray | None,
+    ) -> tuple[np.ndarray | None, bool, str, int]:
+        """Update DAQP's workspace (set it up on the first call) and solve: ``(x, ok,
+        status, iterations)``. ``equal`` marks the rows with ``lower == upper`` (DAQP's
+        equality constraints, read at setup only; ``None``: compare ``lo`` and ``up``)."""
+        model = self._model
+        try:
+            if model is None:
                 model = self._daqp.Model()
                 sense = np.zeros(self.num_cons, dtype=c_int)
-                sense[lower == upper] = 5
+                sense[lo == up if equal is None else equal] = 5
                 model.setup(h, c, self._a_general, up, lo, sense)
                 if self.settings:
                     model.settings = dict(self.settings)
                 self._model = model
-            elif self._model.update(H=h, f=c, bupper=up, blower=lo) < 0:
-                self._model = None
-                return QPSolution(
-                    None, None, False, "error: DAQP refused the update", 0,
-                    time.perf_counter() - start,
-                )  # fmt: skip
-            x, _fval, flag, info = self._model.solve()
+                self._f_given = _kept(c)
+            elif c is self._f_given:
+                # DAQP keeps the f it was given (not a copy) and recomputes its own terms
+                # from it whenever H changes: the same f need not be passed again
+                if model.update(H=h, bupper=up, blower=lo) < 0:
+                    self._model = None
+                    return None, False, _REFUSED, 0
+            else:
+                if model.update(H=h, f=c, bupper=up, blower=lo) < 0:
+                    self._model = None
+                    return None, False, _REFUSED, 0
+                self._f_given = _kept(c)
+            x, _fval, flag, info = model.solve()
         except Exception as exc:  # noqa: BLE001 - never stop the control loop
             self._model = None
-            return QPSolution(None, None, False, f"error: {exc}", 0, time.perf_counter() - start)
+            return None, False, f"error: {exc}", 0
+        return self._outcome(x, flag, info)
+
+    def _outcome(
+        self, x: np.ndarray | None, flag: int, info: object
+    ) -> tuple[np.ndarray | None, bool, str, int]:
+        """``(x, ok, status, iterations)`` of DAQP's answer; forgets the workspace unless ok."""
         # x is a new array at every solve; a dot product is NaN/inf iff some entry is (or
         # it overflows): the cheap test first
         ok = (
@@ -125,8 +196,5 @@ class DaqpQP:
         if not ok:
             self._model = None
             x = None
-        return QPSolution(
-            x, None, ok, _EXIT.get(int(flag), f"daqp_exit_{flag}"),
-            int(info.get("iterations", 0)) if isinstance(info, dict) else 0,
-            time.perf_counter() - start,
-        )  # fmt: skip
+        status = "solved" if flag == 1 or flag == 2 else _EXIT.get(int(flag), f"daqp_exit_{flag}")
+        return x, ok, status, int(info.get("iterations", 0)) if isinstance(info, dict) else 0
