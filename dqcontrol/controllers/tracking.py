@@ -17,6 +17,11 @@ up once and each step only refills ``P``'s values and the bounds.
 
 Variables are stored block by block (``[qd_1, s_1, qd_2, s_2, …]``); the thesis stacks all
 ``qd`` then all ``s`` — the same problem with permuted variables.
+
+The local method (p = 1) with DAQP and a constant ``a_max`` — the 1 kHz case of issue 7 —
+steps through :meth:`TrackingController._step_local`, the same computation as the general
+:meth:`TrackingController._step_general` in fewer numpy calls (``tests/test_local_fast.py``
+checks that they agree); every other case, and anything unusual, takes the general step.
 """
 
 from __future__ import annotations
@@ -350,7 +355,6 @@ class TrackingController(Controller):
         )
         if self._local_qp is not None:
             self._diag2 = 2.0 * self._diag[0]  # 2 D, dense (m, m)
-            self._tmp8 = np.empty(8)
             self._g0_w = self._g[0, :, n]  # the column -w of G (a view)
             self._qd_diag_flat = np.arange(n) * (m + 1)  # the qd diagonal of H, flattened
             self._lo_list = [0.0] * n + [self._lower.item(n)]  # the box, then s's bounds
@@ -399,6 +403,7 @@ class TrackingController(Controller):
         )
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        """The fast single-instant step where it applies, else the general one."""
         if self._local_qp is not None and self.qp is self._local_qp:
             res = self._step_local(q)
             if res is not None:
@@ -517,9 +522,8 @@ class TrackingController(Controller):
             x, jac = -x, -jac
         g0 = self._g[0]
         g0[:, :n] = jac
-        tmp = self._tmp8
-        np.subtract(x, xd, out=tmp)
-        np.multiply(self.gain_per_s, tmp, out=tmp)
+        tmp = x - xd  # operators: faster than out= keywords on 8 elements
+        tmp *= self.gain_per_s
         np.subtract(tmp, pair[1], out=self._g0_w)  # -w = K (x - x_d) - dx_d/dσ
         h = g0.T.dot(g0)  # symmetric (BLAS syrk)
         h *= 2.0 * self.task_weight
