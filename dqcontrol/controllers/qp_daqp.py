@@ -52,11 +52,21 @@ class DaqpQP:
     """Same contract as :class:`~dqcontrol.controllers.qp_solver.OsqpQP`.
 
     The first ``n`` rows of ``A`` must be the identity (bounds on the variables, as in the
-    controllers); the remaining rows are general constraints.
+    controllers); the remaining rows are general constraints. ``equality_rows`` (indices
+    or a boolean mask) names the rows that are equalities by design (``lower == upper`` at
+    every solve, e.g. ``s ≡ 1`` without time scaling): DAQP fixes those for the life of its
+    workspace. Every other row is an inequality, even when a solve happens to give it
+    ``lower == upper`` (a joint braking at a conflict): marked as an equality at setup, it
+    would stay pinned after its bounds widen again, and DAQP would report that wrong
+    optimum as solved.
     """
 
     def __init__(
-        self, p_pattern: sp.csc_matrix, a_matrix: sp.csc_matrix, settings: dict | None = None
+        self,
+        p_pattern: sp.csc_matrix,
+        a_matrix: sp.csc_matrix,
+        settings: dict | None = None,
+        equality_rows: np.ndarray | None = None,
     ) -> None:
         import daqp  # optional dependency, imported only when chosen
 
@@ -81,6 +91,9 @@ class DaqpQP:
             raise ParameterError(
                 f"solver_settings: DAQP has no setting {unknown}; it knows {sorted(known)}"
             )
+        self._sense = np.zeros(self.num_cons, dtype=c_int)
+        if equality_rows is not None:
+            self._sense[np.asarray(equality_rows)] = 5  # DAQP: active and immutable
         self._model = None
         self._f_given: np.ndarray | None = None  # the f DAQP holds (not a copy of)
         self.last_method = "daqp"
@@ -106,7 +119,7 @@ class DaqpQP:
         h[self._cols, self._rows] = p_values
         lo = np.maximum(lower, -1e30)
         up = np.minimum(upper, 1e30)
-        x, ok, status, iterations = self._solve(h, c, lo, up, lower == upper)
+        x, ok, status, iterations = self._solve(h, c, lo, up)
         return QPSolution(x, None, ok, status, iterations, time.perf_counter() - start)
 
     def solve_dense(
@@ -125,7 +138,7 @@ class DaqpQP:
         start = time.perf_counter()
         model = self._model
         if model is None or c is not self._f_given:
-            x, ok, status, iterations = self._solve(h, c, lower, upper, None)
+            x, ok, status, iterations = self._solve(h, c, lower, upper)
             return x, ok, status, iterations, time.perf_counter() - start
         # the usual step, as _solve() with the same f: written out here (this path runs at
         # 1 kHz and every Python call counts)
@@ -149,18 +162,14 @@ class DaqpQP:
         c: np.ndarray,
         lo: np.ndarray,
         up: np.ndarray,
-        equal: np.ndarray | None,
     ) -> tuple[np.ndarray | None, bool, str, int]:
         """Update DAQP's workspace (set it up on the first call) and solve: ``(x, ok,
-        status, iterations)``. ``equal`` marks the rows with ``lower == upper`` (DAQP's
-        equality constraints, read at setup only; ``None``: compare ``lo`` and ``up``)."""
+        status, iterations)``."""
         model = self._model
         try:
             if model is None:
                 model = self._daqp.Model()
-                sense = np.zeros(self.num_cons, dtype=c_int)
-                sense[lo == up if equal is None else equal] = 5
-                model.setup(h, c, self._a_general, up, lo, sense)
+                model.setup(h, c, self._a_general, up, lo, self._sense.copy())
                 if self.settings:
                     model.settings = dict(self.settings)
                 self._model = model

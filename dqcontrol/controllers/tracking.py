@@ -307,7 +307,9 @@ class TrackingController(Controller):
             a_rows.append(sp.csc_matrix(np.array(coupling)))
         a_matrix = sp.vstack(a_rows, format="csc")
         if solver == "daqp":
-            self.qp = DaqpQP(p_pattern, a_matrix, solver_settings)
+            # without time scaling, s ≡ 1 is an equality by design (the only one)
+            fixed = None if self.scaling else np.arange(p) * m + n
+            self.qp = DaqpQP(p_pattern, a_matrix, solver_settings, equality_rows=fixed)
         else:
             self.qp = OsqpQP(p_pattern, a_matrix, solver_settings)
         self._c = np.zeros(num_vars)
