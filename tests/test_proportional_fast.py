@@ -15,6 +15,7 @@ from dqcontrol.controllers import ProportionalController, command_box
 from dqcontrol.controllers import proportional as prop
 from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.controllers.bounds import braking_constants
+from dqcontrol.controllers.joint_box import joint_constants
 from dqcontrol.dq import dq_conj, dq_mul
 from dqcontrol.dq.algebra import C8, haminus8
 from dqcontrol.model import LBR4P_Q0, RobotModel
@@ -150,7 +151,7 @@ def test_clip_to_box_equals_command_box_bit_for_bit(n):
         q, qd, qd_prev, q_min, q_max, qd_max, a_max, period, braking = random_box_case(rng, n)
         box = command_box(q, qd_prev, q_min, q_max, qd_max, a_max, period, braking)
         expected = box.project(qd)
-        consts = prop._joint_constants(limits(a_max, period), qd_max.tolist(), period, braking)
+        consts = joint_constants(limits(a_max, period), qd_max.tolist(), period, braking)
         got, saturated, conflict = prop._clip_to_box(
             qd, qd.tolist(), q, qd_prev, q_min, q_max, period, consts, braking
         )
@@ -171,14 +172,14 @@ def test_far_distance_is_verified_and_conservative():
         qd_max = np.exp(rng.uniform(np.log(1e-3), np.log(50.0), 2000))
         a_max = np.exp(rng.uniform(np.log(1e-2), np.log(1e3), 2000))
         for period in (1e-4, 1e-3, 0.05):
-            consts = prop._joint_constants(limits(a_max, period), qd_max.tolist(), period, braking)
+            consts = joint_constants(limits(a_max, period), qd_max.tolist(), period, braking)
             for v, far, at, two_a, at2, _ in consts:
                 assert math.isfinite(far)
                 assert far / period >= v
                 if braking:
                     assert math.sqrt(far * two_a + at2) - at >= v
     # an unverifiable case (overflow) disables the shortcut instead of using it
-    consts = prop._joint_constants(limits(np.array([1e-300]), 1.0), [1e300], 1.0, True)
+    consts = joint_constants(limits(np.array([1e-300]), 1.0), [1e300], 1.0, True)
     assert consts[0][1] == math.inf
 
 

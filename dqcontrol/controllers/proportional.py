@@ -33,6 +33,7 @@ from dqcontrol.controllers.base import (
     per_joint,
 )
 from dqcontrol.controllers.bounds import braking_constants
+from dqcontrol.controllers.joint_box import joint_constants, near_limit_box
 from dqcontrol.dq.algebra import _HM8, C8
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -70,38 +71,6 @@ def _solve_spd(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return np.linalg.solve(gram, rhs)
 
 
-def _joint_constants(
-    limits: list[tuple[float, float, float, float]],
-    qd_max: list[float],
-    period_s: float,
-    braking: bool,
-) -> list[tuple[float, ...]]:
-    """Per joint ``(qd_max, far, a T, 2 a, (a T)², T a)`` for :func:`_clip_to_box`, from
-    ``limits``, per joint ``(a T, 2 a, (a T)², T a)``.
-
-    ``far`` is a distance to a position limit from which neither the one-period position
-    bound nor the braking bound is below ``qd_max``: with ``d ≥ far`` the computed
-    ``d / T`` and ``-a T + sqrt((a T)² + 2 a d)`` are ``≥ qd_max``. It is 1e-6 (relative)
-    beyond the exact crossing and then verified with the very floating-point operations of
-    the box, which are monotone in ``d``, so that checking ``d = far`` covers every
-    ``d ≥ far``; where the check fails, ``far = inf`` (never taken). Beyond ``far`` the
-    box of that side is ``qd_max`` exactly, as the full computation gives.
-    """
-    rows = []
-    for v, (at, two_a, at2, step) in zip(qd_max, limits, strict=True):
-        reach = period_s * v  # d / T = v
-        if braking:  # -a T + sqrt((a T)² + 2 a d) = v
-            reach = max(reach, (v * v + 2.0 * v * at) / two_a)
-        far = reach * (1.0 + 1e-6)
-        ok = far / period_s >= v
-        if braking:
-            ok = ok and math.sqrt(far * two_a + at2) - at >= v
-        if not (ok and math.isfinite(far)):
-            far = math.inf
-        rows.append((v, far, at, two_a, at2, step))
-    return rows
-
-
 def _clip_to_box(
     qd: np.ndarray,
     qd_list: list[float],
@@ -119,13 +88,12 @@ def _clip_to_box(
     followed by :func:`~dqcontrol.controllers.bounds.intersect_acceleration` and
     ``Box.project``, joint by joint on Python floats: for 7 joints a fraction of the time
     of the ~25 numpy calls on 7-element arrays. ``qd_list`` is ``qd.tolist()``; ``consts``
-    comes from :func:`_joint_constants`. Returns ``qd`` itself (not a copy) when nothing is
-    clipped.
+    comes from :func:`~dqcontrol.controllers.joint_box.joint_constants`. Returns ``qd``
+    itself (not a copy) when nothing is clipped.
     """
     out = []
     saturated = False
     conflict: tuple[int, ...] = ()
-    sqrt = math.sqrt
     q_list, prev_list = q.tolist(), qd_prev.tolist()
     rows = zip(qd_list, q_list, prev_list, q_min.tolist(), q_max.tolist(), consts, strict=True)
     for j, (v, qj, prev, q_lo, q_hi, (v_max, far, at, two_a, at2, step)) in enumerate(rows):
@@ -136,26 +104,7 @@ def _clip_to_box(
             hi = v_max
             lo = -v_max
         else:
-            hi = d_hi / period_s
-            if hi > v_max:
-                hi = v_max
-            lo = d_lo / period_s
-            if lo > v_max:
-                lo = v_max
-            if braking:
-                speed = sqrt((d_hi if d_hi > 0.0 else 0.0) * two_a + at2) - at
-                if speed < hi:
-                    hi = speed
-                speed = sqrt((d_lo if d_lo > 0.0 else 0.0) * two_a + at2) - at
-                if speed < lo:
-                    lo = speed
-            lo = -lo
-            if lo > hi:  # beyond a limit: hi = max(hi, min(lo, qd_max)); lo = min(lo, hi)
-                back = lo if lo < v_max else v_max
-                if back > hi:
-                    hi = back
-                if hi < lo:
-                    lo = hi
+            lo, hi = near_limit_box(d_hi, d_lo, v_max, period_s, braking, at, two_a, at2)
         # acceleration (intersect_acceleration), with its conflict rule
         lo_a = prev - step
         hi_a = prev + step
@@ -298,7 +247,7 @@ class ProportionalController(Controller):
             key = (self.period_s, self.qd_max.tolist())
             if key != self._box_key:
                 self._box_key = key
-                self._box_consts = _joint_constants(
+                self._box_consts = joint_constants(
                     self._box_limits, key[1], self.period_s, self._braking
                 )
             qd_cmd, saturated, conflict = _clip_to_box(

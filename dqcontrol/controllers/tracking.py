@@ -48,8 +48,8 @@ from dqcontrol.controllers.bounds import (
     intersect_acceleration,
     safe_command,
 )
+from dqcontrol.controllers.joint_box import joint_constants, near_limit_box
 from dqcontrol.controllers.prediction import integration_matrix
-from dqcontrol.controllers.proportional import _joint_constants
 from dqcontrol.controllers.qp_daqp import DaqpQP
 from dqcontrol.controllers.qp_solver import OsqpQP
 from dqcontrol.errors import ParameterError
@@ -414,7 +414,7 @@ class TrackingController(Controller):
 
     def _local_constants(self, qd_max: list[float]) -> list[tuple[float, ...]] | None:
         """Per joint ``(qd_max, far, a T, 2 a, (a T)², T a)`` for the fast path's box (see
-        ``proportional._joint_constants``) at ``qd_max``, ``T`` and the braking switch (and
+        ``joint_box.joint_constants``) at ``qd_max``, ``T`` and the braking switch (and
         ``a_max``, which is set at construction); ``None`` where they are not usable there
         (not finite, not > 0)."""
         self._local_key = (qd_max, self.period_s, self.braking_aware)
@@ -424,7 +424,7 @@ class TrackingController(Controller):
         )
         values = qd_max + [self.period_s] + [v for row in limits for v in row]
         if all(math.isfinite(v) and v > 0.0 for v in values):
-            consts = _joint_constants(limits, qd_max, self.period_s, self.braking_aware)
+            consts = joint_constants(limits, qd_max, self.period_s, self.braking_aware)
         else:
             consts = None
         self._local_consts = consts
@@ -455,7 +455,6 @@ class TrackingController(Controller):
             consts = self._local_constants(qd_max)
         if consts is None:
             return None
-        sqrt = math.sqrt
         lo_list = self._lo_list  # n joints, then the bounds of s (set once)
         hi_list = self._hi_list
         conflict: tuple[int, ...] = ()
@@ -481,26 +480,7 @@ class TrackingController(Controller):
                     continue
                 return None
             # velocity, position through one period, braking (bounds._vp_box)
-            hi = d_hi / period_s
-            if hi > v_max:
-                hi = v_max
-            lo = d_lo / period_s
-            if lo > v_max:
-                lo = v_max
-            if braking:
-                speed = sqrt((d_hi if d_hi > 0.0 else 0.0) * two_a + at2) - at
-                if speed < hi:
-                    hi = speed
-                speed = sqrt((d_lo if d_lo > 0.0 else 0.0) * two_a + at2) - at
-                if speed < lo:
-                    lo = speed
-            lo = -lo
-            if lo > hi:  # beyond a limit: hi = max(hi, min(lo, qd_max)); lo = min(lo, hi)
-                back = lo if lo < v_max else v_max
-                if back > hi:
-                    hi = back
-                if hi < lo:
-                    lo = hi
+            lo, hi = near_limit_box(d_hi, d_lo, v_max, period_s, braking, at, two_a, at2)
             # ∩ acceleration (bounds.intersect_acceleration), with its conflict rule: where
             # they do not meet, the point of the acceleration interval closest to the box
             lo_box = lo_a if lo_a > lo else lo
