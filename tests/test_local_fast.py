@@ -17,8 +17,7 @@ import pytest
 
 from dqcontrol.bench import long_chain_urdf
 from dqcontrol.controllers import LocalController
-from dqcontrol.controllers import tracking as tracking_module
-from dqcontrol.controllers.base import StepResult
+from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.controllers.bounds import _vp_box, braking_constants, intersect_acceleration
 from dqcontrol.controllers.qp_daqp import DaqpQP
 from dqcontrol.faults.qp_faults import contradictory
@@ -261,10 +260,9 @@ def test_parameters_changed_after_construction_are_used(lbr4p):
 def test_result_objects_without_the_fast_fill(lbr4p, monkeypatch):
     """Where the dataclasses would not be built by filling ``__dict__``, their own
     constructors; either way the objects equal the general step's."""
-    assert tracking_module._fillable(tracking_module.StepResult, tracking_module._RESULT_FIELDS)
-    assert not tracking_module._fillable(StepResult, frozenset({"s"}))
     new, ref = make(lbr4p, Circle(2.0)), make(lbr4p, Circle(2.0), cls=ReferenceLocal)
-    new._fill_results = False
+    assert new._new_result is not StepResult  # the fast fill applies to these dataclasses
+    new._new_diag, new._new_result = StepDiagnostics, StepResult
     q = LBR4P_Q0.copy()
     new.reset(q)
     ref.reset(q)

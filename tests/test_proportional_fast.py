@@ -13,7 +13,7 @@ import pytest
 from dqcontrol.bench import long_chain_urdf
 from dqcontrol.controllers import ProportionalController, command_box
 from dqcontrol.controllers import proportional as prop
-from dqcontrol.controllers.base import StepDiagnostics, StepResult
+from dqcontrol.controllers.base import StepDiagnostics, StepResult, fast_constructor
 from dqcontrol.controllers.bounds import braking_constants
 from dqcontrol.controllers.joint_box import joint_constants
 from dqcontrol.dq import dq_conj, dq_mul
@@ -312,7 +312,7 @@ def test_fast_constructors_build_the_same_objects():
         "conflict_joints": (2, 5),
         "message": "m",
     }
-    make_diag = prop._fast_constructor(StepDiagnostics, status="closed_form")
+    make_diag = fast_constructor(StepDiagnostics, status="closed_form")
     fast, slow = make_diag(**diag_kw), StepDiagnostics(**diag_kw)
     assert type(fast) is StepDiagnostics and fast == slow and repr(fast) == repr(slow)
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -327,7 +327,7 @@ def test_fast_constructors_build_the_same_objects():
         "target": x,
         "diagnostics": slow,
     }
-    make_res = prop._fast_constructor(StepResult, **res_kw)
+    make_res = fast_constructor(StepResult, **res_kw)
     fast, slow = make_res(**res_kw), StepResult(**res_kw)
     assert type(fast) is StepResult
     for f in dataclasses.fields(StepResult):
@@ -346,5 +346,5 @@ def test_fast_constructors_build_the_same_objects():
         def __post_init__(self) -> None:
             pass
 
-    assert prop._fast_constructor(Slotted) is Slotted
-    assert prop._fast_constructor(Checked) is Checked
+    assert fast_constructor(Slotted) is Slotted
+    assert fast_constructor(Checked) is Checked

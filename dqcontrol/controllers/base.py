@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,6 +27,7 @@ __all__ = [
     "StepResult",
     "check_position_margin",
     "check_positive",
+    "fast_constructor",
     "per_joint",
 ]
 
@@ -133,6 +135,31 @@ def check_position_margin(margin_rad: float, q_min: np.ndarray, q_max: np.ndarra
             f"got {margin_rad!r}"
         )
     return m
+
+
+def fast_constructor(cls: type, **required: object) -> Callable[..., object]:
+    """A constructor of the frozen dataclass ``cls`` that fills the instance's ``__dict__``
+    in one update instead of one ``object.__setattr__`` per field (≈0.7 µs instead of ≈3):
+    for the results of the 1 kHz control steps.
+
+    The defaults come from an instance built by ``cls(**required)``; the result is the
+    same object ``cls(**fields)`` would build. ``cls`` itself is returned where that
+    would not hold (slots, or a ``__post_init__``).
+    """
+    template = cls(**required)
+    if not hasattr(template, "__dict__") or hasattr(cls, "__post_init__"):
+        return cls
+    defaults = dict(vars(template))
+    new = object.__new__
+
+    def make(**fields: object) -> object:
+        obj = new(cls)
+        attrs = vars(obj)
+        attrs.update(defaults)
+        attrs.update(fields)
+        return obj
+
+    return make
 
 
 class Controller(ABC):

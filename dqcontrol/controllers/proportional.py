@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 
 import numpy as np
 from scipy.linalg.lapack import dposv as _POSV
@@ -30,6 +29,7 @@ from dqcontrol.controllers.base import (
     StepResult,
     check_position_margin,
     check_positive,
+    fast_constructor,
     per_joint,
 )
 from dqcontrol.controllers.bounds import braking_constants
@@ -124,30 +124,6 @@ def _clip_to_box(
     return (np.array(out) if saturated else qd), saturated, conflict
 
 
-def _fast_constructor(cls: type, **required: object) -> Callable[..., object]:
-    """A constructor of the frozen dataclass ``cls`` that fills the instance's ``__dict__``
-    in one update instead of one ``object.__setattr__`` per field (≈0.7 µs instead of ≈3).
-
-    The defaults come from an instance built by ``cls(**required)``; the result is the
-    same object ``cls(**fields)`` would build. ``cls`` itself is returned where that
-    would not hold (slots, or a ``__post_init__``).
-    """
-    template = cls(**required)
-    if not hasattr(template, "__dict__") or hasattr(cls, "__post_init__"):
-        return cls
-    defaults = dict(vars(template))
-    new = object.__new__
-
-    def make(**fields: object) -> object:
-        obj = new(cls)
-        attrs = vars(obj)
-        attrs.update(defaults)
-        attrs.update(fields)
-        return obj
-
-    return make
-
-
 class ProportionalController(Controller):
     """Invariant-error proportional controller.
 
@@ -209,8 +185,8 @@ class ProportionalController(Controller):
         self._map = _target_map(self.gain_per_s)
         self._gain_one = self.gain_per_s * _ONE
         zero = np.zeros(self.n)
-        self._new_diag = _fast_constructor(StepDiagnostics, status="closed_form")
-        self._new_result = _fast_constructor(
+        self._new_diag = fast_constructor(StepDiagnostics, status="closed_form")
+        self._new_result = fast_constructor(
             StepResult, qd_command=zero, s=1.0, sigma=0.0, sigma_next=0.0, pose=_ONE,
             target=_ONE, diagnostics=StepDiagnostics(status="closed_form"),
         )  # fmt: skip

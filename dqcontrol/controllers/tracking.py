@@ -26,7 +26,6 @@ checks that they agree); every other case, and anything unusual, takes the gener
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from typing import Literal, NamedTuple
@@ -40,6 +39,7 @@ from dqcontrol.controllers.base import (
     StepResult,
     check_position_margin,
     check_positive,
+    fast_constructor,
     per_joint,
 )
 from dqcontrol.controllers.bounds import (
@@ -94,30 +94,6 @@ def _interpolation_matrix(tau: np.ndarray, shift_s: float) -> np.ndarray:
         out[i, j] = 1.0 - frac
         out[i, j + 1] = frac
     return out
-
-
-#: The fields the fast path fills in (all of them: ``_fillable`` checks it).
-_DIAG_FIELDS = frozenset(
-    ("status", "iterations", "solve_time_s", "step_time_s", "fallback", "relaxed", "saturated",
-     "conflict_joints", "message")
-)  # fmt: skip
-_RESULT_FIELDS = frozenset(
-    ("qd_command", "s", "sigma", "sigma_next", "pose", "target", "diagnostics", "horizon_qd",
-     "horizon_s")
-)  # fmt: skip
-_new_object = object.__new__
-
-
-def _fillable(cls: type, names: frozenset[str]) -> bool:
-    """Whether an instance of the frozen dataclass ``cls`` is built by filling its
-    ``__dict__`` with exactly ``names`` (no slots, no ``__post_init__``, those fields) —
-    as in ``proportional._fast_constructor``, ≈1 µs instead of ≈2.5 per object."""
-    return (
-        dataclasses.is_dataclass(cls)
-        and "__slots__" not in vars(cls)
-        and not hasattr(cls, "__post_init__")
-        and frozenset(f.name for f in dataclasses.fields(cls)) == names
-    )
 
 
 #: The QP backend used when none is named (docs/performance.md has the numbers).
@@ -363,10 +339,12 @@ class TrackingController(Controller):
             self._hi_list = [0.0] * n + [self._upper.item(n)]
             self._local_key: tuple = (None, None, None)  # (qd_max, T, braking_aware)
             self._local_consts: list[tuple[float, ...]] | None = None
-            # the result objects' __dict__ filled at once where that builds the same objects
-            self._fill_results = _fillable(StepDiagnostics, _DIAG_FIELDS) and _fillable(
-                StepResult, _RESULT_FIELDS
-            )
+            # the result objects' __dict__ filled at once (base.fast_constructor)
+            self._new_diag = fast_constructor(StepDiagnostics, status="solved")
+            self._new_result = fast_constructor(
+                StepResult, qd_command=np.zeros(n), s=1.0, sigma=0.0, sigma_next=0.0,
+                pose=np.zeros(8), target=np.zeros(8), diagnostics=StepDiagnostics("solved"),
+            )  # fmt: skip
         self._horizon_qd = np.zeros((p, n))
         self._horizon_s = np.ones(p)
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -403,6 +381,21 @@ class TrackingController(Controller):
                 for qi in q_hat
             ]
         )
+
+    def _stall_extra(self) -> float:
+        """The stall damping's extra weight on ``‖qd‖²`` this step (0 unless stalled)."""
+        if self._stalled_steps >= self._stall_steps and self.scaling and self.stall_damping:
+            return self.stall_damping * (1.0 - self._s_applied / self.stall_scaling)
+        return 0.0
+
+    def _record_applied_s(self, s_now: float) -> None:
+        """Remember the applied ``s`` and for how many steps it has been below
+        ``stall_scaling`` (what :meth:`_stall_extra` reads)."""
+        self._s_applied = s_now
+        if s_now < self.stall_scaling:
+            self._stalled_steps += 1
+        else:
+            self._stalled_steps = 0
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         """The fast single-instant step where it applies, else the general one."""
@@ -510,10 +503,9 @@ class TrackingController(Controller):
         h = g0.T.dot(g0)  # symmetric (BLAS syrk)
         h *= 2.0 * self.task_weight
         h += self._diag2
-        if self._stalled_steps >= self._stall_steps and self.scaling and self.stall_damping:
-            h.ravel()[self._qd_diag_flat] += 2.0 * (
-                self.stall_damping * (1.0 - self._s_applied / self.stall_scaling)
-            )
+        stall = self._stall_extra()
+        if stall:
+            h.ravel()[self._qd_diag_flat] += 2.0 * stall
         bounds = np.array((lo_list, hi_list))  # a copy: the lists are reused
         lower, upper = bounds[0], bounds[1]
         self._last = (h, lower, upper)
@@ -538,47 +530,26 @@ class TrackingController(Controller):
             s_now = 0.0
             fallback = True
             message = f"QP failed ({status}); safe fallback: brake within a_max, s = 0"
-        self._s_applied = s_now
-        if s_now < self.stall_scaling:
-            self._stalled_steps += 1
-        else:
-            self._stalled_steps = 0
+        self._record_applied_s(s_now)
         step_time = time.perf_counter() - start
-        if not self._fill_results:  # a dataclass changed: its own constructor
-            diag = StepDiagnostics(
-                status, iterations, solve_time, step_time, fallback, False, False, conflict,
-                message,
-            )  # fmt: skip
-            return StepResult(qd_cmd, s_now, sigma, sigma + period_s * s_now, x, xd, diag)
-        diag = _new_object(StepDiagnostics)
-        diag.__dict__.update(
-            {
-                "status": status,
-                "iterations": iterations,
-                "solve_time_s": solve_time,
-                "step_time_s": step_time,
-                "fallback": fallback,
-                "relaxed": False,
-                "saturated": False,
-                "conflict_joints": conflict,
-                "message": message,
-            }
+        diag = self._new_diag(
+            status=status,
+            iterations=iterations,
+            solve_time_s=solve_time,
+            step_time_s=step_time,
+            fallback=fallback,
+            conflict_joints=conflict,
+            message=message,
         )
-        res = _new_object(StepResult)
-        res.__dict__.update(
-            {
-                "qd_command": qd_cmd,
-                "s": s_now,
-                "sigma": sigma,
-                "sigma_next": sigma + period_s * s_now,
-                "pose": x,
-                "target": xd,
-                "diagnostics": diag,
-                "horizon_qd": None,
-                "horizon_s": None,
-            }
+        return self._new_result(
+            qd_command=qd_cmd,
+            s=s_now,
+            sigma=sigma,
+            sigma_next=sigma + period_s * s_now,
+            pose=x,
+            target=xd,
+            diagnostics=diag,
         )
-        return res
 
     def _step_general(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         """Every case: p instants, either backend, constant or dynamics-aware ``a_max``."""
@@ -619,10 +590,9 @@ class TrackingController(Controller):
         if self.task_weight != 1.0:
             p_values *= self.task_weight
         p_values += self._diag_values
-        if self._stalled_steps >= self._stall_steps and self.scaling and self.stall_damping:
-            p_values[self._qd_diag_pos] += self.stall_damping * (
-                1.0 - self._s_applied / self.stall_scaling
-            )
+        stall = self._stall_extra()
+        if stall:
+            p_values[self._qd_diag_pos] += stall
         p_values *= 2.0
 
         # bounds: velocity/position boxes of every instant at once (predicted ones clipped
@@ -700,11 +670,7 @@ class TrackingController(Controller):
             message = f"QP failed ({sol.status}); safe fallback: brake within a_max, s = 0"
         if p > 1:
             horizon_qd, horizon_s = self._horizon_qd.copy(), self._horizon_s.copy()
-        self._s_applied = s_now
-        if s_now < self.stall_scaling:
-            self._stalled_steps += 1
-        else:
-            self._stalled_steps = 0
+        self._record_applied_s(s_now)
         diag = StepDiagnostics(
             status=sol.status,
             iterations=sol.iterations,
