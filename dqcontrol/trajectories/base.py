@@ -54,6 +54,8 @@ class Trajectory(ABC):
         self._reference: np.ndarray | None = None
         self._ref_plus_t: np.ndarray | None = None
         self._path_cache: dict[int, tuple[np.ndarray, cKDTree, float]] = {}
+        # scratch rows for a subclass's fused _local_pair (each copy owns its own)
+        self._pair_buffer = np.zeros((2, 8))
         if reference is not None:
             self._set_reference(dq_normalize(unit_dq("reference", reference)))
 
@@ -154,7 +156,7 @@ class Trajectory(ABC):
 
     def _local_pair(self, sigma: float) -> np.ndarray:
         """``[traj(σ); dtraj/dσ]`` as a ``(2, 8)`` array (subclasses may fuse the two and
-        return a buffer they reuse: the caller reads it before the next call)."""
+        fill ``self._pair_buffer``: the caller reads it before the next call)."""
         return np.array((self.local_pose(sigma), self.local_derivative(sigma)))
 
     def targets(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -354,9 +356,7 @@ class Trajectory(ABC):
 
     def _copy_with(self, reference: np.ndarray) -> Trajectory:
         new = copy.copy(self)
-        buffer = getattr(self, "_pair_buffer", None)
-        if buffer is not None:  # a scratch buffer of _local_pair: each copy owns its own
-            new._pair_buffer = buffer.copy()
+        new._pair_buffer = self._pair_buffer.copy()
         new._set_reference(reference)
         return new
 

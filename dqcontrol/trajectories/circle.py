@@ -37,8 +37,7 @@ class Circle(Trajectory):
         self._omega = 2.0 * math.pi / self.duration
         self._half_r = 0.5 * self._radius
         self._half_r_omega = 0.5 * self._radius * self._omega
-        self._pair_buffer = np.zeros((2, 8))
-        self._pair_buffer[0, 0] = 1.0
+        self._pair_buffer[0, 0] = 1.0  # the constant r = 1 of the pose row
 
     @property
     def radius_m(self) -> float:

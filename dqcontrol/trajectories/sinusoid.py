@@ -42,8 +42,7 @@ class Sinusoid(Trajectory):
         self._omega_x = positive("omega_x_rad_per_m", omega_x_rad_per_m, "rad/m")
         self._speed = self.LENGTH_X_M / self.duration
         self._rate = self._omega_x * self._speed  # Ω_x v [rad/s]
-        self._pair_buffer = np.zeros((2, 8))
-        self._pair_buffer[0, 0] = 1.0
+        self._pair_buffer[0, 0] = 1.0  # the constant r = 1 of the pose row
 
     @property
     def amplitude_m(self) -> float:
