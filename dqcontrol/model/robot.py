@@ -7,14 +7,14 @@ FORMULATION §2: the end-effector pose ``x`` (``vec8``) comes from Pinocchio's p
     J_r = ½ H-4(r)[:, 1:4] Jw
     J_d = ½ ( H-4(r)[:, 1:4] Jv + H+4(t) J_r )
 
-Both are bilinear in ``(r, [1, t])``; the model precomputes one constant 56×16 matrix that
-maps ``r ⊗ [1, t]`` to ``[vec8(x), A]`` with ``J = A [Jv; Jw]``, so one call costs one
-Pinocchio call and three small numpy products.
+written out on floats in :mod:`dqcontrol.dq.kernels` (compiled with Numba), so one call
+costs one Pinocchio call, one conversion of the placement and one compiled call.
 
 A batch of configurations (:meth:`RobotModel.poses_and_jacobians`) of a chain of at most
 eight revolute joints is computed in closed form without Pinocchio
 (:mod:`dqcontrol.model.chain_batch`: a fixed handful of numpy calls for the whole batch);
-other models loop over Pinocchio and share the numpy part. The choice is made at load time.
+other models loop over Pinocchio and convert the batch in one compiled call. The choice is
+made at load time.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from dqcontrol.dq.algebra import haminus4, hamiplus4, qmul
+from dqcontrol.dq.kernels import pose_jacobian_batch, pose_jacobian_from_xyzquat
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
@@ -50,48 +50,6 @@ class JointLimits:
     q_max: np.ndarray
     qd_max: np.ndarray
     effort_max: np.ndarray
-
-
-def _pose_jacobian_map() -> np.ndarray:
-    """Constant 56×16 map from ``k = r ⊗ [1, t]`` to ``[vec8(x) (8), A (8×6 row-major)]``.
-
-    Built numerically from the Hamilton operators so that it restates FORMULATION §2
-    instead of hand-expanding it: column ``(a, 0)`` is the part linear in ``r``; column
-    ``(a, b ≥ 1)`` the part bilinear in ``r_a t_b``.
-    """
-
-    def full(r: np.ndarray, t: np.ndarray) -> np.ndarray:
-        tq = np.concatenate(([0.0], t))
-        x = np.concatenate((r, 0.5 * qmul(tq, r)))
-        hm3 = haminus4(r)[:, 1:4]
-        a = np.zeros((8, 6))
-        a[:4, 3:] = 0.5 * hm3
-        a[4:, :3] = 0.5 * hm3
-        a[4:, 3:] = 0.25 * hamiplus4(tq) @ hm3
-        return np.concatenate((x, a.ravel()))
-
-    cols = np.zeros((56, 16))
-    eye4 = np.eye(4)
-    eye3 = np.eye(3)
-    for a in range(4):
-        base = full(eye4[a], np.zeros(3))
-        cols[:, 4 * a] = base
-        for b in range(3):
-            cols[:, 4 * a + 1 + b] = full(eye4[a], eye3[b]) - base
-    return cols
-
-
-# Pinocchio's XYZQUAT is [tx, ty, tz, qx, qy, qz, qw]. Stored after a leading 1, the buffer
-# [1, tx, ty, tz, qx, qy, qz, qw] holds [1, t] in [0:4] and r (x, y, z, w order) in [4:8],
-# both contiguous views. _MAP_XYZW[o, 4·a + b] is _MAP[o, 4·a_wxyz + b] with a in xyzw order,
-# and _TENSOR_2D = _MAP_XYZW viewed as (56·4, 4), so that
-# ``_TENSOR_2D.dot([1, t]).reshape(56, 4).dot(r_xyzw)`` is ``_MAP · (r ⊗ [1, t])`` with two
-# matrix-vector products and no outer product (2-D dots: numpy's N-D dot is much slower).
-_XYZW_FROM_WXYZ = [1, 2, 3, 0]
-_MAP = _pose_jacobian_map()
-_MAP_XYZW = np.ascontiguousarray(_MAP.reshape(56, 4, 4)[:, _XYZW_FROM_WXYZ, :]).reshape(56, 16)
-_TENSOR_2D = _MAP_XYZW.reshape(224, 4)
-_MAP_XYZW_T = np.ascontiguousarray(_MAP_XYZW.T)
 
 
 class RobotModel:
@@ -161,10 +119,6 @@ class RobotModel:
             effort_max=np.array(model.effortLimit, dtype=float),
         )
         self._one_dof = model.nv == 1
-        self._buf = np.zeros(8)
-        self._buf[0] = 1.0
-        self._buf_t1 = self._buf[:4]  # [1, tx, ty, tz]
-        self._buf_r = self._buf[4:]  # [qx, qy, qz, qw]
         # closed-form batched kinematics (None: loop on Pinocchio). Its tables are read from
         # the model here, once: a model edited in place afterwards needs a new RobotModel.
         self._chain = self._build_chain()
@@ -321,15 +275,9 @@ class RobotModel:
     def _pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unchecked hot-path version of :meth:`pose_and_jacobian` (``q`` already valid)."""
         j6 = pin.computeFrameJacobian(self.model, self.data, q, self._fid, _LWA)
-        buf = self._buf
-        buf[1:] = pin.SE3ToXYZQUAT(self._ee_placement)
-        if buf[7] < 0.0:
-            self._buf_r *= -1.0
-        out = _TENSOR_2D.dot(self._buf_t1).reshape(56, 4).dot(self._buf_r)
-        jac = out[8:].reshape(8, 6).dot(j6)
         if self._one_dof:  # Pinocchio returns a (6,) Jacobian for a one-joint model
-            jac = jac.reshape(8, 1)
-        return out[:8], jac
+            j6 = j6.reshape(6, 1)
+        return pose_jacobian_from_xyzquat(pin.SE3ToXYZQUAT(self._ee_placement), j6)
 
     def poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Batched pose and Jacobian for N configurations: ``(N, 8)`` and ``(N, 8, n)``.
@@ -376,18 +324,8 @@ class RobotModel:
         for qi in qs:
             j6s.append(jacobian(model, data, qi, fid, _LWA))
             xqs.append(to_xyzquat(placement))
-        # buf[i] = [1, t, r_xyzw] (the layout of the single path's buffer), r_w ≥ 0
-        buf = np.empty((count, 8))
-        buf[:, 0] = 1.0
-        buf[:, 1:] = xqs
-        r = buf[:, 4:]
-        r *= np.copysign(1.0, buf[:, 7:])
-        # k[i] = r_xyzw ⊗ [1, t] (row-major 4×4), the layout of _MAP_XYZW's columns
-        k = r[:, :, None] * buf[:, None, :4]
-        out = k.reshape(count, 16).dot(_MAP_XYZW_T)
         # reshape: for n = 1 Pinocchio returns each Jacobian as a (6,) vector
-        j6 = np.array(j6s).reshape(count, 6, self.nq)
-        return out[:, :8], np.matmul(out[:, 8:].reshape(count, 8, 6), j6)
+        return pose_jacobian_batch(np.array(xqs), np.array(j6s).reshape(count, 6, self.nq))
 
     def poses(self, qs: np.ndarray) -> np.ndarray:
         """Batched end-effector poses ``(N, 8)``."""
