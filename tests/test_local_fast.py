@@ -1,11 +1,12 @@
 """The single-instant fast path of the local controller (issue 7) equals the general step.
 
 ``TrackingController._step_local`` (p = 1, DAQP, constant ``a_max``) computes the bound box
-joint by joint on Python floats, the whole Hessian at once and calls DAQP through
-``DaqpQP.solve_dense``; ``TrackingController._step_general`` is the plain step every other
-case uses (and the local step used before). The two must give the same commands, ``s``,
-``σ``, diagnostics and QP (to 1e-12) over whole closed loops, and the box must equal
-``bounds._vp_box`` + ``intersect_acceleration`` bit for bit on random states.
+and the whole Hessian in compiled kernels (``joint_box.joint_boxes``,
+``local_cost.local_hessian``, whose ``Gᵀ G`` is the general step's ``local_cost.gram``)
+and calls DAQP through ``DaqpQP.solve_dense``; ``TrackingController._step_general`` is the
+plain step every other case uses (and the local step used before). The two must give the
+same commands, ``s``, ``σ``, diagnostics and QP (to 1e-12) over whole closed loops, and the
+box must equal ``bounds._vp_box`` + ``intersect_acceleration`` bit for bit on random states.
 """
 
 from __future__ import annotations

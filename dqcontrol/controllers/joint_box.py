@@ -5,14 +5,19 @@ QP bounds) build the box joint by joint on floats, with the very floating-point
 operations of :func:`~dqcontrol.controllers.bounds.command_box` (tests check bit
 equality), because at 1 kHz numpy's per-call cost on 7-element arrays exceeds the
 arithmetic. Far from its limits a joint's box is just ``±qd_max`` (:func:`joint_constants`
-says how far is far); near them, :func:`near_limit_box`.
+says how far is far); near them, :func:`near_limit_box`. :func:`near_limit_box` and the
+local controller's whole box, :func:`joint_boxes`, are compiled with Numba (the same
+IEEE operations: no fast-math, so the bit-equality holds).
 """
 
 from __future__ import annotations
 
 import math
 
-__all__ = ["joint_constants", "near_limit_box"]
+import numpy as np
+from numba import njit
+
+__all__ = ["joint_boxes", "joint_constants", "near_limit_box"]
 
 
 def joint_constants(
@@ -47,6 +52,7 @@ def joint_constants(
     return rows
 
 
+@njit(cache=True)
 def near_limit_box(
     d_hi: float,
     d_lo: float,
@@ -81,3 +87,60 @@ def near_limit_box(
         if hi < lo:
             lo = hi
     return lo, hi
+
+
+@njit(cache=True)
+def joint_boxes(
+    q: np.ndarray,
+    qd_prev: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    consts: np.ndarray,
+    period_s: float,
+    braking: bool,
+    bounds: np.ndarray,
+    conflict: np.ndarray,
+) -> int:
+    """The command box of every joint, as ``bounds._vp_box`` + ``intersect_acceleration``.
+
+    ``consts`` is :func:`joint_constants` as an ``(n, 6)`` array. Writes the box of joint
+    ``j`` to ``bounds[0, j]`` / ``bounds[1, j]`` [rad/s] (``bounds`` is ``(2, ≥ n)``) and
+    ``conflict[j]`` (1 where the acceleration interval misses the velocity/position box
+    and the box collapses to its point closest to that box, else 0). Returns the number of
+    conflicts, or -1 where the box is not usable as a QP's bounds (a NaN limit or previous
+    command, a bound beyond ±1e30): the caller then takes its general path, which refuses
+    such bounds.
+    """
+    count = 0
+    for j in range(q.shape[0]):
+        v_max, far, at, two_a, at2, step = (
+            consts[j, 0], consts[j, 1], consts[j, 2], consts[j, 3], consts[j, 4], consts[j, 5]
+        )  # fmt: skip
+        prev = qd_prev[j]
+        q_lo = q_min[j]
+        q_hi = q_max[j]
+        lo_a = prev - step  # the acceleration bound
+        hi_a = prev + step
+        d_hi = q_hi - q[j]
+        d_lo = q[j] - q_lo
+        if d_hi >= far and d_lo >= far:
+            # far from both limits: the velocity bound (finite, v_max > 0)
+            lo = -v_max
+            hi = v_max
+        else:
+            lo, hi = near_limit_box(d_hi, d_lo, v_max, period_s, braking, at, two_a, at2)
+        # ∩ acceleration, with its conflict rule: where they do not meet, the point of
+        # the acceleration interval closest to the box
+        lo_box = lo_a if lo_a > lo else lo
+        hi_box = hi_a if hi_a < hi else hi
+        conflict[j] = 0
+        if lo_box > hi_box:
+            lo_box = hi_box = hi_a if hi_a < lo else lo_a
+            conflict[j] = 1
+            count += 1
+        # what DaqpQP.solve checks and clamps (a NaN limit or command fails here)
+        if not (q_lo <= q_hi and prev == prev and -1e30 <= lo_box <= hi_box <= 1e30):
+            return -1
+        bounds[0, j] = lo_box
+        bounds[1, j] = hi_box
+    return count

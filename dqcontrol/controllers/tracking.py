@@ -48,7 +48,8 @@ from dqcontrol.controllers.bounds import (
     intersect_acceleration,
     safe_command,
 )
-from dqcontrol.controllers.joint_box import joint_constants, near_limit_box
+from dqcontrol.controllers.joint_box import joint_boxes, joint_constants
+from dqcontrol.controllers.local_cost import gram, local_hessian
 from dqcontrol.controllers.prediction import integration_matrix
 from dqcontrol.controllers.qp_daqp import DaqpQP
 from dqcontrol.controllers.qp_solver import OsqpQP
@@ -333,12 +334,11 @@ class TrackingController(Controller):
         )
         if self._local_qp is not None:
             self._diag2 = 2.0 * self._diag[0]  # 2 D, dense (m, m)
-            self._g0_w = self._g[0, :, n]  # the column -w of G (a view)
-            self._qd_diag_flat = np.arange(n) * (m + 1)  # the qd diagonal of H, flattened
-            self._lo_list = [0.0] * n + [self._lower.item(n)]  # the box, then s's bounds
-            self._hi_list = [0.0] * n + [self._upper.item(n)]
+            self._bounds_init = np.zeros((2, m))  # [lower; upper]: the joints', then s's
+            self._bounds_init[:, n] = self._lower.item(n), self._upper.item(n)
+            self._conflict = np.zeros(n, dtype=np.int8)  # written by joint_boxes
             self._local_key: tuple = (None, None, None)  # (qd_max, T, braking_aware)
-            self._local_consts: list[tuple[float, ...]] | None = None
+            self._local_consts: np.ndarray | None = None
             # the result objects' __dict__ filled at once (base.fast_constructor)
             self._new_diag = fast_constructor(StepDiagnostics, status="solved")
             self._new_result = fast_constructor(
@@ -405,11 +405,11 @@ class TrackingController(Controller):
                 return res
         return self._step_general(q, qd)
 
-    def _local_constants(self, qd_max: list[float]) -> list[tuple[float, ...]] | None:
+    def _local_constants(self, qd_max: list[float]) -> np.ndarray | None:
         """Per joint ``(qd_max, far, a T, 2 a, (a T)², T a)`` for the fast path's box (see
         ``joint_box.joint_constants``) at ``qd_max``, ``T`` and the braking switch (and
-        ``a_max``, which is set at construction); ``None`` where they are not usable there
-        (not finite, not > 0)."""
+        ``a_max``, which is set at construction), as an ``(n, 6)`` array; ``None`` where
+        they are not usable there (not finite, not > 0)."""
         self._local_key = (qd_max, self.period_s, self.braking_aware)
         at, two_a, at2 = self._brake_const_1
         limits = list(
@@ -417,7 +417,7 @@ class TrackingController(Controller):
         )
         values = qd_max + [self.period_s] + [v for row in limits for v in row]
         if all(math.isfinite(v) and v > 0.0 for v in values):
-            consts = joint_constants(limits, qd_max, self.period_s, self.braking_aware)
+            consts = np.array(joint_constants(limits, qd_max, self.period_s, self.braking_aware))
         else:
             consts = None
         self._local_consts = consts
@@ -425,17 +425,16 @@ class TrackingController(Controller):
 
     def _step_local(self, q: np.ndarray) -> StepResult | None:
         """The single-instant step (p = 1) with DAQP and a constant ``a_max``: the step of
-        :meth:`_step_general` with the same floating-point operations in fewer numpy calls
-        (issue 7; ``tests/test_local_fast.py`` compares the two over closed loops).
+        :meth:`_step_general` in three compiled calls and a few numpy ones (issue 7;
+        ``tests/test_local_fast.py`` compares the two over closed loops).
 
-        The box (velocity, position, braking, then acceleration with its conflict rule)
-        joint by joint on Python floats, as ``bounds._vp_box`` + ``intersect_acceleration``;
-        ``H = 2 (λ1 Gᵀ G + D)`` whole, from ``2 λ1`` and ``2 D`` (scaling by 2 is exact);
-        DAQP without the general wrapper's checks (made here on the floats); the result
-        objects filled at once. Returns ``None``, having changed nothing, where the box is
-        not usable here (a NaN limit or previous command, a bound beyond ±1e30, a
-        non-finite ``qd_max``, ``T`` or ``a_max``): :meth:`_step_general` and the solver
-        wrapper's checks handle those.
+        The box (velocity, position, braking, then acceleration with its conflict rule) by
+        ``joint_box.joint_boxes``, bit for bit ``bounds._vp_box`` + ``intersect_acceleration``;
+        ``H = 2 (λ1 Gᵀ G + D)`` by ``local_cost.local_hessian``; DAQP without the general
+        wrapper's checks (made by the box kernel); the result objects filled at once.
+        Returns ``None``, having changed nothing, where the box is not usable here (a NaN
+        limit or previous command, a bound beyond ±1e30, a non-finite ``qd_max``, ``T`` or
+        ``a_max``): :meth:`_step_general` and the solver wrapper's checks handle those.
         """
         start = time.perf_counter()
         qd_max = self.qd_max.tolist()
@@ -448,65 +447,24 @@ class TrackingController(Controller):
             consts = self._local_constants(qd_max)
         if consts is None:
             return None
-        lo_list = self._lo_list  # n joints, then the bounds of s (set once)
-        hi_list = self._hi_list
-        conflict: tuple[int, ...] = ()
-        rows = zip(
-            q.tolist(), self.qd_prev.tolist(), self.q_min.tolist(), self.q_max.tolist(), consts,
-            strict=True,
+        n = self.n
+        bounds = self._bounds_init.copy()  # [lower; upper], s's bounds set; DAQP keeps it
+        conflicts = joint_boxes(
+            q, self.qd_prev, self.q_min, self.q_max, consts, period_s, braking, bounds,
+            self._conflict,
         )  # fmt: skip
-        for j, (qj, prev, q_lo, q_hi, (v_max, far, at, two_a, at2, step)) in enumerate(rows):
-            lo_a = prev - step  # the acceleration bound
-            hi_a = prev + step
-            d_hi = q_hi - qj
-            d_lo = qj - q_lo
-            if d_hi >= far and d_lo >= far:
-                # far from both limits: the velocity bound (finite, v_max > 0) ∩ acceleration
-                lo_box = lo_a if lo_a > -v_max else -v_max
-                hi_box = hi_a if hi_a < v_max else v_max
-                if lo_box > hi_box:  # the conflict rule (below)
-                    lo_box = hi_box = hi_a if hi_a < -v_max else lo_a
-                    conflict += (j,)
-                if prev == prev:  # not NaN (NaN would have been lost in the comparisons)
-                    lo_list[j] = lo_box
-                    hi_list[j] = hi_box
-                    continue
-                return None
-            # velocity, position through one period, braking (bounds._vp_box)
-            lo, hi = near_limit_box(d_hi, d_lo, v_max, period_s, braking, at, two_a, at2)
-            # ∩ acceleration (bounds.intersect_acceleration), with its conflict rule: where
-            # they do not meet, the point of the acceleration interval closest to the box
-            lo_box = lo_a if lo_a > lo else lo
-            hi_box = hi_a if hi_a < hi else hi
-            if lo_box > hi_box:
-                lo_box = hi_box = hi_a if hi_a < lo else lo_a
-                conflict += (j,)
-            # what DaqpQP.solve checks and clamps (a NaN limit or command fails here too)
-            if not (q_lo <= q_hi and prev == prev and -1e30 <= lo_box <= hi_box <= 1e30):
-                return None
-            lo_list[j] = lo_box
-            hi_list[j] = hi_box
+        if conflicts < 0:
+            return None
+        conflict = tuple(np.flatnonzero(self._conflict).tolist()) if conflicts else ()
 
         # cost: H = 2 (λ1 Gᵀ G + D (+ stall damping)), G = [J, -w]
-        n = self.n
         sigma = self.sigma
-        x, jac = self.robot._pose_and_jacobian(q)
+        x, jac = self.robot._pose_and_jacobian(q)  # fresh arrays (flipped in place if needed)
         pair = self.trajectory.target_pair(sigma)  # [x_d; dx_d/dσ]
-        xd = pair[0]
-        if x.dot(xd) < 0.0:
-            x, jac = -x, -jac
-        g0 = self._g[0]
-        g0[:, :n] = jac
-        tmp = x - xd  # operators: faster than out= keywords on 8 elements
-        tmp *= self.gain_per_s
-        np.subtract(tmp, pair[1], out=self._g0_w)  # -w = K (x - x_d) - dx_d/dσ
-        h = g0.T.dot(g0)  # symmetric (BLAS syrk)
-        h *= 2.0 * self.task_weight
-        h += self._diag2
-        stall = self._stall_extra()
-        if stall:
-            h.ravel()[self._qd_diag_flat] += 2.0 * stall
-        bounds = np.array((lo_list, hi_list))  # a copy: the lists are reused
+        h = local_hessian(
+            x, jac, pair, self.gain_per_s, 2.0 * self.task_weight, self._diag2,
+            2.0 * self._stall_extra(),
+        )  # fmt: skip
         lower, upper = bounds[0], bounds[1]
         self._last = (h, lower, upper)
         sol, ok, status, iterations, solve_time = self._local_qp.solve_dense(
@@ -521,12 +479,7 @@ class TrackingController(Controller):
             fallback, message = False, ""
         else:
             # safe_command: the point of the box closest to zero
-            qd_cmd = np.array(
-                [
-                    lo if lo > 0.0 else (hi if hi < 0.0 else 0.0)
-                    for lo, hi in zip(lo_list[:n], hi_list[:n], strict=True)
-                ]
-            )
+            qd_cmd = np.minimum(np.maximum(0.0, lower[:n]), upper[:n])
             s_now = 0.0
             fallback = True
             message = f"QP failed ({status}); safe fallback: brake within a_max, s = 0"
@@ -547,7 +500,7 @@ class TrackingController(Controller):
             sigma=sigma,
             sigma_next=sigma + period_s * s_now,
             pose=x,
-            target=xd,
+            target=pair[0],
             diagnostics=diag,
         )
 
@@ -569,7 +522,7 @@ class TrackingController(Controller):
             g0 = g[0]
             g0[:, :n] = jac
             g0[:, n] = self.gain_per_s * (x - xd) - pair[1]  # -w
-            h = g0.T.dot(g0)
+            h = gram(g0)  # as the fast path's local_hessian (bit for bit)
             x0, xd0 = x, xd
         else:
             q_hat, sigma_hat = self._predict(q)
