@@ -15,7 +15,7 @@ from dqcontrol.controllers import ProportionalController, command_box
 from dqcontrol.controllers import proportional as prop
 from dqcontrol.controllers.base import StepDiagnostics, StepResult, fast_constructor
 from dqcontrol.controllers.bounds import braking_constants
-from dqcontrol.controllers.joint_box import joint_constants
+from dqcontrol.controllers.joint_box import joint_boxes, joint_constants
 from dqcontrol.dq import dq_conj, dq_mul
 from dqcontrol.dq.algebra import C8, haminus8
 from dqcontrol.model import LBR4P_Q0, RobotModel
@@ -153,7 +153,7 @@ def test_clip_to_box_equals_command_box_bit_for_bit(n):
         expected = box.project(qd)
         consts = joint_constants(limits(a_max, period), qd_max.tolist(), period, braking)
         got, saturated, conflict = prop._clip_to_box(
-            qd, qd.tolist(), q, qd_prev, q_min, q_max, period, consts, braking
+            qd, q, qd_prev, q_min, q_max, qd_max, a_max, period, np.array(consts), braking
         )
         np.testing.assert_array_equal(got, expected)
         assert saturated == (not np.array_equal(expected, qd))
@@ -164,6 +164,26 @@ def test_clip_to_box_equals_command_box_bit_for_bit(n):
         seen["conflict"] += bool(conflict)
         seen["beyond"] += bool(np.any((q < q_min) | (q > q_max)))
     assert min(seen.values()) > 100  # every branch was exercised
+
+
+def test_clip_to_box_falls_back_to_command_box():
+    """Where the compiled kernel declines (a NaN previous command, which a QP could not
+    take), the clip takes ``command_box`` itself."""
+    q = np.array([0.0, 1.0, -0.5])
+    q_min, q_max = np.full(3, -2.0), np.full(3, 2.0)
+    qd_max = np.array([1.0, 3.0, 2.0])
+    a_max = np.array([10.0, 10.0, 0.1])
+    qd_prev = np.array([0.5, np.nan, 0.0])
+    qd = np.array([2.0, 5.0, -1.0])
+    consts = joint_constants(limits(a_max, 1e-3), qd_max.tolist(), 1e-3, True)
+    bounds, flags = np.empty((2, 3)), np.empty(3, dtype=np.int8)
+    assert joint_boxes(q, qd_prev, q_min, q_max, np.array(consts), 1e-3, True, bounds, flags) < 0
+    got, saturated, conflict = prop._clip_to_box(
+        qd, q, qd_prev, q_min, q_max, qd_max, a_max, 1e-3, np.array(consts), True
+    )
+    box = command_box(q, qd_prev, q_min, q_max, qd_max, a_max, 1e-3, True)
+    np.testing.assert_array_equal(got, box.project(qd))
+    assert saturated and conflict == tuple(np.flatnonzero(box.conflict).tolist())
 
 
 def test_far_distance_is_verified_and_conservative():

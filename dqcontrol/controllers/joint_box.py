@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["joint_boxes", "joint_constants", "near_limit_box"]
+__all__ = ["joint_boxes", "joint_constants", "near_limit_box", "project"]
 
 
 def joint_constants(
@@ -144,3 +144,20 @@ def joint_boxes(
         bounds[0, j] = lo_box
         bounds[1, j] = hi_box
     return count
+
+
+@njit(cache=True)
+def project(qd: np.ndarray, bounds: np.ndarray, out: np.ndarray) -> bool:
+    """``out = clip(qd, bounds[0], bounds[1])`` per joint (``Box.project``); whether any
+    entry was clipped."""
+    clipped = False
+    for j in range(qd.shape[0]):
+        v = qd[j]
+        if v < bounds[0, j]:
+            v = bounds[0, j]
+            clipped = True
+        elif v > bounds[1, j]:
+            v = bounds[1, j]
+            clipped = True
+        out[j] = v
+    return clipped

@@ -9,8 +9,8 @@ reason the QP controllers exist.
 
 The step runs at 1 kHz (issue 7), and on arrays this small each numpy call costs more than
 its arithmetic, so it is written for few calls: both Hamilton matrices from the target
-pair in one product, the box joint by joint on Python floats (:func:`_clip_to_box`, the
-operations of ``bounds.command_box``), the results built without per-field
+pair in one product, the box in one compiled call (:func:`_clip_to_box`, the operations
+of ``bounds.command_box``), the results built without per-field
 ``__setattr__``. ``tests/test_proportional_fast.py`` checks it against the plain
 computation.
 """
@@ -32,8 +32,8 @@ from dqcontrol.controllers.base import (
     fast_constructor,
     per_joint,
 )
-from dqcontrol.controllers.bounds import braking_constants
-from dqcontrol.controllers.joint_box import joint_constants, near_limit_box
+from dqcontrol.controllers.bounds import braking_constants, command_box
+from dqcontrol.controllers.joint_box import joint_boxes, joint_constants, project
 from dqcontrol.dq.algebra import _HM8, C8
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -73,55 +73,37 @@ def _solve_spd(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 
 def _clip_to_box(
     qd: np.ndarray,
-    qd_list: list[float],
     q: np.ndarray,
     qd_prev: np.ndarray,
     q_min: np.ndarray,
     q_max: np.ndarray,
+    qd_max: np.ndarray,
+    a_max: np.ndarray,
     period_s: float,
-    consts: list[tuple[float, ...]],
+    consts: np.ndarray,
     braking: bool,
 ) -> tuple[np.ndarray, bool, tuple[int, ...]]:
     """``command_box(...).project(qd)``, whether it clipped, and the conflict joints.
 
-    The same floating-point operations as :func:`~dqcontrol.controllers.bounds._vp_box`
-    followed by :func:`~dqcontrol.controllers.bounds.intersect_acceleration` and
-    ``Box.project``, joint by joint on Python floats: for 7 joints a fraction of the time
-    of the ~25 numpy calls on 7-element arrays. ``qd_list`` is ``qd.tolist()``; ``consts``
-    comes from :func:`~dqcontrol.controllers.joint_box.joint_constants`. Returns ``qd``
-    itself (not a copy) when nothing is clipped.
+    The box by the compiled :func:`~dqcontrol.controllers.joint_box.joint_boxes` (the
+    floating-point operations of ``bounds.command_box``), ``consts`` from
+    :func:`~dqcontrol.controllers.joint_box.joint_constants` as an ``(n, 6)`` array; where
+    that kernel declines (a bound beyond ±1e30, e.g. an infinite ``qd_max``),
+    ``command_box`` itself. Returns ``qd`` itself (not a copy) when nothing is clipped.
     """
-    out = []
-    saturated = False
-    conflict: tuple[int, ...] = ()
-    q_list, prev_list = q.tolist(), qd_prev.tolist()
-    rows = zip(qd_list, q_list, prev_list, q_min.tolist(), q_max.tolist(), consts, strict=True)
-    for j, (v, qj, prev, q_lo, q_hi, (v_max, far, at, two_a, at2, step)) in enumerate(rows):
-        # velocity, position through one period, braking (_vp_box)
-        d_hi = q_hi - qj
-        d_lo = qj - q_lo
-        if d_hi >= far and d_lo >= far:  # far from both limits: the velocity bound
-            hi = v_max
-            lo = -v_max
-        else:
-            lo, hi = near_limit_box(d_hi, d_lo, v_max, period_s, braking, at, two_a, at2)
-        # acceleration (intersect_acceleration), with its conflict rule
-        lo_a = prev - step
-        hi_a = prev + step
-        lo_box = lo_a if lo_a > lo else lo
-        hi_box = hi_a if hi_a < hi else hi
-        if lo_box > hi_box:
-            lo_box = hi_box = hi_a if hi_a < lo else lo_a
-            conflict += (j,)
-        # Box.project
-        if v < lo_box:
-            v = lo_box
-            saturated = True
-        elif v > hi_box:
-            v = hi_box
-            saturated = True
-        out.append(v)
-    return (np.array(out) if saturated else qd), saturated, conflict
+    n = qd.shape[0]
+    bounds = np.empty((2, n))
+    flags = np.empty(n, dtype=np.int8)
+    if joint_boxes(q, qd_prev, q_min, q_max, consts, period_s, braking, bounds, flags) < 0:
+        box = command_box(q, qd_prev, q_min, q_max, qd_max, a_max, period_s, braking)
+        out = box.project(qd)
+        saturated = not np.array_equal(out, qd)
+        flags = box.conflict
+    else:
+        out = np.empty(n)
+        saturated = project(qd, bounds, out)
+    conflict = tuple(np.flatnonzero(flags).tolist()) if flags.any() else ()
+    return (out if saturated else qd), saturated, conflict
 
 
 class ProportionalController(Controller):
@@ -180,7 +162,7 @@ class ProportionalController(Controller):
         )
         self._braking = self.braking_aware
         self._box_key: tuple = ()
-        self._box_consts: list[tuple[float, ...]] = []
+        self._box_consts = np.zeros((0, 6))
         self._map_gain = self.gain_per_s
         self._map = _target_map(self.gain_per_s)
         self._gain_one = self.gain_per_s * _ONE
@@ -213,22 +195,20 @@ class ProportionalController(Controller):
         saturated = False
         conflict: tuple[int, ...] = ()
         message = ""
-        cmd = qd_cmd.tolist()
         # a sum is NaN/inf iff some entry is (or it overflows): cheap first test
-        if not (math.isfinite(sum(cmd)) or np.isfinite(qd_cmd).all()):
+        if not (math.isfinite(qd_cmd.sum()) or np.isfinite(qd_cmd).all()):
             qd_cmd = np.zeros(self.n)
-            cmd = qd_cmd.tolist()
             message = "non-finite command replaced by zero"
         if self.saturate:
             key = (self.period_s, self.qd_max.tolist())
             if key != self._box_key:
                 self._box_key = key
-                self._box_consts = joint_constants(
-                    self._box_limits, key[1], self.period_s, self._braking
+                self._box_consts = np.array(
+                    joint_constants(self._box_limits, key[1], self.period_s, self._braking)
                 )
             qd_cmd, saturated, conflict = _clip_to_box(
-                qd_cmd, cmd, q, self.qd_prev, self.q_min, self.q_max, self.period_s,
-                self._box_consts, self._braking,
+                qd_cmd, q, self.qd_prev, self.q_min, self.q_max, self.qd_max, self.a_max,
+                self.period_s, self._box_consts, self._braking,
             )  # fmt: skip
         diag = self._new_diag(
             status="closed_form",
