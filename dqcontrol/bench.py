@@ -131,13 +131,38 @@ def _name(kind: str, p: int) -> str:
     return kind if kind in ("local", "proportional") else f"{kind}_p{p}"
 
 
-def step_times(controller, q0: np.ndarray, steps: int, repeats: int = 1) -> dict:
+_REFERENCE_ARRAY = np.eye(8)
+
+
+def _reference_work(count: int) -> None:
+    """A constant workload: ``count`` 8×8 numpy products (the size of a step's calls)."""
+    a = _REFERENCE_ARRAY
+    for _ in range(count):
+        a.dot(a)
+
+
+def _reference_count(target_s: float) -> int:
+    """How many products :func:`_reference_work` needs to take about ``target_s``."""
+    unit = float(np.median(timeit.repeat(lambda: _reference_work(100), number=1, repeat=21)))
+    return max(1, round(100 * target_s / unit))
+
+
+def step_times(
+    controller, q0: np.ndarray, steps: int, repeats: int = 1, reference: bool = True
+) -> dict:
     """Per-step wall time [µs] over ``repeats`` kinematic closed loops of ``steps`` steps.
 
     Median, 99th percentile and their ratio over all steps pooled; the solver's median
-    time; and the spread of the runs' medians.
+    time; and the spread of the runs' medians. With ``reference``, every step is followed
+    by a constant workload calibrated to the step's median (a warm-up of 100 steps) and
+    timed the same way: its p99/median is this host's own floor at that duration
+    (interruptions of a shared VM), against which the controller's is to be read.
     """
-    times, solves, iters, run_medians = [], [], [], []
+    count = 0
+    if reference:
+        warm = step_times(controller, q0, min(steps, 100), 1, reference=False)
+        count = _reference_count(warm["median_us"] * 1e-6)
+    times, solves, iters, run_medians, ref_times = [], [], [], [], []
     for _ in range(repeats):
         q = np.array(q0, dtype=float)
         controller.reset(q)
@@ -146,6 +171,10 @@ def step_times(controller, q0: np.ndarray, steps: int, repeats: int = 1) -> dict
             t0 = time.perf_counter()
             res = controller.step(q)
             run.append(time.perf_counter() - t0)
+            if count:
+                t0 = time.perf_counter()
+                _reference_work(count)
+                ref_times.append(time.perf_counter() - t0)
             solves.append(res.diagnostics.solve_time_s)
             iters.append(res.diagnostics.iterations)
             q = q + controller.period_s * res.qd_command
@@ -154,7 +183,7 @@ def step_times(controller, q0: np.ndarray, steps: int, repeats: int = 1) -> dict
         times += run
         run_medians.append(float(np.median(run) * 1e6))
     t = np.array(times) * 1e6
-    return {
+    out = {
         "median_us": float(np.median(t)),
         "p99_us": float(np.percentile(t, 99)),
         "p99_over_median": float(np.percentile(t, 99) / np.median(t)),
@@ -163,6 +192,11 @@ def step_times(controller, q0: np.ndarray, steps: int, repeats: int = 1) -> dict
         "run_medians_us": run_medians,
         "steps": steps * repeats,
     }
+    if ref_times:
+        r = np.array(ref_times) * 1e6
+        out["reference_median_us"] = float(np.median(r))
+        out["reference_p99_over_median"] = float(np.percentile(r, 99) / np.median(r))
+    return out
 
 
 def bench_controllers(steps: int = 2000, repeats: int = 3, period_s: float = PERIOD_S) -> dict:
@@ -175,7 +209,9 @@ def bench_controllers(steps: int = 2000, repeats: int = 3, period_s: float = PER
     for solver in ("daqp", "osqp"):
         for kind, p in STEP_KINDS:
             ctrl = _make(kind, robot, Circle(2.0), period_s, solver, p)
-            out[f"{_name(kind, p)}[{solver}]"] = step_times(ctrl, LBR4P_Q0, steps, repeats)
+            out[f"{_name(kind, p)}[{solver}]"] = step_times(
+                ctrl, LBR4P_Q0, steps, repeats, reference=solver == DEFAULT_SOLVER
+            )
     ctrl = _make("proportional", robot, Circle(2.0), period_s, None)
     out["proportional"] = step_times(ctrl, LBR4P_Q0, steps, repeats)
     return out
@@ -218,14 +254,14 @@ def bench_scaling(
     by_p = {}
     for p in ps:
         ctrl = _make("predictive", robot, Circle(2.0), period_s, solver, p)
-        res = step_times(ctrl, LBR4P_Q0, steps, repeats)
+        res = step_times(ctrl, LBR4P_Q0, steps, repeats, reference=False)
         by_p[p] = {k: res[k] for k in ("median_us", "solver_median_us", "p99_over_median")}
     by_n = {}
     for n in joints:
         rob = robot if n == 7 else RobotModel.from_urdf(long_chain_urdf(n), "flange")
         q0 = LBR4P_Q0 if n == 7 else np.resize(LBR4P_Q0 * 0.5, n)
         ctrl = _make("predictive", rob, Circle(2.0), period_s, solver, 10)
-        res = step_times(ctrl, q0, steps, repeats)
+        res = step_times(ctrl, q0, steps, repeats, reference=False)
         by_n[n] = {k: res[k] for k in ("median_us", "solver_median_us", "p99_over_median")}
     return {
         "solver": solver,
@@ -476,6 +512,8 @@ def _targets(res: dict) -> dict:
             for k in (f"local[{d}]", f"predictive_p6[{d}]", f"predictive_p10[{d}]", "proportional")
         ),
     }
+    four = (f"local[{d}]", f"predictive_p6[{d}]", f"predictive_p10[{d}]", "proportional")
+    floor = [ctl[k].get("reference_p99_over_median") for k in four]
     ratios = res.get("ratios") or {}
     fig["local_vs_dqr_classic_qp"] = ratios.get("local_step_vs_dqr_classic_qp")
     fig["batch10_vs_10x_dqr"] = ratios.get("batch10_vs_10x_dqr")
@@ -486,6 +524,8 @@ def _targets(res: dict) -> dict:
         value = fig.get(key)
         met = None if value is None else (value <= bound if op == "<=" else value >= bound)
         out[key] = {"label": label, "value": value, "target": f"{op} {bound:g} {unit}", "met": met}
+    if None not in floor:  # the host's own p99/median at the same durations (step_times)
+        out["p99_over_median"]["host_floor"] = max(floor)
     return out
 
 
@@ -544,19 +584,29 @@ def format_report(res: dict) -> str:
         lines.append(
             f"  {t['label']:48s} {_fmt(t['value'], unit):>10s}  {t['target']:>10s}  {state}"
         )
+        if "host_floor" in t:
+            lines.append(
+                f"    (a constant workload of the same medians on this host: "
+                f"{t['host_floor']:.2f} ×)"
+            )
     period_ms = res["period_s"] * 1e3
     lines += [
         "",
         f"control step, LBR4p, circle T_tot = 2 s, T = {period_ms:g} ms (default backend: "
         f"{res['default_solver']})",
         f"  {'controller[backend]':28s} {'median':>8s} {'p99':>8s} {'p99/med':>8s} "
-        f"{'solver':>8s} {'iters':>6s}  [µs]",
+        f"{'solver':>8s} {'iters':>6s} {'host':>6s}  [µs]",
     ]
     for k, v in res["controllers"].items():
+        host = v.get("reference_p99_over_median")
         lines.append(
             f"  {k:28s} {v['median_us']:8.1f} {v['p99_us']:8.1f} {v['p99_over_median']:8.2f} "
-            f"{v['solver_median_us']:8.1f} {v['iterations_median']:6.0f}"
+            f"{v['solver_median_us']:8.1f} {v['iterations_median']:6.0f} "
+            f"{'—' if host is None else f'{host:.2f}':>6s}"
         )
+    lines.append(
+        "  host: p99/median of a constant workload of the step's median, run after every step"
+    )
     lines += ["", "backends agree (max over a run, DAQP vs OSQP + refinement)"]
     for k, v in res["agreement"].items():
         lines.append(

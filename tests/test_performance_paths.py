@@ -131,6 +131,9 @@ def test_quick_bench_writes_every_figure(tmp_path):
         assert key in data["machine"]
     for name in ("local[daqp]", "predictive_p6[daqp]", "predictive_p10[daqp]", "proportional"):
         assert data["controllers"][name]["median_us"] > 0.0
+        # the host's floor: a constant workload timed after every step
+        assert data["controllers"][name]["reference_p99_over_median"] >= 1.0
+    assert data["targets"]["p99_over_median"]["host_floor"] >= 1.0
     assert data["mujoco"]["realtime_factor"] > 0.0
     assert data["scaling"]["by_p"] and data["scaling"]["by_joints_p10"]
     for v in data["agreement"].values():
