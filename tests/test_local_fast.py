@@ -2,7 +2,7 @@
 
 ``TrackingController._step_local`` (p = 1, DAQP, constant ``a_max``) computes the bound box
 and the whole Hessian in compiled kernels (``joint_box.joint_boxes``,
-``local_cost.local_hessian``, whose ``Gᵀ G`` is the general step's ``local_cost.gram``)
+``qp_cost.local_hessian``, whose ``Gᵀ G`` is the general step's ``qp_cost.gram``)
 and calls DAQP through ``DaqpQP.solve_dense``; ``TrackingController._step_general`` is the
 plain step every other case uses (and the local step used before). The two must give the
 same commands, ``s``, ``σ``, diagnostics and QP (to 1e-12) over whole closed loops, and the

@@ -19,6 +19,7 @@ from functools import cache
 import numpy as np
 import scipy.sparse as sp
 
+from dqcontrol.controllers.qp_cost import scatter_symmetric
 from dqcontrol.controllers.qp_solver import QPSolution, invalid_bounds
 from dqcontrol.errors import ParameterError
 
@@ -82,7 +83,7 @@ class DaqpQP:
             raise ParameterError("DaqpQP needs A = [I; A_general] (bounds on the variables first)")
         self._a_general = np.ascontiguousarray(a_dense[nv:])
         pat = self.p_pattern.tocoo()
-        self._rows, self._cols = pat.row, pat.col
+        self._rows, self._cols = pat.row.astype(np.int64), pat.col.astype(np.int64)
         self._h = np.zeros((nv, nv))
         self.settings = dict(settings or {})
         known = daqp.Model().settings
@@ -115,8 +116,7 @@ class DaqpQP:
         if not (lower <= upper).all():  # also catches NaN
             return invalid_bounds(lower, upper, start)
         h = self._h
-        h[self._rows, self._cols] = p_values
-        h[self._cols, self._rows] = p_values
+        scatter_symmetric(h, self._rows, self._cols, p_values)  # compiled: no index arrays
         lo = np.maximum(lower, -1e30)
         up = np.minimum(upper, 1e30)
         x, ok, status, iterations = self._solve(h, c, lo, up)

@@ -49,8 +49,8 @@ from dqcontrol.controllers.bounds import (
     safe_command,
 )
 from dqcontrol.controllers.joint_box import joint_boxes, joint_constants
-from dqcontrol.controllers.local_cost import gram, local_hessian
 from dqcontrol.controllers.prediction import integration_matrix
+from dqcontrol.controllers.qp_cost import instant_p_values, local_hessian
 from dqcontrol.controllers.qp_daqp import DaqpQP
 from dqcontrol.controllers.qp_solver import OsqpQP
 from dqcontrol.errors import ParameterError
@@ -295,7 +295,6 @@ class TrackingController(Controller):
         idx = np.arange(n)
         self._diag[:, idx, idx] = self.regularization
         self._diag[:, n, n] = self.scaling_weight
-        self._g = np.zeros((p, 8, m))
         self._lower = np.zeros(a_matrix.shape[0])
         self._upper = np.zeros(a_matrix.shape[0])
         s_lo = 0.0 if self.scaling else 1.0
@@ -430,7 +429,7 @@ class TrackingController(Controller):
 
         The box (velocity, position, braking, then acceleration with its conflict rule) by
         ``joint_box.joint_boxes``, bit for bit ``bounds._vp_box`` + ``intersect_acceleration``;
-        ``H = 2 (λ1 Gᵀ G + D)`` by ``local_cost.local_hessian``; DAQP without the general
+        ``H = 2 (λ1 Gᵀ G + D)`` by ``qp_cost.local_hessian``; DAQP without the general
         wrapper's checks (made by the box kernel); the result objects filled at once.
         Returns ``None``, having changed nothing, where the box is not usable here (a NaN
         limit or previous command, a bound beyond ±1e30, a non-finite ``qd_max``, ``T`` or
@@ -511,42 +510,23 @@ class TrackingController(Controller):
         # (docs/performance.md).
         start = time.perf_counter()
         n, m, p = self.n, self._m, self.p
-        g = self._g
         if p == 1:
             q_hat = q[None, :]
             x, jac = self.robot._pose_and_jacobian(q)
             pair = self.trajectory.target_pair(self.sigma)  # [x_d; dx_d/dσ]
-            xd = pair[0]
-            if x.dot(xd) < 0.0:
-                x, jac = -x, -jac
-            g0 = g[0]
-            g0[:, :n] = jac
-            g0[:, n] = self.gain_per_s * (x - xd) - pair[1]  # -w
-            h = gram(g0)  # as the fast path's local_hessian (bit for bit)
-            x0, xd0 = x, xd
+            xs, jacs, xd, dxd = x[None], jac[None], pair[:1], pair[1:]
         else:
             q_hat, sigma_hat = self._predict(q)
             xs, jacs = self.robot._poses_and_jacobians(q_hat)
             xd, dxd = self.trajectory.targets(sigma_hat)
-            flip = (xs * xd).sum(axis=1) < 0.0
-            if flip.any():
-                sign = np.where(flip, -1.0, 1.0)
-                xs = xs * sign[:, None]
-                jacs = jacs * sign[:, None, None]
-            g[:, :, :n] = jacs
-            g[:, :, n] = self.gain_per_s * (xs - xd) - dxd  # -w_i
-            h = np.matmul(g.transpose(0, 2, 1), g)
-            x0, xd0 = xs[0], xd[0]
-
         # cost: P = 2 (λ1 Gᵀ G + D), G_i = [J_i, -w_i]; only the stored upper triangles
-        p_values = h.ravel().take(self._p_gather)
-        if self.task_weight != 1.0:
-            p_values *= self.task_weight
-        p_values += self._diag_values
-        stall = self._stall_extra()
-        if stall:
-            p_values[self._qd_diag_pos] += stall
-        p_values *= 2.0
+        # (compiled: qp_cost.instant_p_values; the poses are flipped to x_i · x_d,i ≥ 0 in
+        # place, and for one instant these are local_hessian's numbers, bit for bit)
+        p_values = instant_p_values(
+            xs, jacs, xd, dxd, self.gain_per_s, self.task_weight, self._p_gather,
+            self._diag_values, self._stall_extra(), self._qd_diag_pos,
+        )  # fmt: skip
+        x0, xd0 = xs[0], xd[0]
 
         # bounds: velocity/position boxes of every instant at once (predicted ones clipped
         # to the limits), then the acceleration bound on the applied command

@@ -1,4 +1,4 @@
-"""The local controller's QP Hessian in one compiled call (the 1 kHz fast path).
+"""The QP Hessian of the tracking controllers in compiled calls (the 1 kHz step).
 
 For one instant the cost of FORMULATION §5 is ``λ1 ‖J qd - w s‖² + qdᵀ D qd (+ stall)``
 in ``z = [qd, s]``, i.e. ``½ zᵀ H z`` with ``H = 2 (λ1 Gᵀ G + D)``, ``G = [J, -w]`` and
@@ -6,6 +6,9 @@ in ``z = [qd, s]``, i.e. ``½ zᵀ H z`` with ``H = 2 (λ1 Gᵀ G + D)``, ``G = 
 Jacobian and the target pair on floats, compiled with Numba: the same arithmetic as the
 general step's ``P`` (``TrackingController._step_general``), in one call instead of a
 dozen numpy calls on 8×8 arrays. ``tests/test_local_fast.py`` checks the two steps agree.
+:func:`instant_p_values` does the same for the p instants of the predictive controller,
+straight to the values of ``P``'s stored upper triangles, and :func:`scatter_symmetric`
+writes such values into DAQP's dense ``H``.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["gram", "local_hessian"]
+__all__ = ["gram", "instant_p_values", "local_hessian", "scatter_symmetric"]
 
 
 @njit(cache=True)
@@ -74,3 +77,64 @@ def local_hessian(
         if i < n:
             h[i, i] += two_stall
     return h
+
+
+@njit(cache=True)
+def instant_p_values(
+    xs: np.ndarray,
+    jacs: np.ndarray,
+    xd: np.ndarray,
+    dxd: np.ndarray,
+    gain_per_s: float,
+    task_weight: float,
+    gather: np.ndarray,
+    diag_values: np.ndarray,
+    stall: float,
+    qd_diag_pos: np.ndarray,
+) -> np.ndarray:
+    """The stored values of ``P = 2 (λ1 blkdiag(G_iᵀ G_i) + D (+ stall))`` for p instants.
+
+    ``xs`` (p, 8), ``jacs`` (p, 8, n): predicted poses and Jacobians (fresh: negated in
+    place where ``x_i · x_d,i < 0``); ``xd``, ``dxd`` (p, 8): targets and their
+    σ-derivatives; ``G_i = [J_i, K (x_i - x_d,i) - dx_d,i]``. ``gather`` indexes the
+    stored entries in the flattened ``(p, m, m)`` blocks, ``diag_values`` is ``D`` at
+    those entries, ``qd_diag_pos`` the positions of the ``qd`` diagonal among them.
+    """
+    p, n = jacs.shape[0], jacs.shape[2]
+    m = n + 1
+    blocks = np.empty((p, m, m))
+    g = np.empty((8, m))
+    for i in range(p):
+        align = 0.0
+        for k in range(8):
+            align += xs[i, k] * xd[i, k]
+        sign = -1.0 if align < 0.0 else 1.0
+        if sign < 0.0:
+            for k in range(8):
+                xs[i, k] = -xs[i, k]
+                for j in range(n):
+                    jacs[i, k, j] = -jacs[i, k, j]
+        for k in range(8):
+            for j in range(n):
+                g[k, j] = jacs[i, k, j]
+            g[k, n] = gain_per_s * (xs[i, k] - xd[i, k]) - dxd[i, k]
+        blocks[i] = gram(g)
+    flat = blocks.ravel()
+    values = np.empty(gather.shape[0])
+    for e in range(gather.shape[0]):
+        values[e] = flat[gather[e]] * task_weight + diag_values[e]
+    for e in qd_diag_pos:
+        values[e] += stall
+    for e in range(values.shape[0]):
+        values[e] *= 2.0
+    return values
+
+
+@njit(cache=True)
+def scatter_symmetric(
+    h: np.ndarray, rows: np.ndarray, cols: np.ndarray, values: np.ndarray
+) -> None:
+    """``h[rows, cols] = h[cols, rows] = values`` (the upper triangle's entries, mirrored)."""
+    for e in range(values.shape[0]):
+        h[rows[e], cols[e]] = values[e]
+        h[cols[e], rows[e]] = values[e]
