@@ -38,6 +38,28 @@ def gram(g: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def _task_matrix(
+    x: np.ndarray, jac: np.ndarray, xd: np.ndarray, dxd: np.ndarray, gain: float, g: np.ndarray
+) -> None:
+    """``g = G = [J, K (x - x_d) - dx_d/dσ]`` (8, n+1) of one instant, after negating ``x``
+    and ``jac`` in place when ``x · x_d < 0`` (the error between the nearer of ``±x`` and
+    ``x_d``)."""
+    n = jac.shape[1]
+    align = 0.0
+    for k in range(8):
+        align += x[k] * xd[k]
+    if align < 0.0:
+        for k in range(8):
+            x[k] = -x[k]
+            for j in range(n):
+                jac[k, j] = -jac[k, j]
+    for k in range(8):
+        for j in range(n):
+            g[k, j] = jac[k, j]
+        g[k, n] = gain * (x[k] - xd[k]) - dxd[k]
+
+
+@njit(cache=True)
 def local_hessian(
     x: np.ndarray,
     jac: np.ndarray,
@@ -57,19 +79,8 @@ def local_hessian(
     """
     n = jac.shape[1]
     m = n + 1
-    align = 0.0
-    for k in range(8):
-        align += x[k] * pair[0, k]
-    if align < 0.0:
-        for k in range(8):
-            x[k] = -x[k]
-            for j in range(n):
-                jac[k, j] = -jac[k, j]
-    g = np.empty((8, m))  # G = [J, -w]
-    for k in range(8):
-        for j in range(n):
-            g[k, j] = jac[k, j]
-        g[k, n] = gain_per_s * (x[k] - pair[0, k]) - pair[1, k]
+    g = np.empty((8, m))
+    _task_matrix(x, jac, pair[0], pair[1], gain_per_s, g)
     h = gram(g)
     for i in range(m):
         for j in range(m):
@@ -105,19 +116,7 @@ def instant_p_values(
     blocks = np.empty((p, m, m))
     g = np.empty((8, m))
     for i in range(p):
-        align = 0.0
-        for k in range(8):
-            align += xs[i, k] * xd[i, k]
-        sign = -1.0 if align < 0.0 else 1.0
-        if sign < 0.0:
-            for k in range(8):
-                xs[i, k] = -xs[i, k]
-                for j in range(n):
-                    jacs[i, k, j] = -jacs[i, k, j]
-        for k in range(8):
-            for j in range(n):
-                g[k, j] = jacs[i, k, j]
-            g[k, n] = gain_per_s * (xs[i, k] - xd[i, k]) - dxd[i, k]
+        _task_matrix(xs[i], jacs[i], xd[i], dxd[i], gain_per_s, g)
         blocks[i] = gram(g)
     flat = blocks.ravel()
     values = np.empty(gather.shape[0])
