@@ -191,3 +191,36 @@ def test_compiled_cost_equals_numpy_blocks():
     ref[rows, cols] = got[: rows.size]
     ref[cols, rows] = got[: rows.size]
     np.testing.assert_array_equal(h, ref)
+
+
+@pytest.mark.parametrize("braking", [True, False])
+def test_vp_boxes_equal_numpy_vp_box_bit_for_bit(braking):
+    """``joint_box.vp_boxes`` (the general step's bounds of every instant) against
+    ``bounds._vp_box`` on ``q`` for instant 0 and the clipped predictions for the others:
+    random states with joints beyond their limits, per-instant braking constants."""
+    from dqcontrol.controllers.bounds import _vp_box, braking_constants
+    from dqcontrol.controllers.joint_box import vp_boxes
+
+    rng = np.random.default_rng(17 + braking)
+    beyond = 0
+    for _ in range(300):
+        p, n = int(rng.integers(1, 12)), int(rng.integers(1, 9))
+        q_min = rng.uniform(-3.0, -0.5, n)
+        q_max = rng.uniform(0.5, 3.0, n)
+        span = q_max - q_min
+        q = q_min + rng.uniform(-0.02, 1.02, n) * span  # sometimes beyond a limit
+        q_hat = q_min + rng.uniform(-0.1, 1.1, (p, n)) * span
+        q_hat[0] = q
+        qd_max = rng.uniform(0.5, 8.0, n)
+        period = float(rng.choice([1e-3, 0.01, 0.05]))
+        a_max = rng.uniform(0.5, 50.0, (p, n))
+        brake = braking_constants(a_max, period)
+        q_box = np.minimum(np.maximum(q_hat, q_min), q_max)
+        q_box[0] = q
+        lo_ref, hi_ref = _vp_box(q_box, q_min, q_max, qd_max, period, brake if braking else None)
+        lower, upper = np.empty((p, n)), np.empty((p, n))
+        vp_boxes(q, q_hat, q_min, q_max, qd_max, period, braking, *brake, lower, upper)
+        np.testing.assert_array_equal(lower, lo_ref)
+        np.testing.assert_array_equal(upper, hi_ref)
+        beyond += bool(np.any((q < q_min) | (q > q_max)))
+    assert beyond > 20  # the beyond-a-limit rule was exercised

@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["joint_boxes", "joint_constants", "near_limit_box", "project"]
+__all__ = ["joint_boxes", "joint_constants", "near_limit_box", "project", "vp_boxes"]
 
 
 def joint_constants(
@@ -161,3 +161,40 @@ def project(qd: np.ndarray, bounds: np.ndarray, out: np.ndarray) -> bool:
             clipped = True
         out[j] = v
     return clipped
+
+
+@njit(cache=True)
+def vp_boxes(
+    q: np.ndarray,
+    q_hat: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    qd_max: np.ndarray,
+    period_s: float,
+    braking: bool,
+    at: np.ndarray,
+    two_a: np.ndarray,
+    at2: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> None:
+    """The velocity/position (and braking) box of every instant and joint, as
+    ``bounds._vp_box`` on ``q_box`` = ``q`` for instant 0 and ``q̂_i`` clipped to the
+    limits for the others: written to ``lower``/``upper`` (p, n), bit for bit.
+
+    ``at``, ``two_a``, ``at2`` (p, n) are the braking constants at each instant (unused,
+    any values, when ``braking`` is False)."""
+    for i in range(q_hat.shape[0]):
+        for j in range(q_hat.shape[1]):
+            if i == 0:
+                qj = q[j]
+            else:
+                qj = q_hat[i, j]
+                qj = q_min[j] if qj < q_min[j] else qj  # np.maximum(q̂, q_min) ...
+                qj = q_max[j] if qj > q_max[j] else qj  # ... then np.minimum(·, q_max)
+            lo, hi = near_limit_box(
+                q_max[j] - qj, qj - q_min[j], qd_max[j], period_s, braking,
+                at[i, j], two_a[i, j], at2[i, j],
+            )  # fmt: skip
+            lower[i, j] = lo
+            upper[i, j] = hi

@@ -43,12 +43,11 @@ from dqcontrol.controllers.base import (
     per_joint,
 )
 from dqcontrol.controllers.bounds import (
-    _vp_box,
     braking_constants,
     intersect_acceleration,
     safe_command,
 )
-from dqcontrol.controllers.joint_box import joint_boxes, joint_constants
+from dqcontrol.controllers.joint_box import joint_boxes, joint_constants, vp_boxes
 from dqcontrol.controllers.prediction import integration_matrix
 from dqcontrol.controllers.qp_cost import instant_p_values, local_hessian
 from dqcontrol.controllers.qp_daqp import DaqpQP
@@ -326,6 +325,7 @@ class TrackingController(Controller):
             dv = (self._dtau[:, None] * self._a_const_batch[1:]).ravel()
             np.negative(dv, out=self._lower_cpl)
             self._upper_cpl[:] = dv
+        self._no_brake = (np.zeros((p, n)),) * 3  # braking constants when braking is off
         self._uses_warm = isinstance(self.qp, OsqpQP)
         # the single-instant fast path (_step_local): DAQP, constant a_max
         self._local_qp = (
@@ -531,29 +531,24 @@ class TrackingController(Controller):
         # bounds: velocity/position boxes of every instant at once (predicted ones clipped
         # to the limits), then the acceleration bound on the applied command
         a_max = self._acceleration(q_hat)
-        if p > 1:
-            q_box = np.minimum(np.maximum(q_hat, self.q_min), self.q_max)
-            q_box[0] = q
-            a_box = a_max
-        else:
-            q_box, a_box = q, a_max[0]
         if not self.braking_aware:
-            brake = None
+            brake = self._no_brake
         elif self.a_const is not None:
-            brake = self._brake_const if p > 1 else self._brake_const_1
+            brake = self._brake_const
         else:
-            brake = braking_constants(a_box, self.period_s)
-        lo_vp, hi_vp = _vp_box(q_box, self.q_min, self.q_max, self.qd_max, self.period_s, brake)
-        if p > 1:
-            self._lower_qd[:] = lo_vp
-            self._upper_qd[:] = hi_vp
-            lo_vp, hi_vp = lo_vp[0], hi_vp[0]
-            if self.a_const is None:
-                dv = (self._dtau[:, None] * a_max[1:]).ravel()
-                np.negative(dv, out=self._lower_cpl)
-                self._upper_cpl[:] = dv
+            brake = braking_constants(a_max, self.period_s)
+        # compiled (joint_box.vp_boxes): bounds._vp_box of q (instant 0) and of the
+        # predicted q̂_i clipped to the limits, straight into the bound vectors
+        vp_boxes(
+            q, q_hat, self.q_min, self.q_max, self.qd_max, self.period_s, self.braking_aware,
+            *brake, self._lower_qd, self._upper_qd,
+        )  # fmt: skip
+        if p > 1 and self.a_const is None:
+            dv = (self._dtau[:, None] * a_max[1:]).ravel()
+            np.negative(dv, out=self._lower_cpl)
+            self._upper_cpl[:] = dv
         step = self._accel_step if self.a_const is not None else self.period_s * a_max[0]
-        box = intersect_acceleration(lo_vp, hi_vp, self.qd_prev, step)
+        box = intersect_acceleration(self._lower_qd[0], self._upper_qd[0], self.qd_prev, step)
         lower, upper = self._lower, self._upper
         self._lower_qd[0] = box.lower
         self._upper_qd[0] = box.upper
