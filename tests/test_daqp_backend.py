@@ -5,9 +5,11 @@ bounds widen again."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 
 from dqcontrol.controllers.qp_daqp import DaqpQP
+from dqcontrol.errors import ParameterError
 
 
 def _qp(**kwargs) -> DaqpQP:
@@ -41,3 +43,88 @@ def test_equalities_by_design_stay_fixed():
         sol = qp.solve(_values(H), C, lo, up)
         assert sol.ok
         np.testing.assert_allclose(sol.x, [0.5, 0.3], atol=1e-12)
+
+
+# ------------------------------------------------------------------ block-diagonal P
+
+
+def _block_problem(rng, blocks: int, size: int, equality: bool):
+    """A predictive-like QP: block-diagonal P (one block per instant), box bounds on every
+    variable and coupling rows ``|z_(b+1),j - z_b,j| ≤ d`` between consecutive blocks."""
+    n = blocks * size
+    h = np.zeros((n, n))
+    for b in range(blocks):
+        g = rng.standard_normal((size + 2, size))
+        h[b * size : (b + 1) * size, b * size : (b + 1) * size] = g.T @ g + 1e-6 * np.eye(size)
+    rows = []
+    for b in range(blocks - 1):
+        for j in range(size - 1):
+            row = np.zeros(n)
+            row[b * size + j], row[(b + 1) * size + j] = -1.0, 1.0
+            rows.append(row)
+    a = sp.vstack([sp.identity(n, format="csc"), sp.csc_matrix(np.array(rows))], format="csc")
+    pattern = sp.csc_matrix(np.triu(h != 0))
+    pattern.sort_indices()
+    pat = pattern.tocoo()
+    lower = np.concatenate((rng.uniform(-2.0, -0.1, n), np.full(len(rows), -0.3)))
+    upper = np.concatenate((rng.uniform(0.1, 2.0, n), np.full(len(rows), 0.3)))
+    lower[rng.integers(0, n)] = -np.inf  # unbounded sides are clamped, not refused
+    upper[n + rng.integers(0, len(rows))] = np.inf
+    eq = np.arange(blocks) * size + size - 1 if equality else None
+    if equality:
+        lower[eq] = upper[eq] = 0.25
+    return h, pattern, pat, a, lower, upper, eq
+
+
+def test_block_diagonal_p_as_least_distance_problem_gives_the_same_optimum():
+    """``DaqpQP(block_size=…)`` (the least-distance form of ``qp_ldp.py``) against DAQP on
+    the problem as it is, over a sequence of solves (warm active sets), with equalities by
+    design, unbounded sides, an infeasible step and a block that is not positive definite
+    (which falls back to the plain form and stays correct)."""
+    rng = np.random.default_rng(2024)
+    for blocks, size, equality in ((10, 8, False), (6, 8, True), (3, 4, False)):
+        h, pattern, pat, a, lower, upper, eq = _block_problem(rng, blocks, size, equality)
+        plain = DaqpQP(pattern, a, equality_rows=eq)
+        ldp = DaqpQP(pattern, a, equality_rows=eq, block_size=size)
+        for _ in range(12):
+            hs = h * rng.uniform(0.5, 2.0)  # a new P each step, same pattern
+            c = rng.standard_normal(h.shape[0])
+            values = hs[pat.row, pat.col]
+            ref, got = plain.solve(values, c, lower, upper), ldp.solve(values, c, lower, upper)
+            assert ref.ok and got.ok and got.status == ref.status == "solved"
+            scale = max(1.0, np.abs(ref.x).max())
+            np.testing.assert_allclose(got.x, ref.x, rtol=0, atol=1e-9 * scale)
+            if eq is not None:
+                np.testing.assert_allclose(got.x[eq], 0.25, atol=1e-12)
+        # contradictory coupling rows: both report infeasibility
+        bad_lo, bad_up = lower.copy(), upper.copy()
+        n = h.shape[0]
+        bad_lo[n], bad_up[n] = 1.0, 1.0  # z_1,0 - z_0,0 = 1 …
+        bad_up[0] = bad_up[size] = 0.1  # … with both in [lo, 0.1]
+        bad_lo[0] = bad_lo[size] = 0.0
+        ref = plain.solve(h[pat.row, pat.col], c, bad_lo, bad_up)
+        got = ldp.solve(h[pat.row, pat.col], c, bad_lo, bad_up)
+        assert not ref.ok and not got.ok and got.status == ref.status
+        # the next feasible step is solved again (the workspace was rebuilt)
+        again = ldp.solve(h[pat.row, pat.col], c, lower, upper)
+        assert again.ok
+    # a block with a zero pivot: the least-distance form is declined, the plain one used
+    h, pattern, pat, a, lower, upper, _ = _block_problem(rng, 4, 4, False)
+    h_psd = h.copy()
+    h_psd[4:8, 4:8] = 0.0
+    h_psd[4, 4] = h_psd[5, 5] = h_psd[6, 6] = h_psd[7, 7] = 1.0
+    h_psd[5, 5] = 0.0
+    ldp = DaqpQP(pattern, a, block_size=4)
+    plain = DaqpQP(pattern, a)
+    c = rng.standard_normal(16)
+    got = ldp.solve(h_psd[pat.row, pat.col], c, lower, upper)
+    ref = plain.solve(h_psd[pat.row, pat.col], c, lower, upper)
+    assert got.status == ref.status
+    if ref.ok:
+        np.testing.assert_allclose(got.x, ref.x, atol=1e-9)
+
+
+def test_block_size_must_match_the_pattern():
+    pattern = sp.csc_matrix(np.triu(np.ones((4, 4))))
+    with pytest.raises(ParameterError, match="not block diagonal"):
+        DaqpQP(pattern, sp.identity(4, format="csc"), block_size=2)

@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from dqcontrol.controllers.qp_cost import scatter_symmetric
+from dqcontrol.controllers.qp_ldp import block_ldp, ldp_solution
 from dqcontrol.controllers.qp_solver import QPSolution, invalid_bounds
 from dqcontrol.errors import ParameterError
 
@@ -60,6 +61,12 @@ class DaqpQP:
     ``lower == upper`` (a joint braking at a conflict): marked as an equality at setup, it
     would stay pinned after its bounds widen again, and DAQP would report that wrong
     optimum as solved.
+
+    ``block_size`` (the predictive controllers: ``n + 1``) declares ``P`` block diagonal
+    with blocks of that size: each solve then hands DAQP the equivalent least-distance
+    problem (``qp_ldp.py``; DAQP's ``H`` stays the identity, so a new ``P`` costs no dense
+    refactorisation), and falls back to the problem as it is where a block is not
+    positive definite. Both give the same optimum (to ~1e-11 here).
     """
 
     def __init__(
@@ -68,6 +75,7 @@ class DaqpQP:
         a_matrix: sp.csc_matrix,
         settings: dict | None = None,
         equality_rows: np.ndarray | None = None,
+        block_size: int | None = None,
     ) -> None:
         import daqp  # optional dependency, imported only when chosen
 
@@ -98,10 +106,38 @@ class DaqpQP:
         self._model = None
         self._f_given: np.ndarray | None = None  # the f DAQP holds (not a copy of)
         self.last_method = "daqp"
+        self._block = 0
+        if block_size is not None:
+            self._setup_blocks(int(block_size))
+
+    def _setup_blocks(self, block: int) -> None:
+        """Check that ``P``'s pattern is block diagonal and allocate the least-distance
+        problem's buffers (DAQP holds them: they live as long as this object)."""
+        nv = self.num_vars
+        if block < 1 or nv % block or np.any(self._rows // block != self._cols // block):
+            raise ParameterError(
+                f"block_size={block}: P ({nv} variables) is not block diagonal with blocks "
+                f"of that size"
+            )
+        general = sp.csr_matrix(self.a_matrix[nv:])
+        self._a_ptr = general.indptr.astype(np.int64)
+        self._a_idx = general.indices.astype(np.int64)
+        self._a_val = general.data.astype(float)
+        self._m_buf = np.zeros((self.num_cons, nv))
+        self._lo_buf = np.zeros(self.num_cons)
+        self._up_buf = np.zeros(self.num_cons)
+        self._linv_t = np.zeros((nv // block, block, block))
+        self._w = np.zeros(nv)
+        self._eye = np.eye(nv)
+        self._zero_f = np.zeros(nv)
+        self._ldp_model = None
+        self._block = block
 
     def reset(self) -> None:
         """Forget the workspace and the active set."""
         self._model = None
+        if self._block:
+            self._ldp_model = None
 
     def solve(
         self,
@@ -117,6 +153,12 @@ class DaqpQP:
             return invalid_bounds(lower, upper, start)
         h = self._h
         scatter_symmetric(h, self._rows, self._cols, p_values)  # compiled: no index arrays
+        if self._block and block_ldp(
+            h, self._block, c, lower, upper, self._a_ptr, self._a_idx, self._a_val,
+            self._m_buf, self._lo_buf, self._up_buf, self._linv_t, self._w,
+        ):  # fmt: skip
+            x, ok, status, iterations = self._solve_ldp()
+            return QPSolution(x, None, ok, status, iterations, time.perf_counter() - start)
         lo = np.maximum(lower, -1e30)
         up = np.minimum(upper, 1e30)
         x, ok, status, iterations = self._solve(h, c, lo, up)
@@ -190,6 +232,34 @@ class DaqpQP:
             self._model = None
             return None, False, f"error: {exc}", 0
         return self._outcome(x, flag, info)
+
+    def _solve_ldp(self) -> tuple[np.ndarray | None, bool, str, int]:
+        """Solve the least-distance problem :func:`block_ldp` has just written (DAQP with
+        ``H = I`` for the life of the workspace; later steps update ``M`` and the bounds
+        only) and map its solution back: ``(x, ok, status, iterations)``."""
+        model = self._ldp_model
+        try:
+            if model is None:
+                model = self._daqp.Model()
+                model.setup(
+                    self._eye, self._zero_f, self._m_buf, self._up_buf, self._lo_buf,
+                    self._sense.copy(),
+                )  # fmt: skip
+                if self.settings:
+                    model.settings = dict(self.settings)
+                self._ldp_model = model
+            elif model.update(A=self._m_buf, bupper=self._up_buf, blower=self._lo_buf) < 0:
+                self._ldp_model = None
+                return None, False, _REFUSED, 0
+            u, _fval, flag, info = model.solve()
+        except Exception as exc:  # noqa: BLE001 - never stop the control loop
+            self._ldp_model = None
+            return None, False, f"error: {exc}", 0
+        u, ok, status, iterations = self._outcome(u, flag, info)
+        if not ok:
+            self._ldp_model = None
+            return None, False, status, iterations
+        return ldp_solution(self._linv_t, u, self._w), True, status, iterations
 
     def _outcome(
         self, x: np.ndarray | None, flag: int, info: object

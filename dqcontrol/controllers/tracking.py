@@ -285,7 +285,12 @@ class TrackingController(Controller):
         if solver == "daqp":
             # without time scaling, s ≡ 1 is an equality by design (the only one)
             fixed = None if self.scaling else np.arange(p) * m + n
-            self.qp = DaqpQP(p_pattern, a_matrix, solver_settings, equality_rows=fixed)
+            # p instants: P is block diagonal, solved as a least-distance problem
+            # (qp_ldp.py); one instant keeps DAQP's own path, as the local fast path
+            self.qp = DaqpQP(
+                p_pattern, a_matrix, solver_settings, equality_rows=fixed,
+                block_size=m if p > 1 else None,
+            )  # fmt: skip
         else:
             self.qp = OsqpQP(p_pattern, a_matrix, solver_settings)
         self._c = np.zeros(num_vars)
