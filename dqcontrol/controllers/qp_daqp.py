@@ -4,9 +4,11 @@ The default backend (``solver="daqp"``; OSQP stays selectable with ``solver="osq
 The controllers' QPs are small and dense per block (p (n+1) variables), and an active-set
 method solves them exactly in a few iterations where a first-order method needs hundreds;
 the workspace is set up once (:class:`daqp.Model`) and later steps only update ``H``, ``f``
-and the bounds, starting from the previous step's active set. Its cost is DAQP's dense
-factorisation of ``H`` at every update, cubic in p (n+1) (docs/performance.md).
-``dqcontrol bench`` compares the two backends.
+and the bounds, starting from the previous step's active set. A new ``H`` costs DAQP a
+dense factorisation, cubic in p (n+1); a block-diagonal ``P`` (``block_size``, the
+predictive controllers) is therefore handed over as the equivalent least-distance problem
+of ``qp_ldp.py``, whose ``H`` never changes (docs/performance.md). ``dqcontrol bench``
+compares the two backends.
 """
 
 from __future__ import annotations

@@ -148,7 +148,7 @@ class TrackingController(Controller):
             ``σ̂_i``; ``"nominal"`` uses ``σ + τ_i`` (the thesis).
         solver: ``"daqp"`` (the default: dual active-set, ``qp_daqp.py``) or ``"osqp"``
             (ADMM refined to the exact optimum, ``qp_solver.py``). Both give the same
-            commands (to ~1e-10 rad/s over a run); DAQP is 4–8× faster on these QPs
+            commands (to ~1e-10 rad/s over a run); DAQP is 4–15× faster on these QPs
             (docs/performance.md). ``None`` picks DAQP; settings written for OSQP need
             ``solver="osqp"`` (DAQP refuses them, naming the settings it knows).
         solver_settings: settings overriding the solver's defaults.
