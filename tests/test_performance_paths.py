@@ -224,3 +224,22 @@ def test_vp_boxes_equal_numpy_vp_box_bit_for_bit(braking):
         np.testing.assert_array_equal(upper, hi_ref)
         beyond += bool(np.any((q < q_min) | (q > q_max)))
     assert beyond > 20  # the beyond-a-limit rule was exercised
+
+
+def test_predictive_daqp_takes_the_least_distance_form(lbr4p):
+    """The predictive controllers' DAQP solves go through ``qp_ldp.py`` (their blocks are
+    positive definite with the default μ and λ2): the plain workspace is never set up."""
+    from dqcontrol.controllers import PredictiveController, PredictiveNoScalingController
+    from dqcontrol.model import LBR4P_Q0
+
+    robot = lbr4p
+    for cls in (PredictiveController, PredictiveNoScalingController):
+        ctrl = cls(robot, Circle(2.0), 1e-3, num_instants=6, acceleration_limit=10.0)
+        q = np.array(LBR4P_Q0)
+        ctrl.reset(q)
+        for _ in range(200):
+            res = ctrl.step(q)
+            assert res.diagnostics.status == "solved"
+            q = q + 1e-3 * res.qd_command
+        assert ctrl.qp._block == robot.nq + 1
+        assert ctrl.qp._ldp_model is not None and ctrl.qp._model is None

@@ -50,8 +50,10 @@ def block_ldp(
     rows in CSR form (``a_ptr``, ``a_idx``, ``a_val``). Writes ``M`` to ``m_out``
     (N + rows, N), the shifted bounds (clamped to ±1e30) to ``lo_out``/``up_out``, each
     block's ``L⁻ᵀ`` to ``linv_t`` (N/block, block, block) and ``w = L⁻ᵀ L⁻¹ c`` to ``w``.
-    Returns False, with the outputs partly written, when a block is not numerically
-    positive definite (a pivot ≤ 0 or NaN): the caller then solves the problem as it is.
+    Returns False, with the outputs partly written, when a block is not safely positive
+    definite (a squared pivot ≤ 1e-12 times the block's largest diagonal entry, or NaN: a
+    condition number beyond ~1e12 would make ``M`` lose digits): the caller then solves the
+    problem as it is.
     """
     n = h.shape[0]
     factor = np.empty((block, block))
@@ -59,6 +61,9 @@ def block_ldp(
     g = np.empty(block)
     for b in range(n // block):
         o = b * block
+        scale = 0.0
+        for i in range(block):
+            scale = max(scale, h[o + i, o + i])
         # Cholesky factor (lower) of the block
         for i in range(block):
             for j in range(i + 1):
@@ -66,7 +71,7 @@ def block_ldp(
                 for k in range(j):
                     s -= factor[i, k] * factor[j, k]
                 if i == j:
-                    if not s > 0.0:
+                    if not s > 1e-12 * scale:
                         return False
                     factor[i, i] = math.sqrt(s)
                 else:
