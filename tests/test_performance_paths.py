@@ -243,3 +243,26 @@ def test_predictive_daqp_takes_the_least_distance_form(lbr4p):
             q = q + 1e-3 * res.qd_command
         assert ctrl.qp._block == robot.nq + 1
         assert ctrl.qp._ldp_model is not None and ctrl.qp._model is None
+
+
+def test_compiled_kernels_work_without_a_writable_cache(monkeypatch):
+    """Where Numba finds no writable cache location it refuses ``cache=True`` at decoration;
+    ``dqcontrol._compiled.compiled`` then compiles in memory instead of failing the import."""
+    import numba
+
+    import dqcontrol._compiled as comp
+
+    real = numba.njit
+
+    def refusing_njit(*args, **kwargs):
+        if kwargs.get("cache"):
+            raise RuntimeError("cannot cache function 'f': no locator available for file 'x'")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(comp, "njit", refusing_njit)
+
+    def twice(x):
+        return 2.0 * x
+
+    kernel = comp.compiled(twice)
+    assert kernel(1.5) == 3.0 and hasattr(kernel, "signatures")

@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from dqcontrol._compiled import compiled
 
 __all__ = ["joint_boxes", "joint_constants", "near_limit_box", "project", "vp_boxes"]
 
@@ -52,7 +53,7 @@ def joint_constants(
     return rows
 
 
-@njit(cache=True)
+@compiled
 def near_limit_box(
     d_hi: float,
     d_lo: float,
@@ -89,7 +90,7 @@ def near_limit_box(
     return lo, hi
 
 
-@njit(cache=True)
+@compiled
 def joint_boxes(
     q: np.ndarray,
     qd_prev: np.ndarray,
@@ -146,7 +147,7 @@ def joint_boxes(
     return count
 
 
-@njit(cache=True)
+@compiled
 def project(qd: np.ndarray, bounds: np.ndarray, out: np.ndarray) -> bool:
     """``out = clip(qd, bounds[0], bounds[1])`` per joint (``Box.project``); whether any
     entry was clipped."""
@@ -163,7 +164,7 @@ def project(qd: np.ndarray, bounds: np.ndarray, out: np.ndarray) -> bool:
     return clipped
 
 
-@njit(cache=True)
+@compiled
 def vp_boxes(
     q: np.ndarray,
     q_hat: np.ndarray,

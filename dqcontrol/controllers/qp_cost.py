@@ -14,12 +14,13 @@ writes such values into DAQP's dense ``H``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from dqcontrol._compiled import compiled
 
 __all__ = ["gram", "instant_p_values", "local_hessian", "scatter_symmetric"]
 
 
-@njit(cache=True)
+@compiled
 def gram(g: np.ndarray) -> np.ndarray:
     """``Gᵀ G`` (m, m) of ``G`` (8, m), new, symmetric: each entry the plain sum over the
     8 rows in order. The general step's single instant uses it too, so that its ``P`` and
@@ -37,7 +38,7 @@ def gram(g: np.ndarray) -> np.ndarray:
     return h
 
 
-@njit(cache=True)
+@compiled
 def _task_matrix(
     x: np.ndarray, jac: np.ndarray, xd: np.ndarray, dxd: np.ndarray, gain: float, g: np.ndarray
 ) -> None:
@@ -59,7 +60,7 @@ def _task_matrix(
         g[k, n] = gain * (x[k] - xd[k]) - dxd[k]
 
 
-@njit(cache=True)
+@compiled
 def local_hessian(
     x: np.ndarray,
     jac: np.ndarray,
@@ -90,7 +91,7 @@ def local_hessian(
     return h
 
 
-@njit(cache=True)
+@compiled
 def instant_p_values(
     xs: np.ndarray,
     jacs: np.ndarray,
@@ -129,7 +130,7 @@ def instant_p_values(
     return values
 
 
-@njit(cache=True)
+@compiled
 def scatter_symmetric(
     h: np.ndarray, rows: np.ndarray, cols: np.ndarray, values: np.ndarray
 ) -> None:

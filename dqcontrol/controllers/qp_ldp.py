@@ -23,12 +23,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from dqcontrol._compiled import compiled
 
 __all__ = ["block_ldp", "ldp_solution"]
 
 
-@njit(cache=True)
+@compiled
 def block_ldp(
     h: np.ndarray,
     block: int,
@@ -125,7 +126,7 @@ def block_ldp(
     return True
 
 
-@njit(cache=True)
+@compiled
 def ldp_solution(linv_t: np.ndarray, u: np.ndarray, w: np.ndarray) -> np.ndarray:
     """``z = L⁻ᵀ u - w`` (new array) from the least-distance solution ``u``."""
     block = linv_t.shape[1]

@@ -19,12 +19,13 @@ result against an independent DH chain, finite differences and the Hamilton-oper
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from dqcontrol._compiled import compiled
 
 __all__ = ["pose_jacobian_batch", "pose_jacobian_from_xyzquat"]
 
 
-@njit(cache=True)
+@compiled
 def _fill(v: np.ndarray, j6: np.ndarray, x: np.ndarray, jac: np.ndarray) -> None:
     """Write ``vec8`` of the XYZQUAT ``v`` into ``x`` (8,) and its pose Jacobian into
     ``jac`` (8, n), ``j6`` the (6, n) LOCAL_WORLD_ALIGNED frame Jacobian."""
@@ -60,7 +61,7 @@ def _fill(v: np.ndarray, j6: np.ndarray, x: np.ndarray, jac: np.ndarray) -> None
         jac[7, k] = 0.5 * ((vx * ry - vy * rx + vz * rw) + (tx * a2 - ty * a1 + tz * a0))
 
 
-@njit(cache=True)
+@compiled
 def pose_jacobian_from_xyzquat(v: np.ndarray, j6: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(vec8 (8,), pose Jacobian (8, n))`` from Pinocchio's ``SE3ToXYZQUAT`` of the
     frame (7,) and its (6, n) ``LOCAL_WORLD_ALIGNED`` frame Jacobian; new arrays."""
@@ -70,7 +71,7 @@ def pose_jacobian_from_xyzquat(v: np.ndarray, j6: np.ndarray) -> tuple[np.ndarra
     return x, jac
 
 
-@njit(cache=True)
+@compiled
 def pose_jacobian_batch(vs: np.ndarray, j6s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`pose_jacobian_from_xyzquat` for N frames: ``vs`` (N, 7), ``j6s`` (N, 6, n)
     → ``(N, 8)``, ``(N, 8, n)``."""
