@@ -1,13 +1,13 @@
-"""The bound box of one joint on Python floats: the scalar twin of :mod:`bounds`.
+"""The bound box joint by joint on floats, compiled: the scalar twin of :mod:`bounds`.
 
-The single-instant hot paths (the proportional controller's clip, the local controller's
-QP bounds) build the box joint by joint on floats, with the very floating-point
-operations of :func:`~dqcontrol.controllers.bounds.command_box` (tests check bit
-equality), because at 1 kHz numpy's per-call cost on 7-element arrays exceeds the
-arithmetic. Far from its limits a joint's box is just ``±qd_max`` (:func:`joint_constants`
-says how far is far); near them, :func:`near_limit_box`. :func:`near_limit_box` and the
-local controller's whole box, :func:`joint_boxes`, are compiled with Numba (the same
-IEEE operations: no fast-math, so the bit-equality holds).
+The 1 kHz hot paths build the box of every joint in one compiled call, with the very
+floating-point operations of :func:`~dqcontrol.controllers.bounds.command_box` (tests check
+bit equality), because numpy's per-call cost on 7-element arrays exceeds the arithmetic:
+:func:`joint_boxes` (the local controller's QP bounds and, with :func:`project`, the
+proportional controller's clip) and :func:`vp_boxes` (the general step's bounds of every
+instant). Far from its limits a joint's box is just ``±qd_max`` (:func:`joint_constants`
+says how far is far); near them, :func:`near_limit_box`. Numba compiles them without
+fast-math: the IEEE operations in the order written.
 """
 
 from __future__ import annotations

@@ -88,8 +88,9 @@ def _clip_to_box(
     The box by the compiled :func:`~dqcontrol.controllers.joint_box.joint_boxes` (the
     floating-point operations of ``bounds.command_box``), ``consts`` from
     :func:`~dqcontrol.controllers.joint_box.joint_constants` as an ``(n, 6)`` array; where
-    that kernel declines (a bound beyond ±1e30, e.g. an infinite ``qd_max``),
-    ``command_box`` itself. Returns ``qd`` itself (not a copy) when nothing is clipped.
+    that kernel declines (a NaN previous command or limit, a bound beyond ±1e30: what a QP
+    could not take), ``command_box`` itself. Returns ``qd`` itself (not a copy) when
+    nothing is clipped.
     """
     n = qd.shape[0]
     bounds = np.empty((2, n))
