@@ -197,7 +197,9 @@ class DaqpQP:
         if (flag == 1 or flag == 2) and x is not None and math.isfinite(x.dot(x)):
             iterations = info.get("iterations", 0) if isinstance(info, dict) else 0
             return x, True, "solved", int(iterations), time.perf_counter() - start
-        x, ok, status, iterations = self._outcome(x, flag, info)
+        x, ok, status, iterations = _outcome(x, flag, info)
+        if not ok:
+            self._model = None
         return x, ok, status, iterations, time.perf_counter() - start
 
     def _solve(
@@ -233,7 +235,10 @@ class DaqpQP:
         except Exception as exc:  # noqa: BLE001 - never stop the control loop
             self._model = None
             return None, False, f"error: {exc}", 0
-        return self._outcome(x, flag, info)
+        x, ok, status, iterations = _outcome(x, flag, info)
+        if not ok:
+            self._model = None  # rebuilt at the next solve
+        return x, ok, status, iterations
 
     def _solve_ldp(self) -> tuple[np.ndarray | None, bool, str, int]:
         """Solve the least-distance problem :func:`block_ldp` has just written (DAQP with
@@ -257,25 +262,25 @@ class DaqpQP:
         except Exception as exc:  # noqa: BLE001 - never stop the control loop
             self._ldp_model = None
             return None, False, f"error: {exc}", 0
-        u, ok, status, iterations = self._outcome(u, flag, info)
+        u, ok, status, iterations = _outcome(u, flag, info)
         if not ok:
             self._ldp_model = None
             return None, False, status, iterations
         return ldp_solution(self._linv_t, u, self._w), True, status, iterations
 
-    def _outcome(
-        self, x: np.ndarray | None, flag: int, info: object
-    ) -> tuple[np.ndarray | None, bool, str, int]:
-        """``(x, ok, status, iterations)`` of DAQP's answer; forgets the workspace unless ok."""
-        # x is a new array at every solve; a dot product is NaN/inf iff some entry is (or
-        # it overflows): the cheap test first
-        ok = (
-            (flag == 1 or flag == 2)
-            and x is not None
-            and (math.isfinite(x.dot(x)) or bool(np.isfinite(x).all()))
-        )
-        if not ok:
-            self._model = None
-            x = None
-        status = "solved" if flag == 1 or flag == 2 else _EXIT.get(int(flag), f"daqp_exit_{flag}")
-        return x, ok, status, int(info.get("iterations", 0)) if isinstance(info, dict) else 0
+
+def _outcome(
+    x: np.ndarray | None, flag: int, info: object
+) -> tuple[np.ndarray | None, bool, str, int]:
+    """``(x, ok, status, iterations)`` of DAQP's answer (``x`` ``None`` unless ok); the
+    caller forgets the workspace that gave a failed answer."""
+    # x is a new array at every solve; a dot product is NaN/inf iff some entry is (or it
+    # overflows): the cheap test first
+    ok = (
+        (flag == 1 or flag == 2)
+        and x is not None
+        and (math.isfinite(x.dot(x)) or bool(np.isfinite(x).all()))
+    )
+    status = "solved" if flag == 1 or flag == 2 else _EXIT.get(int(flag), f"daqp_exit_{flag}")
+    iterations = int(info.get("iterations", 0)) if isinstance(info, dict) else 0
+    return (x if ok else None), ok, status, iterations

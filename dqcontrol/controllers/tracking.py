@@ -43,6 +43,7 @@ from dqcontrol.controllers.base import (
     per_joint,
 )
 from dqcontrol.controllers.bounds import (
+    Box,
     braking_constants,
     intersect_acceleration,
     safe_command,
@@ -482,8 +483,7 @@ class TrackingController(Controller):
             qd_cmd = sol[:n]
             fallback, message = False, ""
         else:
-            # safe_command: the point of the box closest to zero
-            qd_cmd = np.minimum(np.maximum(0.0, lower[:n]), upper[:n])
+            qd_cmd = safe_command(Box(lower[:n], upper[:n], self._conflict.astype(bool)))
             s_now = 0.0
             fallback = True
             message = f"QP failed ({status}); safe fallback: brake within a_max, s = 0"
