@@ -198,6 +198,31 @@ def test_whole_runs_have_no_violation(lbr4p, kind):
     assert not m.nan_seen
 
 
+@pytest.mark.parametrize("gain_per_s", [None, 8.5])
+def test_noscale_default_gain_stays_below_the_two_period_cycle_at_1khz(lbr4p, gain_per_s):
+    """Without scaling at T = 1 ms, ``K = 0.9/ρ(W)`` (8.5 for p = 10, the former default) puts
+    the applied command into a two-period cycle at the acceleration bound: ``qd`` alternates
+    by ``T a_max`` every step (so |Δ²qd| = 2 |Δqd|) and the QP re-chooses dozens of active
+    constraints each time. The default gain stays below it."""
+    period = 1e-3
+    ctrl = PredictiveNoScalingController(
+        lbr4p, Circle(2.0), period, num_instants=10, gain_per_s=gain_per_s,
+        velocity_limits=THESIS_VEL, acceleration_limit=THESIS_ACC,
+    )  # fmt: skip
+    res = run_kinematic(ctrl, LBR4P_Q0, max_time_s=1.0)
+    qd = res.log.qd_command[300:]
+    first = np.median(np.abs(np.diff(qd, axis=0)).max(axis=1))
+    second = np.median(np.abs(np.diff(qd, 2, axis=0)).max(axis=1))
+    iterations = np.median(res.log.iterations[300:])
+    if gain_per_s is None:
+        assert ctrl.gain_per_s == 4.0
+        assert second < 0.05 * first and iterations <= 2
+        assert res.metrics.e_mean < 4e-3  # tracks (2.9e-3 over the first second)
+    else:  # the cycle the default avoids (what the test above would catch)
+        assert second > 1.9 * first and first == pytest.approx(period * THESIS_ACC, rel=1e-6)
+        assert iterations > 20
+
+
 # --------------------------------------------------------------------------- time scaling
 @pytest.mark.parametrize("kind", ["local", "p10"])
 def test_slow_task_keeps_full_speed_and_converges(lbr4p, kind):

@@ -12,6 +12,10 @@ from dqcontrol.trajectories import Trajectory
 
 __all__ = ["PredictiveController", "PredictiveNoScalingController"]
 
+#: Largest default ``K`` [1/s] of the method without scaling: below the two-period cycle
+#: measured from 4.6 s⁻¹ (:class:`PredictiveNoScalingController`).
+NOSCALE_GAIN_CAP_PER_S = 4.0
+
 
 class PredictiveController(TrackingController):
     """Receding-horizon QP over ``p`` parabolically spaced instants (eq. 3.15–3.21).
@@ -56,8 +60,14 @@ class PredictiveNoScalingController(PredictiveController):
     from one step to the next, a deviation of the horizon is therefore multiplied by about
     ``K W``. Without ``s_i`` to absorb it (the scaled method shrinks ``s_i`` instead), the
     horizon diverges unless ``K ρ(W) < 1``; we measured divergence from ``K ρ(W) ≈ 1.2``
-    (p = 6 and 10, τ_p = 1 s, T = 50 ms). The default is therefore
-    ``K = min(10, 0.9 / ρ(W))`` [1/s] (≈ 3.6 for p = 6, 4.6 for p = 10 at those values).
+    (p = 6 and 10, τ_p = 1 s, T = 50 ms). A second limit comes first: the applied command
+    falls into a two-period cycle at the acceleration bound (``qd`` alternating by
+    ``T a_max`` every step, the QP re-choosing ~35 active constraints each time) from ``K``
+    between 4.6 and 9.5 s⁻¹ (measured onsets on the LBR4p: circle, p = 6 and 10,
+    T = 1–50 ms, τ_p = 0.5–2 s: 5.1–9.5; the sinusoid at T = 50 ms: 4.6–5), where
+    ``0.9 / ρ(W)`` would allow 8.5 (p = 10, T = 1 ms) and 17 (τ_p = 0.5 s). The default
+    is therefore ``K = min(4, 0.9 / ρ(W))`` [1/s] (3.6 for p = 6 at T = 50 ms, 4 for
+    p = 10 and at 1 ms). Pass ``gain_per_s`` to choose another.
     """
 
     def __init__(
@@ -67,7 +77,7 @@ class PredictiveNoScalingController(PredictiveController):
         if kwargs.get("gain_per_s") is None:
             tau = prediction_instants(kwargs.get("num_instants", 10), kwargs.get("horizon_s", 1.0))
             rho = float(max(abs(np.linalg.eigvals(integration_matrix(tau, period_s)))))
-            kwargs["gain_per_s"] = min(10.0, 0.9 / rho)
+            kwargs["gain_per_s"] = min(NOSCALE_GAIN_CAP_PER_S, 0.9 / rho)
         kwargs["scaling"] = False
         super().__init__(robot, trajectory, period_s, **kwargs)
         self.name = f"predictive_noscale_p{self.num_instants}"
