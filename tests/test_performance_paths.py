@@ -133,7 +133,11 @@ def test_quick_bench_writes_every_figure(tmp_path):
         assert data["controllers"][name]["median_us"] > 0.0
         # the host's floor: a constant workload timed after every step
         assert data["controllers"][name]["reference_p99_over_median"] >= 1.0
+        # present only if the repeated closed loops ended in the same state bit for bit
+        assert data["controllers"][name]["own_p99_over_median"] >= 1.0
+    assert data["controllers"]["predictive_noscale_p10[daqp]"]["median_us"] > 0.0
     assert data["targets"]["p99_over_median"]["host_floor"] >= 1.0
+    assert data["targets"]["p99_over_median"]["own_work"] >= 1.0
     assert data["mujoco"]["realtime_factor"] > 0.0
     assert data["scaling"]["by_p"] and data["scaling"]["by_joints_p10"]
     for v in data["agreement"].values():
