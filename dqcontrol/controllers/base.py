@@ -72,7 +72,8 @@ class StepResult:
         target: target pose ``x_d(σ_k)`` (vec8).
         diagnostics: :class:`StepDiagnostics`.
         horizon_qd: predicted commands at the prediction instants ``(p, n)`` (predictive
-            controllers; ``None`` otherwise).
+            controllers; ``None`` otherwise). The predictor's state, not a plan: the later
+            instants may alternate from one step to the next (docs/theory.md §4.3).
         horizon_s: predicted scalings ``(p,)`` (predictive controllers).
     """
 
