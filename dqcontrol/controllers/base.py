@@ -46,6 +46,8 @@ class StepDiagnostics:
         saturated: the command was clipped to the hard bounds (proportional controller).
         conflict_joints: joints whose acceleration and position bounds conflicted.
         message: a human-readable note when something was unusual.
+        linearisations: linearise-and-solve rounds of this step (1 for the thesis's
+            controllers; up to the controller's bound where the linearisation is poor).
     """
 
     status: str
@@ -57,6 +59,7 @@ class StepDiagnostics:
     saturated: bool = False
     conflict_joints: tuple[int, ...] = ()
     message: str = ""
+    linearisations: int = 1
 
 
 @dataclass(frozen=True)

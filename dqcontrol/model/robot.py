@@ -29,6 +29,7 @@ import pinocchio as pin
 from dqcontrol.dq.kernels import pose_jacobian_batch, pose_jacobian_from_xyzquat
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
+from dqcontrol.model.fast import UncheckedModel
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
 
 __all__ = ["JointLimits", "RobotModel"]
@@ -122,6 +123,8 @@ class RobotModel:
         # closed-form batched kinematics (None: loop on Pinocchio). Its tables are read from
         # the model here, once: a model edited in place afterwards needs a new RobotModel.
         self._chain = self._build_chain()
+        #: the unchecked hot-path API (:class:`~dqcontrol.model.fast.UncheckedModel`)
+        self.fast = UncheckedModel(self)
 
     # ------------------------------------------------------------------ construction
     @classmethod

@@ -17,7 +17,7 @@ import numpy as np
 
 from dqcontrol.errors import ParameterError
 
-__all__ = ["integration_matrix", "prediction_instants"]
+__all__ = ["integration_matrix", "interpolation_matrix", "prediction_instants"]
 
 
 def prediction_instants(count: int, horizon_s: float) -> np.ndarray:
@@ -59,3 +59,20 @@ def integration_matrix(tau: np.ndarray, period_s: float) -> np.ndarray:
     for i, ti in enumerate(tau):
         w[i] = _antiderivative_weights(tau, ti + shift) - start
     return w
+
+
+def interpolation_matrix(tau: np.ndarray, shift_s: float) -> np.ndarray:
+    """``S`` with ``(S v)_i = g(τ_i + shift)``, ``g`` piecewise linear through ``(τ_j, v_j)``
+    and held at its ends: the previous horizon shifted by one period (a warm start)."""
+    p = tau.size
+    out = np.zeros((p, p))
+    for i, t in enumerate(tau + shift_s):
+        if t >= tau[-1]:
+            out[i, -1] = 1.0
+            continue
+        j = int(np.searchsorted(tau, t, side="right")) - 1
+        h = tau[j + 1] - tau[j]
+        frac = (t - tau[j]) / h
+        out[i, j] = 1.0 - frac
+        out[i, j + 1] = frac
+    return out

@@ -1,0 +1,67 @@
+"""What the terms and limits of one step read (docs/theory.md §7)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dqcontrol.controllers.problem import DecisionLayout
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dqcontrol.controllers.prediction.base import Prediction
+    from dqcontrol.model.robot import RobotModel
+    from dqcontrol.trajectories import Trajectory
+
+__all__ = ["StepContext"]
+
+
+@dataclass
+class StepContext:
+    """The measured state, the prediction and the kinematics shared by every term and limit.
+
+    Attributes:
+        robot, trajectory: the model and the (anchored) task.
+        layout: the decision layout.
+        period_s: control period ``T`` [s].
+        q: measured joint positions [rad] ``(n,)``.
+        qd_prev: the command applied during the last period [rad/s] ``(n,)``.
+        sigma: phase ``σ`` now [s of nominal time].
+        prediction: the predicted states of each block (:class:`Prediction`).
+        poses: ``f(q̄_i)`` (vec8) ``(p, 8)``, sign-aligned to ``targets``.
+        jacobians: ``J(q̄_i)`` ``(p, 8, n)``, with the same signs as ``poses``.
+        targets: ``x_d(σ̄_i)`` ``(p, 8)``.
+        target_derivatives: ``dx_d/dσ(σ̄_i)`` ``(p, 8)``.
+        a_max: acceleration bound at each block's linearisation state [rad/s²] ``(p, n)``.
+        extras: values a controller shares with its own terms and limits.
+    """
+
+    robot: RobotModel
+    trajectory: Trajectory
+    layout: DecisionLayout
+    period_s: float
+    q: np.ndarray
+    qd_prev: np.ndarray
+    sigma: float
+    prediction: Prediction
+    poses: np.ndarray
+    jacobians: np.ndarray
+    targets: np.ndarray
+    target_derivatives: np.ndarray
+    a_max: np.ndarray
+    extras: dict = field(default_factory=dict)
+
+
+def aligned_kinematics(
+    robot: RobotModel, trajectory: Trajectory, q_lin: np.ndarray, sigma_lin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(poses, jacobians, targets, target_derivatives)`` at the linearisation states, each
+    pose (and its Jacobian) negated where ``x · x_d < 0`` (FORMULATION §1)."""
+    xs, jacs = robot.fast.poses_and_jacobians(q_lin)
+    xd, dxd = trajectory.targets(sigma_lin)
+    flip = np.einsum("pk,pk->p", xs, xd) < 0.0
+    if flip.any():
+        xs = np.where(flip[:, None], -xs, xs)
+        jacs = np.where(flip[:, None, None], -jacs, jacs)
+    return xs, jacs, xd, dxd

@@ -1,0 +1,154 @@
+"""Building a step's problem and solving its priority levels (docs/theory.md §7.4).
+
+Level ``k`` minimises its terms subject to the limits and to every higher level held at its
+optimum: after level ``k`` is solved at ``z_k``, each of its held residual rows ``a`` is
+kept within ``±tolerance`` of ``a · z_k`` by the lower levels (two-sided rows). For least
+squares this is exact: the optimal residual of a convex level is unique, so the set of its
+minimisers is the set of feasible points with that residual. One level with weights is the
+thesis's controllers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dqcontrol.controllers.backends.base import Backend
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import (
+    Bounds,
+    BuiltLevel,
+    DenseQP,
+    Inequality,
+    Level,
+    Limit,
+    Problem,
+    Solution,
+    merge_bounds,
+    objective,
+)
+
+__all__ = [
+    "LevelsResult",
+    "build_problem",
+    "held_rows",
+    "level_qp",
+    "residual_values",
+    "solve_levels",
+]
+
+
+def _limit_rows(limits: tuple[Limit, ...], ctx: StepContext) -> tuple[list, list]:
+    bounds: list[Bounds] = []
+    general: list[Inequality] = []
+    for limit in limits:
+        out = limit.rows(ctx)
+        if out is None:
+            continue
+        for item in (out,) if isinstance(out, Bounds | Inequality) else out:
+            (bounds if isinstance(item, Bounds) else general).append(item)
+    return bounds, general
+
+
+def build_problem(
+    ctx: StepContext,
+    levels: tuple[Level, ...],
+    limits: tuple[Limit, ...],
+    cache: dict | None = None,
+) -> Problem:
+    """Evaluate every term and limit at ``ctx``; ``cache`` keeps constant terms' rows."""
+    built = []
+    for lev in levels:
+        residuals = []
+        for term in lev.terms:
+            if term.constant and cache is not None:
+                res = cache.get(id(term))
+                if res is None:
+                    res = cache[id(term)] = term.residual(ctx)
+            else:
+                res = term.residual(ctx)
+            residuals.append(res)
+        built.append(BuiltLevel(lev.name, lev.tolerance, tuple(residuals)))
+    bounds, general = _limit_rows(limits, ctx)
+    lower, upper, conflict = merge_bounds(ctx.layout, tuple(bounds))
+    return Problem(ctx.layout, tuple(built), tuple(bounds), tuple(general), lower, upper, conflict)
+
+
+@dataclass(frozen=True)
+class LevelsResult:
+    """The lexicographic solve: the final point and each level's solution.
+
+    ``solution`` is the lowest level solved; if a lower level fails, the last level that
+    succeeded gives the point and ``failed_level`` names the one that failed.
+    """
+
+    solution: Solution
+    per_level: tuple[Solution, ...]
+    failed_level: int | None = None
+
+    @property
+    def iterations(self) -> int:
+        return sum(s.iterations for s in self.per_level)
+
+    @property
+    def solve_time_s(self) -> float:
+        return sum(s.solve_time_s for s in self.per_level)
+
+
+def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
+    """Level ``k``'s dense QP with the rows ``held`` (``(A, lower, upper)``) of the levels
+    above it."""
+    p_mat, c = objective(problem.layout, problem.levels[k].residuals)
+    c_rows, lo, up = problem.general_rows()
+    nv = problem.layout.num_vars
+    blocks = [np.eye(nv), c_rows] + [h[0] for h in held]
+    return DenseQP(
+        p_mat,
+        c,
+        np.vstack(blocks),
+        np.concatenate([problem.lower, lo] + [h[1] for h in held]),
+        np.concatenate([problem.upper, up] + [h[2] for h in held]),
+    )
+
+
+def held_rows(problem: Problem, k: int, z: np.ndarray) -> tuple | None:
+    """``(A, lower, upper)`` holding level ``k``'s held residuals within its tolerance."""
+    layout = problem.layout
+    level = problem.levels[k]
+    mats = [r.dense(layout) for r in level.residuals if r.held]
+    if not mats:
+        return None
+    a = np.vstack(mats)
+    value = a @ z
+    return a, value - level.tolerance, value + level.tolerance
+
+
+def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
+    """Solve the levels in order, each holding the ones above (see the module docstring)."""
+    held: list[tuple] = []
+    per_level: list[Solution] = []
+    best: Solution | None = None
+    for k in range(len(problem.levels)):
+        sol = backend.solve(k, level_qp(problem, k, held))
+        per_level.append(sol)
+        if not sol.ok:
+            if best is None:
+                return LevelsResult(sol, tuple(per_level), 0)
+            return LevelsResult(best, tuple(per_level), k)
+        best = sol
+        if k + 1 < len(problem.levels):
+            rows = held_rows(problem, k, sol.x)
+            if rows is not None:
+                held.append(rows)
+    return LevelsResult(best, tuple(per_level), None)
+
+
+def residual_values(problem: Problem, z: np.ndarray) -> list[dict[str, float]]:
+    """``{term name: ‖A z - b‖}`` per level (diagnostics and tests)."""
+    out = []
+    for lev in problem.levels:
+        out.append(
+            {r.name: float(np.linalg.norm(r.value(problem.layout, z))) for r in lev.residuals}
+        )
+    return out

@@ -1,0 +1,29 @@
+"""The phase stays within the task: ``σ_p ≤ T_tot`` (FORMULATION §10).
+
+Past ``T_tot`` the target is held (zero derivative), so a plan whose phase ran beyond it
+would promise progress that moves nothing; the row keeps the plan's phase on the path.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
+
+__all__ = ["PhaseEndLimit"]
+
+
+class PhaseEndLimit(Limit):
+    """``σ + Σ_j Δ_j s_j ≤ T_tot`` (one row)."""
+
+    name = "phase_end"
+
+    def __init__(self, layout: DecisionLayout) -> None:
+        c = np.zeros((1, layout.num_vars))
+        c[0, layout.s_index()] = layout.durations_s
+        self._c = c
+
+    def rows(self, ctx: StepContext) -> Inequality:
+        room = max(ctx.trajectory.duration - ctx.sigma, 0.0)
+        return Inequality(self.name, self._c, np.array([-np.inf]), np.array([room]))

@@ -1,0 +1,27 @@
+"""The range of the time scaling: ``s_min ≤ s_i ≤ s_max`` (FORMULATION §4).
+
+``s_i ≥ 0`` keeps the phase from ever decreasing; ``s_max`` is 1, or slightly above to let
+a late task catch up; ``s_min = s_max = 1`` is the method without scaling.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import Bounds, DecisionLayout, Limit
+
+__all__ = ["ScalingRange"]
+
+
+class ScalingRange(Limit):
+    """``s_min ≤ s_i ≤ s_max`` for every block."""
+
+    name = "scaling_range"
+
+    def __init__(self, layout: DecisionLayout, s_min: float = 0.0, s_max: float = 1.0) -> None:
+        p = layout.num_blocks
+        self._rows = Bounds(self.name, layout.s_index(), np.full(p, s_min), np.full(p, s_max))
+
+    def rows(self, ctx: StepContext) -> Bounds:
+        return self._rows

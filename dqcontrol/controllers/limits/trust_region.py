@@ -1,0 +1,66 @@
+"""A trust region around the linearisation point (docs/theory.md §8.5).
+
+The path error is linearised at the shifted previous plan ``(q̄_i, σ̄_i)``; its error grows
+with the square of the distance from that point. The rows
+
+    |q_i(z) - q̄_i| ≤ ρ_q,        |σ_i(z) - σ̄_i| ≤ ρ_σ
+
+keep every predicted state where the linear model holds; the plan may still move further
+over several steps, or over several linearise-and-solve rounds of one step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
+
+__all__ = ["TrustRegionLimit"]
+
+
+class TrustRegionLimit(Limit):
+    """State trust region: ``ρ_q`` [rad] per joint, ``ρ_σ`` [s] on the phase.
+
+    Args:
+        layout: the decision layout.
+        radius_rad: ``ρ_q`` (``inf``: no joint rows).
+        radius_phase_s: ``ρ_σ`` (``inf``: no phase rows).
+    """
+
+    name = "trust_region"
+
+    def __init__(self, layout: DecisionLayout, radius_rad: float, radius_phase_s: float) -> None:
+        self.layout = layout
+        self.radius_rad = float(radius_rad)
+        self.radius_phase_s = float(radius_phase_s)
+        self._weights: np.ndarray | None = None
+
+    def _matrices(self, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self._weights is not weights:
+            layout = self.layout
+            p, n = layout.num_blocks, layout.num_joints
+            cq = np.zeros((p * n, layout.num_vars))
+            cs = np.zeros((p, layout.num_vars))
+            idx, sdx = layout.qd_index(), layout.s_index()
+            for i in range(p):
+                for j in range(i + 1):
+                    cq[i * n + np.arange(n), idx[j]] = weights[i, j]
+                    cs[i, sdx[j]] = weights[i, j]
+            self._weights, self._cq, self._cs = weights, cq, cs
+        return self._cq, self._cs
+
+    def rows(self, ctx: StepContext) -> tuple:
+        pred = ctx.prediction
+        cq, cs = self._matrices(pred.weights)
+        out = []
+        if np.isfinite(self.radius_rad):
+            centre = (pred.q_lin - pred.q_base).ravel()
+            out.append(
+                Inequality("trust_region_q", cq, centre - self.radius_rad, centre + self.radius_rad)
+            )
+        if np.isfinite(self.radius_phase_s):
+            centre = pred.sigma_lin - pred.sigma_base
+            r = self.radius_phase_s
+            out.append(Inequality("trust_region_phase", cs, centre - r, centre + r))
+        return tuple(out)

@@ -1,0 +1,361 @@
+"""The path-following predictive controller (FORMULATION §10, docs/theory.md §8).
+
+A composition on the QP core: the consistent prediction (states exact and linear in the
+decision ``qd_i``, ``s_i`` held over the horizon's intervals), and three priority levels:
+
+1. the path: the linearised tangent error at every predicted state
+   (:class:`~dqcontrol.controllers.terms.path_error.PathErrorTerm`);
+2. progress: the time scaling towards 1 (or up to ``s_max`` to catch up), smoothly;
+3. posture: joint velocities towards the start posture, in what the path leaves free.
+
+Limits, all exact and linear: velocity on every interval, position at every predicted
+state, acceleration between intervals (the first from the applied command, with the
+conflict rule), ``0 ≤ s_i ≤ s_max``, the phase within the task, and a terminal braking
+condition. Where the linearisation is poor (the first step, after a fallback, after a
+disturbance) the step re-linearises at its own solution and solves again, a bounded number
+of times.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Literal
+
+import numpy as np
+
+from dqcontrol.controllers.backends import make_backend
+from dqcontrol.controllers.base import (
+    Controller,
+    StepDiagnostics,
+    StepResult,
+    check_position_margin,
+    check_positive,
+    per_joint,
+)
+from dqcontrol.controllers.context import StepContext, aligned_kinematics
+from dqcontrol.controllers.levels import LevelsResult, build_problem, solve_levels
+from dqcontrol.controllers.limits.acceleration import AccelerationLimit
+from dqcontrol.controllers.limits.phase_end import PhaseEndLimit
+from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
+from dqcontrol.controllers.limits.scaling_range import ScalingRange
+from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
+from dqcontrol.controllers.limits.velocity import VelocityLimit
+from dqcontrol.controllers.prediction.base import Prediction
+from dqcontrol.controllers.prediction.consistent import (
+    ConsistentPrediction,
+    interval_breakpoints,
+)
+from dqcontrol.controllers.problem import Level, Limit, Problem
+from dqcontrol.controllers.terms.damping import DampingTerm
+from dqcontrol.controllers.terms.path_error import PathErrorTerm
+from dqcontrol.controllers.terms.posture import PostureTerm
+from dqcontrol.controllers.terms.progress import ProgressTerm
+from dqcontrol.controllers.terms.scaling_smoothness import ScalingSmoothnessTerm
+from dqcontrol.errors import ParameterError
+from dqcontrol.model.robot import RobotModel
+from dqcontrol.trajectories import Trajectory
+
+__all__ = ["PathFollowingController"]
+
+
+def _limit_settings(robot: RobotModel, velocity_limits, position_margin_rad: float):
+    lim = robot.limits
+    margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
+    if velocity_limits is None:
+        qd_max = lim.qd_max.copy()
+        if np.any(qd_max <= 0.0) or not np.all(np.isfinite(qd_max)):
+            raise ParameterError(
+                f"the URDF gives no positive velocity limit for some joints ({lim.qd_max}); "
+                "pass velocity_limits [rad/s]"
+            )
+    else:
+        qd_max = per_joint("velocity_limits", velocity_limits, robot.nq, "rad/s")
+    return margin, lim.q_min + margin, lim.q_max - margin, qd_max
+
+
+class PathFollowingController(Controller):
+    """Path first, progress second, posture third, over a consistent prediction.
+
+    Args:
+        robot, trajectory, period_s: see :class:`~dqcontrol.controllers.base.Controller`.
+        num_intervals: ``p ≥ 2`` intervals of the horizon (the first is ``T``).
+        horizon_s: ``τ_p`` [s], longer than ``T``.
+        velocity_limits: ``qd_max`` [rad/s] (scalar or per joint); default: the URDF's.
+        acceleration_limit: ``"dynamics"`` (default: Pinocchio's ``(τ_max - |g|)/M_jj`` at
+            each interval's predicted state, clipped to ``[acceleration_floor,
+            acceleration_cap]``) or a constant [rad/s²] (scalar or per joint).
+        position_margin_rad: the position bounds stop this far inside the URDF's [rad].
+        s_max: largest time scaling (1; up to 1.5 lets a late task catch up).
+        path_tolerance: how far lower levels may move each path-error row from its optimum
+            (half-radians / half-metres, > 0).
+        progress_tolerance: the same for the progress rows (> 0).
+        posture_gain_per_s: rate of the pull towards the start posture [1/s].
+        posture_reference: ``"start"`` (the configuration at reset) or a configuration.
+        damping: the regularisation weight of every level (> 0).
+        max_linearisations: bound on linearise-and-solve rounds where the linearisation is
+            poor (≥ 1).
+        linearisation_tolerance: the rounds stop when the plan moves less than this
+            [rad/s].
+        relinearise_threshold_rad: a measured ``q`` this far from the predicted one counts
+            as a disturbance [rad].
+        solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
+    """
+
+    name = "path_following"
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        trajectory: Trajectory,
+        period_s: float,
+        *,
+        num_intervals: int = 10,
+        horizon_s: float = 1.0,
+        velocity_limits: float | np.ndarray | None = None,
+        acceleration_limit: float | np.ndarray | Literal["dynamics"] = "dynamics",
+        acceleration_floor: float = 0.5,
+        acceleration_cap: float = 50.0,
+        position_margin_rad: float = 5e-3,
+        s_max: float = 1.0,
+        path_tolerance: float = 1e-6,
+        progress_tolerance: float = 1e-6,
+        posture_gain_per_s: float = 1.0,
+        posture_reference: Literal["start"] | np.ndarray = "start",
+        damping: float = 1e-6,
+        max_linearisations: int = 4,
+        linearisation_tolerance: float = 1e-4,
+        relinearise_threshold_rad: float = 0.02,
+        trust_radius_rad: float = 0.05,
+        trust_radius_phase_s: float = 0.02,
+        measurement_delay_periods: int = 0,
+        solver: Literal["daqp", "osqp"] | None = None,
+        solver_settings: dict | None = None,
+    ) -> None:
+        super().__init__(robot, trajectory, period_s, measurement_delay_periods)
+        n = self.n
+        horizon_s = check_positive("horizon_s (tau_p)", horizon_s, "s")
+        breaks = interval_breakpoints(num_intervals, horizon_s, self.period_s)
+        self.num_intervals, self.horizon_s = int(num_intervals), horizon_s
+        self.s_max = check_positive("s_max", s_max, "-")
+        if not 1.0 <= self.s_max <= 1.5:
+            raise ParameterError(f"s_max must be in [1, 1.5], got {s_max!r}")
+        tols = {"path_tolerance": path_tolerance, "progress_tolerance": progress_tolerance}
+        for key, value in tols.items():
+            check_positive(key, value, "-")
+        self.damping = check_positive("damping", damping, "-")
+        if isinstance(max_linearisations, bool) or int(max_linearisations) < 1:
+            raise ParameterError(f"max_linearisations must be ≥ 1, got {max_linearisations!r}")
+        self.max_linearisations = int(max_linearisations)
+        self.linearisation_tolerance = check_positive(
+            "linearisation_tolerance", linearisation_tolerance, "rad/s"
+        )
+        self.relinearise_threshold_rad = check_positive(
+            "relinearise_threshold_rad", relinearise_threshold_rad, "rad"
+        )
+        self.trust_radius_rad = check_positive("trust_radius_rad", trust_radius_rad, "rad")
+        self.trust_radius_phase_s = check_positive(
+            "trust_radius_phase_s", trust_radius_phase_s, "s"
+        )
+        margin, self.q_min, self.q_max, self.qd_max = _limit_settings(
+            robot, velocity_limits, position_margin_rad
+        )
+        self.position_margin_rad = margin
+        self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)
+        self.prediction_model = ConsistentPrediction(breaks, n, self.period_s, self.s_max)
+        layout = self.layout = self.prediction_model.layout
+        self.posture = PostureTerm(layout, posture_gain_per_s)
+        self._posture_reference = posture_reference
+        self.levels = self._levels(path_tolerance, progress_tolerance)
+        self.limits = self._limits()
+        self.relaxed_limits = tuple(
+            lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
+        )
+        self.backend = make_backend(solver, solver_settings)
+        self.solver = self.backend.name
+        self._cache: dict = {}
+        self._last: Problem | None = None
+        self._reset_state()
+
+    # ------------------------------------------------------------------ composition
+    def _set_acceleration(self, acceleration_limit, floor: float, cap: float) -> None:
+        self.dynamic_acceleration = isinstance(acceleration_limit, str)
+        if self.dynamic_acceleration:
+            if acceleration_limit != "dynamics":
+                raise ParameterError(
+                    "acceleration_limit must be a positive number [rad/s²], one per joint, or "
+                    f"'dynamics', got {acceleration_limit!r}"
+                )
+            self.acceleration_floor = check_positive("acceleration_floor", floor, "rad/s^2")
+            self.acceleration_cap = check_positive("acceleration_cap", cap, "rad/s^2")
+            if self.acceleration_floor > self.acceleration_cap:
+                raise ParameterError(
+                    f"acceleration_floor ({floor}) must be ≤ acceleration_cap ({cap}) [rad/s²]"
+                )
+            self.a_const = None
+        else:
+            self.a_const = per_joint(
+                "acceleration_limit", acceleration_limit, self.n, "rad/s² (or 'dynamics')"
+            )
+
+    def _levels(self, path_tol: float, progress_tol: float) -> tuple[Level, ...]:
+        layout, mu = self.layout, self.damping
+        path = Level(
+            (PathErrorTerm(), DampingTerm(layout, mu, include_scaling=True)), path_tol, "path"
+        )
+        progress = Level(
+            (
+                ProgressTerm(layout, self.s_max),
+                ScalingSmoothnessTerm(layout),
+                DampingTerm(layout, mu),
+            ),
+            progress_tol,
+            "progress",
+        )
+        posture = Level((self.posture, DampingTerm(layout, mu)), 1e-6, "posture")
+        return path, progress, posture
+
+    def _limits(self) -> tuple[Limit, ...]:
+        layout = self.layout
+        durations = layout.durations_s
+        coupling = 0.5 * (durations[1:] + durations[:-1])
+        return (
+            VelocityLimit(layout, self.qd_max),
+            ScalingRange(layout, 0.0, self.s_max),
+            AccelerationLimit(layout, self.period_s, coupling),
+            PredictedPositionLimit(layout, self.q_min, self.q_max, self.qd_max),
+            PhaseEndLimit(layout),
+            TrustRegionLimit(layout, self.trust_radius_rad, self.trust_radius_phase_s),
+        )
+
+    # ------------------------------------------------------------------ memory
+    def _reset_state(self) -> None:
+        self._steps = 0
+        self._s_prev = 0.0
+        self._expected_q: np.ndarray | None = None
+        self._poor = True  # the first step linearises at rest: iterate
+
+    def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        self.prediction_model.reset(q0, qd0)
+        ref = self._posture_reference
+        if isinstance(ref, str):
+            if ref != "start":
+                raise ParameterError(
+                    f"posture_reference must be 'start' or a configuration, got {ref!r}"
+                )
+            self.posture.reference = q0.copy()
+        else:
+            self.posture.reference = self.robot.check_q(ref, "posture_reference")
+        self.backend.reset()
+        self._reset_state()
+
+    # ------------------------------------------------------------------ one step
+    def _context(self, q: np.ndarray, pred: Prediction) -> StepContext:
+        xs, jacs, xd, dxd = aligned_kinematics(
+            self.robot, self.trajectory, pred.q_lin, pred.sigma_lin
+        )
+        p = self.layout.num_blocks
+        if self.a_const is not None:
+            a_max = np.broadcast_to(self.a_const, (p, self.n))
+        else:
+            starts = np.vstack([q[None, :], pred.q_lin[:-1]])
+            a_max = self.robot.fast.acceleration_limits_batch(
+                starts, 1.0, self.acceleration_floor, self.acceleration_cap
+            )
+        extras = {"s_prev": self._s_prev, "lag_s": self._steps * self.period_s - self.sigma}
+        return StepContext(
+            self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev,
+            self.sigma, pred, xs, jacs, xd, dxd, a_max, extras,
+        )  # fmt: skip
+
+    def _solve(self, ctx: StepContext) -> tuple[Problem, LevelsResult, bool]:
+        """Build and solve; without the predicted position rows if that fails."""
+        problem = build_problem(ctx, self.levels, self.limits, self._cache)
+        result = solve_levels(problem, self.backend)
+        if result.failed_level == 0:
+            relaxed = build_problem(ctx, self.levels, self.relaxed_limits, self._cache)
+            again = solve_levels(relaxed, self.backend)
+            if again.failed_level != 0:
+                return relaxed, again, True
+        return problem, result, False
+
+    def _disturbed(self, q: np.ndarray) -> bool:
+        if self._expected_q is None:
+            return True
+        return float(np.max(np.abs(q - self._expected_q))) > self.relinearise_threshold_rad
+
+    def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        start = time.perf_counter()
+        model = self.prediction_model
+        pred = model.predict(q, self.sigma)
+        rounds = self.max_linearisations if (self._poor or self._disturbed(q)) else 1
+        iterations, solve_time, done = 0, 0.0, 0
+        for _ in range(rounds):
+            ctx = self._context(q, pred)
+            problem, result, relaxed = self._solve(ctx)
+            done += 1
+            iterations += result.iterations
+            solve_time += result.solve_time_s
+            if result.failed_level == 0:
+                break
+            qd_plan, s_plan = self.layout.split(result.solution.x)
+            change = float(np.max(np.abs(qd_plan - pred.warm_qd)))
+            if change < self.linearisation_tolerance or done == rounds:
+                break
+            pred = model.at(q, self.sigma, qd_plan.copy(), np.clip(s_plan, 0.0, self.s_max))
+        self._last = problem
+        return self._finish(q, problem, result, relaxed, start, iterations, solve_time, done)
+
+    def _finish(self, q, problem, result, relaxed, start, iterations, solve_time, rounds):
+        n, layout = self.n, self.layout
+        lo0, up0 = problem.lower[:n], problem.upper[:n]
+        conflict = tuple(np.flatnonzero(problem.conflict[:n]).tolist())
+        message = "predicted position bounds dropped to regain feasibility" if relaxed else ""
+        if result.failed_level != 0:
+            qd_plan, s_plan = layout.split(result.solution.x)
+            qd_cmd = np.minimum(np.maximum(qd_plan[0], lo0), up0)
+            s_plan = np.clip(s_plan, 0.0, self.s_max)
+            s_now = float(s_plan[0])
+            plan_qd = qd_plan.copy()
+            plan_qd[0] = qd_cmd
+            self.prediction_model.commit(plan_qd, s_plan)
+            fallback = False
+            if result.failed_level is not None:
+                message = f"level {result.failed_level + 1} failed; higher levels' optimum kept"
+            self._poor = False
+        else:
+            qd_cmd = np.minimum(np.maximum(np.zeros(n), lo0), up0)
+            s_now = 0.0
+            self.prediction_model.commit(
+                np.tile(qd_cmd, (layout.num_blocks, 1)), np.zeros(layout.num_blocks)
+            )
+            fallback = True
+            message = (
+                f"QP failed ({result.solution.status}); safe fallback: brake within a_max, s = 0"
+            )
+            self._poor = True
+        self._expected_q = q + self.period_s * qd_cmd
+        self._s_prev = s_now
+        self._steps += 1
+        x0 = self.robot.fast.pose_and_jacobian(q)[0]
+        xd0 = self.trajectory.target(self.sigma)
+        if float(x0 @ xd0) < 0.0:
+            x0 = -x0
+        diag = StepDiagnostics(
+            status=result.solution.status, iterations=iterations, solve_time_s=solve_time,
+            step_time_s=time.perf_counter() - start, fallback=fallback, relaxed=relaxed,
+            conflict_joints=conflict, message=message, linearisations=rounds,
+        )  # fmt: skip
+        plan_qd, plan_s = self.prediction_model.plan_qd, self.prediction_model.plan_s
+        return StepResult(
+            qd_command=qd_cmd, s=s_now, sigma=self.sigma,
+            sigma_next=self.sigma + self.period_s * s_now,
+            pose=x0, target=xd0, diagnostics=diag,
+            horizon_qd=plan_qd.copy(), horizon_s=plan_s.copy(),
+        )  # fmt: skip
+
+    def last_problem(self) -> Problem:
+        """The problem built at the last step: every level's terms and every limit's rows,
+        by name (:class:`~dqcontrol.controllers.problem.Problem`)."""
+        if self._last is None:
+            raise ParameterError("no QP has been built yet: call step() first")
+        return self._last

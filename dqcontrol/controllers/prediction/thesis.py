@@ -1,0 +1,77 @@
+"""The thesis's prediction: the previous plan shifted by one period and integrated
+(FORMULATION §5.3, docs/theory.md §4.2).
+
+The previous step's commands at the instants ``τ_j`` are taken as a piecewise-linear
+function of time, shifted by ``T``, held at its last value past the horizon and integrated
+from the measured ``q``: ``q̂ = q + W qd_prev`` with the constant matrix ``W``
+(:func:`integration_matrix`); likewise the phase. The states do not depend on this step's
+decision.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
+from dqcontrol.controllers.prediction_matrices import integration_matrix, interpolation_matrix
+from dqcontrol.controllers.problem import DecisionLayout
+
+__all__ = ["ThesisPrediction"]
+
+
+class ThesisPrediction(PredictionModel):
+    """Predicted ``q̂_i``, ``σ̂_i`` from the previous horizon (data, not decision).
+
+    Args:
+        layout: the instants ``τ_i``.
+        period_s: control period ``T`` [s].
+        phase: ``"previous"`` integrates the previous ``s`` profile; ``"nominal"`` uses
+            ``σ + τ_i`` (the thesis); ``"fixed"`` is ``"nominal"`` for ``s ≡ 1``.
+    """
+
+    def __init__(
+        self,
+        layout: DecisionLayout,
+        period_s: float,
+        phase: Literal["previous", "nominal"] = "previous",
+    ) -> None:
+        self.layout = layout
+        self.period_s = float(period_s)
+        self.phase = phase
+        p, n = layout.num_blocks, layout.num_joints
+        tau = layout.instants_s
+        self._w_int = integration_matrix(tau, self.period_s) if p > 1 else np.zeros((1, 1))
+        self._shift = interpolation_matrix(tau, self.period_s) if p > 1 else np.eye(1)
+        self._zero_weights = np.zeros((p, p))
+        self.horizon_qd = np.zeros((p, n))
+        self.horizon_s = np.ones(p)
+
+    def reset(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        self.horizon_qd = np.tile(qd0, (self.layout.num_blocks, 1))
+        self.horizon_s = np.ones(self.layout.num_blocks)
+
+    def predict(self, q: np.ndarray, sigma: float) -> Prediction:
+        if self.layout.num_blocks == 1:
+            q_hat = q[None, :]
+            sigma_hat = np.array([sigma])
+        else:
+            q_hat = q + self._w_int @ self.horizon_qd
+            if self.phase == "previous":
+                sigma_hat = sigma + self._w_int @ self.horizon_s
+            else:
+                sigma_hat = sigma + self.layout.instants_s
+        return Prediction(
+            q_hat,
+            sigma_hat,
+            q_hat,
+            sigma_hat,
+            self._zero_weights,
+            self._shift @ self.horizon_qd,
+            self._shift @ self.horizon_s,
+        )
+
+    def commit(self, qd: np.ndarray, s: np.ndarray) -> None:
+        self.horizon_qd = np.array(qd, dtype=float)
+        self.horizon_s = np.array(s, dtype=float)

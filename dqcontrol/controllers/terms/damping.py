@@ -1,0 +1,44 @@
+"""Damping ``μ ‖qd_i‖²`` (and optionally ``μ ‖s_i‖²``): the small regularisation that makes
+a level's cost strictly convex (FORMULATION §5.2)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+
+__all__ = ["DampingTerm"]
+
+
+class DampingTerm(Term):
+    """Rows ``qd_i`` (and ``s_i`` with ``include_scaling``), weight ``μ``.
+
+    Args:
+        layout: the decision layout.
+        weight: ``μ``.
+        include_scaling: damp ``s_i`` too.
+        held: whether lower levels hold these rows (a regularisation is not held).
+    """
+
+    name = "damping"
+    constant = True
+
+    def __init__(
+        self,
+        layout: DecisionLayout,
+        weight: float,
+        *,
+        include_scaling: bool = False,
+        held: bool = False,
+    ) -> None:
+        self.weight = float(weight)
+        self.held = bool(held)
+        p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
+        k = m if (include_scaling and layout.with_scaling) else n
+        self._blocks = np.zeros((p, k, m))
+        self._blocks[:, np.arange(k), np.arange(k)] = 1.0
+        self._b = np.zeros(p * k)
+
+    def residual(self, ctx: StepContext) -> Residual:
+        return Residual(self.name, self.weight, self._b, blocks=self._blocks, held=self.held)

@@ -1,0 +1,62 @@
+"""The path error at every predicted state, linearised (FORMULATION §10, docs/theory.md §8.2).
+
+With ``x̄_i = f(q̄_i)`` sign-aligned to ``x_d(σ̄_i)``, ``J_i = J(q̄_i)``, ``x_d'`` the target's
+derivative, and the states ``q_i(z)``, ``σ_i(z)`` of the prediction model, the residual of
+block ``i`` is the 6-D tangent part of
+
+    x̄_i* ⊗ ( x̄_i - x_d(σ̄_i) + J_i (q_i - q̄_i) - x_d'(σ̄_i) (σ_i - σ̄_i) ),
+
+i.e. the six pure components (rows ``1, 2, 3`` and ``5, 6, 7`` of ``H+8(x̄_i*)``): about half
+the rotation error [rad] and half the translation error [m], both in the tool frame. The
+two scalar components are normal to the unit dual quaternions; no joint motion produces
+them, so they are left out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import Residual, Term
+from dqcontrol.dq.algebra import hamiplus8
+
+__all__ = ["PathErrorTerm", "tangent_projectors"]
+
+_PURE = np.array([1, 2, 3, 5, 6, 7])
+_CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
+
+
+def tangent_projectors(poses: np.ndarray) -> np.ndarray:
+    """``E_i = P_pure H+8(x_i*)`` ``(p, 6, 8)`` for poses ``(p, 8)``."""
+    return np.array([hamiplus8(x * _CONJ)[_PURE] for x in poses])
+
+
+class PathErrorTerm(Term):
+    """``Σ_i ‖e_i‖²``, ``e_i`` the linearised tangent error of block ``i``'s state.
+
+    Args:
+        weight: weight of the term (dimensionless; the rows are in half-radians and
+            half-metres).
+    """
+
+    name = "path_error"
+
+    def __init__(self, weight: float = 1.0) -> None:
+        self.weight = float(weight)
+
+    def residual(self, ctx: StepContext) -> Residual:
+        pred = ctx.prediction
+        layout = ctx.layout
+        p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
+        proj = tangent_projectors(ctx.poses)  # (p, 6, 8)
+        pj = np.einsum("pab,pbn->pan", proj, ctx.jacobians)  # E_i J_i (p, 6, n)
+        pd = np.einsum("pab,pb->pa", proj, ctx.target_derivatives)  # E_i x_d' (p, 6)
+        g = np.empty((p, 6, m))
+        g[:, :, :n] = pj
+        g[:, :, n] = -pd
+        # block (i, j) of A is weights[i, j] G_i
+        a = (pred.weights[:, None, :, None] * g[:, :, None, :]).reshape(6 * p, p * m)
+        gap = np.einsum("pab,pb->pa", proj, ctx.poses - ctx.targets)
+        gap += np.einsum("pan,pn->pa", pj, pred.q_base - pred.q_lin)
+        gap -= pd * (pred.sigma_base - pred.sigma_lin)[:, None]
+        return Residual(self.name, self.weight, -gap.ravel(), A=a)

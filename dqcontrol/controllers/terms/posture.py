@@ -1,0 +1,42 @@
+"""Posture: joint velocities towards a preferred configuration (docs/theory.md §7.3).
+
+Rows ``qd_i - K_p (q_ref - q̄_i)`` for every block (``q̄_i`` the block's linearisation
+state): a first-order pull of each joint towards ``q_ref`` at rate ``K_p``. Below a
+higher-priority task it acts in that task's null space (the redundancy), so a redundant
+arm does not drift.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.base import check_positive
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+
+__all__ = ["PostureTerm"]
+
+
+class PostureTerm(Term):
+    """Pull towards ``reference`` (a configuration [rad]; set by the controller at reset).
+
+    Args:
+        layout: the decision layout.
+        gain_per_s: ``K_p`` [1/s].
+        weight: weight of the term.
+    """
+
+    name = "posture"
+
+    def __init__(self, layout: DecisionLayout, gain_per_s: float = 1.0, weight: float = 1.0):
+        self.weight = float(weight)
+        self.gain_per_s = check_positive("posture gain_per_s", gain_per_s, "1/s")
+        p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
+        self._blocks = np.zeros((p, n, m))
+        self._blocks[:, np.arange(n), np.arange(n)] = 1.0
+        self.reference: np.ndarray | None = None
+
+    def residual(self, ctx: StepContext) -> Residual:
+        ref = ctx.q if self.reference is None else self.reference
+        b = self.gain_per_s * (ref - ctx.prediction.q_lin)
+        return Residual(self.name, self.weight, b.ravel(), blocks=self._blocks)
