@@ -47,7 +47,7 @@ from dqcontrol.controllers.prediction.consistent import (
 )
 from dqcontrol.controllers.problem import Level, Limit, Problem
 from dqcontrol.controllers.terms.damping import DampingTerm
-from dqcontrol.controllers.terms.path_error import PathErrorTerm
+from dqcontrol.controllers.terms.path_error import PathErrorTerm, tangent_projectors
 from dqcontrol.controllers.terms.posture import PostureTerm
 from dqcontrol.controllers.terms.progress import ProgressTerm
 from dqcontrol.controllers.terms.scaling_smoothness import ScalingSmoothnessTerm
@@ -94,8 +94,12 @@ class PathFollowingController(Controller):
         damping: the regularisation weight of every level (> 0).
         max_linearisations: bound on linearise-and-solve rounds where the linearisation is
             poor (≥ 1).
-        linearisation_tolerance: the rounds stop when the plan moves less than this
-            [rad/s].
+        linearisation_tolerance: where the linearisation point is poor (first step, after
+            a fallback or a disturbance), the rounds stop when the plan moves less than
+            this [rad/s].
+        linearisation_tolerance_m: otherwise, a round is added while the linearised path
+            error of the applied state is further than this from the true one (tangent
+            units, about half a metre or half a radian per unit).
         relinearise_threshold_rad: a measured ``q`` this far from the predicted one counts
             as a disturbance [rad].
         solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
@@ -124,7 +128,9 @@ class PathFollowingController(Controller):
         damping: float = 1e-6,
         max_linearisations: int = 4,
         linearisation_tolerance: float = 1e-4,
+        linearisation_tolerance_m: float = 1e-5,
         relinearise_threshold_rad: float = 0.02,
+        acceleration_reserve: float = 0.9,
         trust_radius_rad: float = 0.05,
         trust_radius_phase_s: float = 0.02,
         measurement_delay_periods: int = 0,
@@ -149,9 +155,19 @@ class PathFollowingController(Controller):
         self.linearisation_tolerance = check_positive(
             "linearisation_tolerance", linearisation_tolerance, "rad/s"
         )
+        self.linearisation_tolerance_m = check_positive(
+            "linearisation_tolerance_m", linearisation_tolerance_m, "m"
+        )
         self.relinearise_threshold_rad = check_positive(
             "relinearise_threshold_rad", relinearise_threshold_rad, "rad"
         )
+        self.acceleration_reserve = check_positive(
+            "acceleration_reserve", acceleration_reserve, "-"
+        )
+        if self.acceleration_reserve > 1.0:
+            raise ParameterError(
+                f"acceleration_reserve must be in (0, 1], got {acceleration_reserve!r}"
+            )
         self.trust_radius_rad = check_positive("trust_radius_rad", trust_radius_rad, "rad")
         self.trust_radius_phase_s = check_positive(
             "trust_radius_phase_s", trust_radius_phase_s, "s"
@@ -200,7 +216,7 @@ class PathFollowingController(Controller):
     def _levels(self, path_tol: float, progress_tol: float) -> tuple[Level, ...]:
         layout, mu = self.layout, self.damping
         path = Level(
-            (PathErrorTerm(), DampingTerm(layout, mu, include_scaling=True)), path_tol, "path"
+            (PathErrorTerm(1e4), DampingTerm(layout, mu, include_scaling=True)), path_tol, "path"
         )
         progress = Level(
             (
@@ -221,10 +237,12 @@ class PathFollowingController(Controller):
         return (
             VelocityLimit(layout, self.qd_max),
             ScalingRange(layout, 0.0, self.s_max),
-            AccelerationLimit(layout, self.period_s, coupling),
+            AccelerationLimit(layout, self.period_s, coupling, self.acceleration_reserve),
             PredictedPositionLimit(layout, self.q_min, self.q_max, self.qd_max),
             PhaseEndLimit(layout),
-            TrustRegionLimit(layout, self.trust_radius_rad, self.trust_radius_phase_s),
+            TrustRegionLimit(
+                layout, self.trust_radius_rad, self.trust_radius_phase_s, self.period_s
+            ),
         )
 
     # ------------------------------------------------------------------ memory
@@ -283,23 +301,40 @@ class PathFollowingController(Controller):
             return True
         return float(np.max(np.abs(q - self._expected_q))) > self.relinearise_threshold_rad
 
+    def _mismatch(self, q: np.ndarray, problem: Problem, z: np.ndarray) -> float:
+        """How far the linearised path error of the first predicted state is from the
+        true one (tangent units: half-radians and half-metres)."""
+        n, layout = self.n, self.layout
+        path = problem.levels[0].residuals[0]
+        linear = path.A[:6] @ z - path.b[:6]
+        qd0, s0 = z[:n], float(z[n])
+        x1 = self.robot.fast.pose_and_jacobian(q + self.period_s * qd0)[0]
+        xd1 = self.trajectory.target(self.sigma + self.period_s * min(max(s0, 0.0), self.s_max))
+        if float(x1 @ xd1) < 0.0:
+            x1 = -x1
+        true = tangent_projectors((x1,))[0] @ (x1 - xd1)
+        del layout
+        return float(np.max(np.abs(true - linear)))
+
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
         model = self.prediction_model
         pred = model.predict(q, self.sigma)
-        rounds = self.max_linearisations if (self._poor or self._disturbed(q)) else 1
+        poor = self._poor or self._disturbed(q)
         iterations, solve_time, done = 0, 0.0, 0
-        for _ in range(rounds):
-            ctx = self._context(q, pred)
-            problem, result, relaxed = self._solve(ctx)
+        while True:
+            problem, result, relaxed = self._solve(self._context(q, pred))
             done += 1
             iterations += result.iterations
             solve_time += result.solve_time_s
-            if result.failed_level == 0:
+            if result.failed_level == 0 or done == self.max_linearisations:
                 break
-            qd_plan, s_plan = self.layout.split(result.solution.x)
-            change = float(np.max(np.abs(qd_plan - pred.warm_qd)))
-            if change < self.linearisation_tolerance or done == rounds:
+            z = result.solution.x
+            qd_plan, s_plan = self.layout.split(z)
+            if poor:
+                if float(np.max(np.abs(qd_plan - pred.warm_qd))) < self.linearisation_tolerance:
+                    break
+            elif self._mismatch(q, problem, z) < self.linearisation_tolerance_m:
                 break
             pred = model.at(q, self.sigma, qd_plan.copy(), np.clip(s_plan, 0.0, self.s_max))
         self._last = problem

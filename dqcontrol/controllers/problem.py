@@ -122,6 +122,7 @@ class Residual(NamedTuple):
     A: np.ndarray | None = None
     blocks: np.ndarray | None = None
     held: bool = True
+    row_weights: np.ndarray | None = None
 
     def dense(self, layout: DecisionLayout) -> np.ndarray:
         """``A`` as a dense ``(r, len(z))`` array."""
@@ -314,8 +315,9 @@ def objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
                 p_mat[sl, sl] += w2 * gram[i]
                 c[sl] -= w2 * lin[i]
         else:
-            p_mat += w2 * (r.A.T @ r.A)
-            c -= w2 * (r.A.T @ r.b)
+            a_w = r.A if r.row_weights is None else r.A * r.row_weights[:, None]
+            p_mat += w2 * (a_w.T @ r.A)
+            c -= w2 * (a_w.T @ r.b)
     return p_mat, c
 
 

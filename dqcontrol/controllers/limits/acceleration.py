@@ -8,6 +8,9 @@ the previous block (FORMULATION §6, §5.3, §10).
   ``½ (Δ_i + Δ_{i-1})`` for intervals.
 
 ``a_max`` comes from the step context (constant, or dynamics-aware at each block's state).
+``coupling_fraction < 1`` tightens the coupling rows (constraint tightening): the plan
+beyond the applied command keeps that share of the acceleration in reserve, which absorbs
+the error of a linearised prediction when the plan is revised.
 """
 
 from __future__ import annotations
@@ -27,13 +30,20 @@ class AccelerationLimit(Limit):
         layout: the decision layout.
         period_s: control period ``T`` [s].
         coupling_s: ``h_i`` for ``i = 1 … p-1`` [s] (empty for one block).
+        coupling_fraction: share of ``a_max`` the coupling rows allow (``(0, 1]``).
     """
 
     name = "acceleration"
 
-    def __init__(self, layout: DecisionLayout, period_s: float, coupling_s: np.ndarray) -> None:
+    def __init__(
+        self,
+        layout: DecisionLayout,
+        period_s: float,
+        coupling_s: np.ndarray,
+        coupling_fraction: float = 1.0,
+    ) -> None:
         self.period_s = float(period_s)
-        self.coupling_s = np.asarray(coupling_s, dtype=float)
+        self.coupling_s = np.asarray(coupling_s, dtype=float) * float(coupling_fraction)
         p, n = layout.num_blocks, layout.num_joints
         idx = layout.qd_index()
         self._first = idx[0]

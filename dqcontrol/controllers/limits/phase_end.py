@@ -1,7 +1,9 @@
-"""The phase stays within the task: ``σ_p ≤ T_tot`` (FORMULATION §10).
+"""The phase stays within the task: ``σ_p ≤ T_tot + T`` (FORMULATION §10).
 
 Past ``T_tot`` the target is held (zero derivative), so a plan whose phase ran beyond it
-would promise progress that moves nothing; the row keeps the plan's phase on the path.
+would promise progress that moves nothing; the row keeps the plan's phase on the path. The
+one period of slack lets the first interval reach ``T_tot`` (with ``σ_p ≤ T_tot`` exactly,
+the phase would only approach the end geometrically).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ __all__ = ["PhaseEndLimit"]
 
 
 class PhaseEndLimit(Limit):
-    """``σ + Σ_j Δ_j s_j ≤ T_tot`` (one row)."""
+    """``σ + Σ_j Δ_j s_j ≤ T_tot + T`` (one row)."""
 
     name = "phase_end"
 
@@ -25,5 +27,5 @@ class PhaseEndLimit(Limit):
         self._c = c
 
     def rows(self, ctx: StepContext) -> Inequality:
-        room = max(ctx.trajectory.duration - ctx.sigma, 0.0)
+        room = max(ctx.trajectory.duration - ctx.sigma, 0.0) + ctx.period_s
         return Inequality(self.name, self._c, np.array([-np.inf]), np.array([room]))

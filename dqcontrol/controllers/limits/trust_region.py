@@ -3,10 +3,13 @@
 The path error is linearised at the shifted previous plan ``(q̄_i, σ̄_i)``; its error grows
 with the square of the distance from that point. The rows
 
-    |q_i(z) - q̄_i| ≤ ρ_q,        |σ_i(z) - σ̄_i| ≤ ρ_σ
+    |q_i(z) - q̄_i| ≤ ρ_q (1 + t_i / T),        |σ_i(z) - σ̄_i| ≤ ρ_σ (1 + t_i / T)
 
-keep every predicted state where the linear model holds; the plan may still move further
-over several steps, or over several linearise-and-solve rounds of one step.
+(``t_i`` the time of state ``i`` from now) keep every predicted state where the linear
+model holds: tight at the first state, which is applied, wider further out, where the
+plan is revised many times before it is executed (the radius grows like the deviation a
+constant change of the commands would make). The plan may move further over several
+steps, or over several linearise-and-solve rounds of one step.
 """
 
 from __future__ import annotations
@@ -24,14 +27,19 @@ class TrustRegionLimit(Limit):
 
     Args:
         layout: the decision layout.
-        radius_rad: ``ρ_q`` (``inf``: no joint rows).
-        radius_phase_s: ``ρ_σ`` (``inf``: no phase rows).
+        radius_rad: ``ρ_q`` at the first state [rad] (``inf``: no joint rows).
+        radius_phase_s: ``ρ_σ`` at the first state [s] (``inf``: no phase rows).
+        period_s: ``T`` [s].
     """
 
     name = "trust_region"
 
-    def __init__(self, layout: DecisionLayout, radius_rad: float, radius_phase_s: float) -> None:
+    def __init__(
+        self, layout: DecisionLayout, radius_rad: float, radius_phase_s: float, period_s: float
+    ) -> None:
         self.layout = layout
+        ends = layout.instants_s + layout.durations_s
+        self._growth = 1.0 + ends / float(period_s)
         self.radius_rad = float(radius_rad)
         self.radius_phase_s = float(radius_phase_s)
         self._weights: np.ndarray | None = None
@@ -56,11 +64,10 @@ class TrustRegionLimit(Limit):
         out = []
         if np.isfinite(self.radius_rad):
             centre = (pred.q_lin - pred.q_base).ravel()
-            out.append(
-                Inequality("trust_region_q", cq, centre - self.radius_rad, centre + self.radius_rad)
-            )
+            r = np.repeat(self.radius_rad * self._growth, self.layout.num_joints)
+            out.append(Inequality("trust_region_q", cq, centre - r, centre + r))
         if np.isfinite(self.radius_phase_s):
             centre = pred.sigma_lin - pred.sigma_base
-            r = self.radius_phase_s
+            r = self.radius_phase_s * self._growth
             out.append(Inequality("trust_region_phase", cs, centre - r, centre + r))
         return tuple(out)

@@ -34,6 +34,10 @@ def tangent_projectors(poses: np.ndarray) -> np.ndarray:
 class PathErrorTerm(Term):
     """``Σ_i ‖e_i‖²``, ``e_i`` the linearised tangent error of block ``i``'s state.
 
+    Each state's rows are weighted by ``(T / t_i)²`` (``t_i`` its time from now, ``T`` the
+    first interval): where the later states cannot all be kept on the path, the error
+    falls on them rather than on the states about to be reached.
+
     Args:
         weight: weight of the term (dimensionless; the rows are in half-radians and
             half-metres).
@@ -59,4 +63,6 @@ class PathErrorTerm(Term):
         gap = np.einsum("pab,pb->pa", proj, ctx.poses - ctx.targets)
         gap += np.einsum("pan,pn->pa", pj, pred.q_base - pred.q_lin)
         gap -= pd * (pred.sigma_base - pred.sigma_lin)[:, None]
-        return Residual(self.name, self.weight, -gap.ravel(), A=a)
+        ends = layout.instants_s + layout.durations_s
+        row_weights = np.repeat((ends[0] / ends) ** 2, 6)
+        return Residual(self.name, self.weight, -gap.ravel(), A=a, row_weights=row_weights)
