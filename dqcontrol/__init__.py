@@ -15,7 +15,12 @@ from dqcontrol.errors import (
 )
 from dqcontrol.model import JointLimits, RobotModel, load_lbr4p, load_panda
 
-__version__ = "0.1.0"
+try:  # the version is defined once, in pyproject.toml; read it from the installed metadata
+    from importlib.metadata import version as _metadata_version
+
+    __version__ = _metadata_version("dqcontrol")
+except ImportError:  # its subclass PackageNotFoundError: a source tree that was never installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "ConfigurationError",

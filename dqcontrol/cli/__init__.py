@@ -13,6 +13,7 @@ import importlib
 import pkgutil
 import sys
 
+from dqcontrol import __version__
 from dqcontrol.errors import DQControlError
 
 __all__ = ["build_parser", "main"]
@@ -24,6 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="dqcontrol",
         description="Kinematic control of redundant manipulators with dual quaternions.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     package = sys.modules[__name__]
     names = sorted(

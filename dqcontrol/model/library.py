@@ -1,8 +1,13 @@
-"""Ready-made robots: the thesis's KUKA LBR4p (shipped in ``robots/``) and the Franka Panda
-of example-robot-data, both loaded through :meth:`RobotModel.from_urdf`."""
+"""Ready-made robots: the thesis's KUKA LBR4p (package data in ``dqcontrol/robots/``, so an
+installed wheel carries it) and the Franka Panda of example-robot-data, both loaded through
+:meth:`RobotModel.from_urdf`."""
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import functools
+import importlib.resources
 from pathlib import Path
 
 import numpy as np
@@ -21,22 +26,38 @@ LBR4P_Q0 = np.array([-0.18, -0.76, -0.29, -1.45, 0.24, -0.97, 1.05])
 #: The Panda's usual "ready" posture [rad].
 PANDA_Q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
 
+#: Resources extracted to temporary files when the package is not a folder on disk (a zip
+#: import); closed at exit.
+_EXTRACTED = contextlib.ExitStack()
+atexit.register(_EXTRACTED.close)
 
-def _robots_dir() -> Path:
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        candidate = parent / "robots"
-        if (candidate / "lbr4p" / "lbr4p.urdf").is_file():
-            return candidate
-    raise URDFError(
-        "cannot find the shipped robots/ folder next to the dqcontrol package; install "
-        "dqcontrol from its repository with 'pip install -e .'"
-    )
+
+@functools.cache
+def _package_file(*parts: str) -> Path:
+    """A real filesystem path of the package data file ``dqcontrol/robots/<parts>``.
+
+    Pinocchio and MuJoCo open files by name, so this must be a path on disk, not just a
+    readable resource. An installed (or editable) package is a folder, and
+    :func:`importlib.resources.files` then returns a :class:`pathlib.Path` inside it, used
+    as it is. Otherwise (the package imported from a zip archive) ``as_file`` extracts the
+    file to a temporary one that lives until the interpreter exits.
+    """
+    resource = importlib.resources.files("dqcontrol") / "robots"
+    for part in parts:
+        resource = resource / part
+    if not resource.is_file():
+        raise URDFError(
+            f"the package data file dqcontrol/robots/{'/'.join(parts)} is missing from the "
+            "installed dqcontrol package; reinstall dqcontrol"
+        )
+    if isinstance(resource, Path):
+        return resource
+    return _EXTRACTED.enter_context(importlib.resources.as_file(resource))
 
 
 def lbr4p_urdf_path() -> Path:
     """Path of the project's LBR4p URDF (``robots/lbr4p/lbr4p.urdf``)."""
-    return _robots_dir() / "lbr4p" / "lbr4p.urdf"
+    return _package_file("lbr4p", "lbr4p.urdf")
 
 
 def load_lbr4p(**kwargs) -> RobotModel:

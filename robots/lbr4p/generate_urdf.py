@@ -5,6 +5,12 @@ The committed ``lbr4p.urdf`` is the output of this script; edit the numbers here
 ``python robots/lbr4p/generate_urdf.py`` to keep them in sync.  Only the standard library
 is used, so the script runs anywhere.
 
+The script writes two identical files: ``dqcontrol/robots/lbr4p/lbr4p.urdf``, the package
+data that ``dqcontrol.model.lbr4p_urdf_path()`` returns and the wheel ships, and the copy
+beside this script for readers of the repository.  It also copies this folder's
+``README.md`` into the package folder under a one-comment header.  ``tests/test_packaging.py``
+checks that the copies agree.
+
 Kinematics: the thesis's standard-DH chain (eq. 4.2-4.3) rewritten with world-aligned link
 frames at the physical joint centres (all DH frames are parallel to the base at q = 0).
 Dynamics and limits: the CoppeliaSim LBR4p model / public LWR4+ description.
@@ -16,7 +22,15 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-OUT = Path(__file__).with_name("lbr4p.urdf")
+HERE = Path(__file__).resolve().parent
+#: The package data folder (the copy the library uses) and this folder.
+PACKAGE_DIR = HERE.parents[1] / "dqcontrol" / "robots" / "lbr4p"
+OUTPUTS = [PACKAGE_DIR / "lbr4p.urdf", HERE / "lbr4p.urdf"]
+#: Header of the package's copy of the README, whose relative paths name repository files.
+README_NOTE = (
+    "<!-- Copy of robots/lbr4p/README.md of the dqcontrol repository, written by\n"
+    "     robots/lbr4p/generate_urdf.py there; edit the original, not this copy. -->\n"
+)
 
 # --- kinematics ---------------------------------------------------------------------------
 DH_BASE_Z = 0.51  # DH frame 0 (joint 1's centre) above base_link
@@ -262,5 +276,10 @@ def build() -> str:
 
 
 if __name__ == "__main__":
-    OUT.write_text(build())
-    print(f"wrote {OUT}")
+    text = build()
+    for out in OUTPUTS:
+        out.write_text(text, encoding="utf-8")
+        print(f"wrote {out}")
+    readme = PACKAGE_DIR / "README.md"
+    readme.write_text(README_NOTE + (HERE / "README.md").read_text(encoding="utf-8"), "utf-8")
+    print(f"wrote {readme}")
