@@ -6,7 +6,9 @@ decision ``qd_i``, ``s_i`` held over the horizon's intervals), and three priorit
 1. the path: the linearised tangent error at every predicted state
    (:class:`~dqcontrol.controllers.terms.path_error.PathErrorTerm`);
 2. progress: the time scaling towards 1 (or up to ``s_max`` to catch up), smoothly;
-3. posture: joint velocities towards the start posture, in what the path leaves free.
+3. posture: joint velocities towards the start posture, in what the path leaves free;
+   while the task is stalled (``s`` ≈ 0 for half a second: an unreachable path point, an
+   obstacle) this level holds the arm still instead.
 
 Limits, all exact and linear: velocity on every interval, position at every predicted
 state, acceleration between intervals (the first from the applied command, with the
@@ -35,9 +37,11 @@ from dqcontrol.controllers.base import (
 from dqcontrol.controllers.context import StepContext, aligned_kinematics
 from dqcontrol.controllers.levels import LevelsResult, build_problem, solve_levels
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
+from dqcontrol.controllers.limits.applied_box import AppliedCommandBox
 from dqcontrol.controllers.limits.phase_end import PhaseEndLimit
 from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
+from dqcontrol.controllers.limits.torque import TorqueLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.limits.velocity import VelocityLimit
 from dqcontrol.controllers.prediction.base import Prediction
@@ -56,6 +60,12 @@ from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
 __all__ = ["PathFollowingController"]
+
+#: The task counts as stalled while the applied ``s`` stays below this.
+STALL_SCALING = 0.01
+#: How long a stall must last before the posture level holds the arm still [s]: a task
+#: that starts slowly is not a stalled one.
+STALL_DELAY_S = 0.5
 
 
 def _limit_settings(robot: RobotModel, velocity_limits, position_margin_rad: float):
@@ -130,6 +140,7 @@ class PathFollowingController(Controller):
         linearisation_tolerance: float = 1e-4,
         linearisation_tolerance_m: float = 1e-5,
         relinearise_threshold_rad: float = 0.02,
+        torque_limit_fraction: float | None = None,
         acceleration_reserve: float = 0.9,
         trust_radius_rad: float = 0.05,
         trust_radius_phase_s: float = 0.02,
@@ -161,6 +172,16 @@ class PathFollowingController(Controller):
         self.relinearise_threshold_rad = check_positive(
             "relinearise_threshold_rad", relinearise_threshold_rad, "rad"
         )
+        if torque_limit_fraction is not None:
+            torque_limit_fraction = check_positive(
+                "torque_limit_fraction", torque_limit_fraction, "-"
+            )
+            if torque_limit_fraction > 1.0:
+                raise ParameterError(
+                    "torque_limit_fraction must be in (0, 1] or None, got "
+                    f"{torque_limit_fraction!r}"
+                )
+        self.torque_limit_fraction = torque_limit_fraction
         self.acceleration_reserve = check_positive(
             "acceleration_reserve", acceleration_reserve, "-"
         )
@@ -186,6 +207,7 @@ class PathFollowingController(Controller):
         self.relaxed_limits = tuple(
             lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
         )
+        self._stall_steps = int(np.ceil(STALL_DELAY_S / self.period_s - 1e-9))
         self.backend = make_backend(solver, solver_settings)
         self.solver = self.backend.name
         self._cache: dict = {}
@@ -234,8 +256,15 @@ class PathFollowingController(Controller):
         layout = self.layout
         durations = layout.durations_s
         coupling = 0.5 * (durations[1:] + durations[:-1])
-        return (
+        torque: tuple[Limit, ...] = ()
+        if self.torque_limit_fraction is not None:
+            effort = self.robot.limits.effort_max
+            torque = (
+                TorqueLimit(layout, self.period_s, coupling, effort, self.torque_limit_fraction),
+            )
+        return torque + (
             VelocityLimit(layout, self.qd_max),
+            AppliedCommandBox(layout, self.q_min, self.q_max, self.qd_max, self.period_s),
             ScalingRange(layout, 0.0, self.s_max),
             AccelerationLimit(layout, self.period_s, coupling, self.acceleration_reserve),
             PredictedPositionLimit(layout, self.q_min, self.q_max, self.qd_max),
@@ -248,6 +277,7 @@ class PathFollowingController(Controller):
     # ------------------------------------------------------------------ memory
     def _reset_state(self) -> None:
         self._steps = 0
+        self._stalled_steps = 0
         self._s_prev = 0.0
         self._expected_q: np.ndarray | None = None
         self._poor = True  # the first step linearises at rest: iterate
@@ -279,7 +309,11 @@ class PathFollowingController(Controller):
             a_max = self.robot.fast.acceleration_limits_batch(
                 starts, 1.0, self.acceleration_floor, self.acceleration_cap
             )
-        extras = {"s_prev": self._s_prev, "lag_s": self._steps * self.period_s - self.sigma}
+        extras = {
+            "s_prev": self._s_prev,
+            "lag_s": self._steps * self.period_s - self.sigma,
+            "posture_scale": 0.0 if self._stalled_steps >= self._stall_steps else 1.0,
+        }
         return StepContext(
             self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev,
             self.sigma, pred, xs, jacs, xd, dxd, a_max, extras,
@@ -371,6 +405,8 @@ class PathFollowingController(Controller):
         self._expected_q = q + self.period_s * qd_cmd
         self._s_prev = s_now
         self._steps += 1
+        moving = s_now >= STALL_SCALING or self.sigma == 0.0
+        self._stalled_steps = 0 if moving else self._stalled_steps + 1
         x0 = self.robot.fast.pose_and_jacobian(q)[0]
         xd0 = self.trajectory.target(self.sigma)
         if float(x0 @ xd0) < 0.0:

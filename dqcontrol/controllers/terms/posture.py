@@ -20,6 +20,9 @@ __all__ = ["PostureTerm"]
 class PostureTerm(Term):
     """Pull towards ``reference`` (a configuration [rad]; set by the controller at reset).
 
+    ``ctx.extras["posture_scale"]`` (default 1) scales the gain: a controller sets it to 0
+    to hold the arm still (the rows then ask for ``qd_i = 0``).
+
     Args:
         layout: the decision layout.
         gain_per_s: ``K_p`` [1/s].
@@ -38,5 +41,6 @@ class PostureTerm(Term):
 
     def residual(self, ctx: StepContext) -> Residual:
         ref = ctx.q if self.reference is None else self.reference
-        b = self.gain_per_s * (ref - ctx.prediction.q_lin)
+        gain = self.gain_per_s * float(ctx.extras.get("posture_scale", 1.0))
+        b = gain * (ref - ctx.prediction.q_lin)
         return Residual(self.name, self.weight, b.ravel(), blocks=self._blocks)

@@ -1,0 +1,72 @@
+"""Joint torques through the inverse dynamics at the predicted states
+(FORMULATION §10, docs/theory.md §8.4).
+
+For block ``i`` the command changes from ``qd_{i-1}`` to ``qd_i`` over ``h_i`` (``T`` for the
+applied command, from the last applied one); at the block's linearisation state
+``(q̄_i, qd̄_i)`` the torque is
+
+    τ_i = M(q̄_i) (qd_i - qd_{i-1}) / h_i + C(q̄_i, qd̄_i) qd̄_i + g(q̄_i),
+
+linear in the decision, and ``|τ_i| ≤ f τ_max`` (``f``: the share of the URDF's effort limits
+the plan may use; the rest is left to the joint servos' feedback).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
+
+__all__ = ["TorqueLimit"]
+
+
+class TorqueLimit(Limit):
+    """Rows ``-f τ_max ≤ M (qd_i - qd_{i-1}) / h_i + b ≤ f τ_max`` for every block.
+
+    Args:
+        layout: the decision layout.
+        period_s: control period ``T`` [s] (``h_0``).
+        coupling_s: ``h_i`` for ``i = 1 … p-1`` [s].
+        effort_max: ``τ_max`` [N·m] per joint.
+        fraction: ``f`` in ``(0, 1]``.
+    """
+
+    name = "torque"
+
+    def __init__(
+        self,
+        layout: DecisionLayout,
+        period_s: float,
+        coupling_s: np.ndarray,
+        effort_max: np.ndarray,
+        fraction: float,
+    ) -> None:
+        self.layout = layout
+        self.steps_s = np.concatenate(([float(period_s)], np.asarray(coupling_s, dtype=float)))
+        self.limit = float(fraction) * np.asarray(effort_max, dtype=float)
+
+    def rows(self, ctx: StepContext) -> Inequality:
+        layout = self.layout
+        p, n = layout.num_blocks, layout.num_joints
+        idx = layout.qd_index()
+        pred = ctx.prediction
+        starts = np.vstack([ctx.q[None, :], pred.q_lin[:-1]])
+        c = np.zeros((p * n, layout.num_vars))
+        lo = np.empty(p * n)
+        up = np.empty(p * n)
+        fast = ctx.robot.fast
+        for i in range(p):
+            m, _g = fast.mass_gravity(starts[i])
+            bias = fast.bias_forces(starts[i], pred.warm_qd[i])
+            rows = slice(i * n, (i + 1) * n)
+            scaled = m / self.steps_s[i]
+            c[rows, idx[i]] = scaled
+            shift = bias.copy()
+            if i == 0:
+                shift -= scaled @ ctx.qd_prev
+            else:
+                c[rows, idx[i - 1]] = -scaled
+            lo[rows] = -self.limit - shift
+            up[rows] = self.limit - shift
+        return Inequality(self.name, c, lo, up)
