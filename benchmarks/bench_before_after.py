@@ -434,8 +434,11 @@ def main(argv: list[str] | None = None) -> int:
 
     repo = Path(_git(Path(__file__).resolve().parent, "rev-parse", "--show-toplevel"))
     new_src = Path(args.new_src).resolve() if args.new_src else repo
-    head = _git(repo, "rev-parse", "--short", "HEAD")
-    dirty = bool(_git(repo, "status", "--porcelain", "--untracked-files=no"))
+    try:  # the new tree's commit and whether its tracked files are modified
+        head = _git(new_src, "rev-parse", "--short", "HEAD")
+        dirty = bool(_git(new_src, "status", "--porcelain", "--untracked-files=no"))
+    except (subprocess.CalledProcessError, OSError):
+        head, dirty = "not a git tree", False
     load_start = os.getloadavg()
     tmp = Path(tempfile.mkdtemp(prefix="bench_before_after_"))
     worktree = None
