@@ -2,7 +2,7 @@
 
 import argparse
 
-from dqcontrol.bench import main
+from bench import main
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)

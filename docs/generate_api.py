@@ -19,6 +19,7 @@ MODULES = (
     "dqcontrol.dq",
     "dqcontrol.trajectories",
     "dqcontrol.controllers",
+    "dqcontrol.registry",
     "dqcontrol.sim",
     "dqcontrol.runs",
     "dqcontrol.viz",

@@ -16,12 +16,15 @@ import pinocchio as pin
 import pytest
 
 import dqcontrol
-from dqcontrol.bench import long_chain_urdf
+from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.dq.algebra import qfrom_axis_angle
 from dqcontrol.errors import ConfigurationError
 from dqcontrol.model import RobotModel, lbr4p_urdf_path
 from dqcontrol.model import robot as robot_module
 from dqcontrol.model.chain_batch import MAX_JOINTS, ChainBatch
+
+#: the synthetic serial chains of the benchmark (benchmarks/bench.py)
+long_chain_urdf = load_bench().long_chain_urdf
 
 COUNT = 250
 TOL = 1e-12

@@ -1,6 +1,6 @@
 """The ``dqcontrol`` command: ``run`` and ``view`` in short mode (in-process through
-``dqcontrol.cli.main``), ``--help`` everywhere, and bad options → a clear message and exit
-code 2."""
+``dqcontrol.cli.main``), ``--help`` everywhere, bad options → a clear message and exit
+code 2, and ``bench`` without a source checkout → a clear message and exit code 1."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ def default_run(tmp_path_factory):
 def test_run_writes_runs_figures_replays_and_comparison(default_run, capsys):
     code, folder = default_run
     assert code == 0
-    for label in ("local", "p10"):
+    for label in ("local", "p10", "pf"):
         log, record = load_run(folder / f"{label}.npz")
         assert record["metrics"]["completed"]
         assert log.meta["robot"] == "lbr4p" and log.meta["trajectory"] == "circle"
@@ -39,6 +39,32 @@ def test_run_writes_runs_figures_replays_and_comparison(default_run, capsys):
         assert html.stat().st_size > 500_000  # meshcat's JavaScript is inlined
     assert (folder / "comparison.png").stat().st_size > 10_000
     assert json.loads((folder / "p10.json").read_text())["meta"]["horizon_s"] == 1.0
+    pf = json.loads((folder / "pf.json").read_text())["meta"]
+    assert pf["controller"] == "path_following" and pf["acceleration_limit"] == 10.0
+    assert pf["radius_m"] == 0.1  # the trajectory's own metadata
+
+
+def test_run_compares_local_p10_and_path_following(tmp_path, capsys, monkeypatch):
+    import dqcontrol.viz.figures as figures
+    import dqcontrol.viz.meshcat_viewer as viewer
+
+    # the outputs are tested above; here the controllers, the table and the saved runs
+    monkeypatch.setattr(figures, "plot_run", lambda *a, **k: [])
+    monkeypatch.setattr(viewer, "export_replay_html", lambda *a, path_points, **k: a[2])
+    code = main(
+        ["run", "--short", "--simulator", "kinematic", "--controllers", "local,p10,path-following",
+         "--duration", "1", "--out", str(tmp_path)]
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0
+    rows = {line.split()[0]: line.split() for line in out.splitlines() if line.split()[:1] in (
+        ["local"], ["p10"], ["pf"])}  # fmt: skip
+    assert set(rows) == {"local", "p10", "pf"} and all(r[1] == "yes" for r in rows.values())
+    dev_mm = {name: float(r[5]) for name, r in rows.items()}  # the dev_mm column
+    assert dev_mm["pf"] < 0.5 < min(dev_mm["local"], dev_mm["p10"])
+    folder = tmp_path / "lbr4p_circle_T1s_kinematic"
+    log, record = load_run(folder / "pf.npz")
+    assert record["metrics"]["completed"] and log.meta["label"] == "pf"
 
 
 def test_run_prints_a_metrics_table(tmp_path, capsys):
@@ -111,6 +137,9 @@ def test_every_subcommand_has_help(capsys):
     [
         (["run", "--controllers", "local,mpc"], "unknown controller 'mpc'"),
         (["run", "--controllers", "p1"], "unknown controller 'p1'"),
+        (["run", "--controllers", "pf1"], "unknown controller 'pf1'"),
+        (["table1", "--controllers", "mpc"], "unknown controller 'mpc' for Table 1"),
+        (["table1", "--bound-samples", "3"], "expected 0 or an integer >= 10"),
         (["run", "--period", "0.0015"], "whole number of 0.001 s physics steps"),
         (["run", "--period", "-0.05"], "must be finite and > 0"),
         (["run", "--period", "3"], "longer than T_tot"),
@@ -135,6 +164,27 @@ def test_bad_options_exit_2_with_a_clear_message(argv, message, capsys):
     assert re.search(rf"^dqcontrol( {argv[0]})?: error: ", err, re.MULTILINE), err
     assert message in err
     assert "Traceback" not in err
+
+
+def test_unknown_controller_lists_the_known_ones(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--controllers", "mpc"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    for known in ("local", "p10", "noscale", "proportional", "pf", "path-following"):
+        assert known in err, known
+
+
+def test_bench_needs_a_source_checkout(tmp_path, monkeypatch, capsys):
+    from dqcontrol.cli import bench_cmd
+
+    assert bench_cmd.bench_path().is_file()  # this checkout has it
+    monkeypatch.setattr(bench_cmd, "bench_path", lambda: tmp_path / "benchmarks" / "bench.py")
+    monkeypatch.delitem(__import__("sys").modules, bench_cmd._MODULE, raising=False)
+    assert main(["bench", "--quick", "--out", str(tmp_path / "bench.json")]) == 1
+    err = capsys.readouterr().err
+    assert "needs a source checkout" in err and "Traceback" not in err
+    assert not (tmp_path / "bench.json").exists()
 
 
 def test_view_with_nothing_to_do_exits_2(default_run, capsys):

@@ -16,7 +16,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dqcontrol.bench import long_chain_urdf
+from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import LocalController
 from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.controllers.bounds import _vp_box, braking_constants, intersect_acceleration
@@ -24,6 +24,9 @@ from dqcontrol.controllers.qp_daqp import DaqpQP
 from dqcontrol.faults.qp_faults import contradictory
 from dqcontrol.model import LBR4P_Q0, RobotModel
 from dqcontrol.trajectories import Circle, Sinusoid
+
+#: the synthetic serial chains of the benchmark (benchmarks/bench.py)
+long_chain_urdf = load_bench().long_chain_urdf
 
 THESIS_VEL = np.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5])
 T = 1e-3

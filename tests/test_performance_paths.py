@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from dqcontrol.bench import long_chain_urdf
+from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import LocalController
 from dqcontrol.controllers.bounds import (
     braking_speed,
@@ -23,6 +23,9 @@ from dqcontrol.controllers.tracking import DEFAULT_SOLVER, default_solver
 from dqcontrol.errors import ParameterError
 from dqcontrol.model import RobotModel
 from dqcontrol.trajectories import Circle, FunctionTrajectory, Sinusoid, WaypointTrajectory
+
+#: the synthetic serial chains of the benchmark (benchmarks/bench.py)
+long_chain_urdf = load_bench().long_chain_urdf
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +123,8 @@ def test_default_solver_rule(lbr4p):
 
 
 def test_quick_bench_writes_every_figure(tmp_path):
-    from dqcontrol.bench import TARGETS, main
+    bench = load_bench()
+    TARGETS, main = bench.TARGETS, bench.main
 
     out = tmp_path / "bench.json"
     res = main(out=out, quick=True)

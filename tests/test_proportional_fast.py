@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from dqcontrol.bench import long_chain_urdf
+from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import ProportionalController, command_box
 from dqcontrol.controllers import proportional as prop
 from dqcontrol.controllers.base import StepDiagnostics, StepResult, fast_constructor
@@ -20,6 +20,9 @@ from dqcontrol.dq import dq_conj, dq_mul
 from dqcontrol.dq.algebra import C8, haminus8
 from dqcontrol.model import LBR4P_Q0, RobotModel
 from dqcontrol.trajectories import Circle, Sinusoid
+
+#: the synthetic serial chains of the benchmark (benchmarks/bench.py)
+long_chain_urdf = load_bench().long_chain_urdf
 
 THESIS_VEL = np.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5])
 ONE = np.array([1.0, 0, 0, 0, 0, 0, 0, 0])

@@ -1,7 +1,8 @@
-"""Issue 4: run storage (atomic files), the ``table1`` experiment and command, the Dask
-path, and a short MuJoCo run of each of the four controllers.
+"""Run storage (atomic files), the ``table1`` experiment and command (the thesis's rows and
+the path-following rows, the time-optimal bound, the deviation between samples), the Dask
+path, and a short MuJoCo run of each of the four thesis controllers.
 
-Runtime budget: well under a minute (reduced grids, short trajectories).
+Runtime budget: well under a minute (reduced grids, short trajectories, coarse bounds).
 """
 
 from __future__ import annotations
@@ -155,10 +156,18 @@ def test_crash_keeps_the_previous_version(tmp_path, monkeypatch):
 # ---------------------------------------------------------------------------- grid and job
 def test_grid_selection():
     full = t1.table1_cases()
-    assert len(full) == 24
+    assert len(full) == 32
     assert {(c.trajectory, c.duration_s) for c in full} == set(t1.THESIS_TABLE1)
+    assert [c.controller for c in full[:4]] == ["local", "p6", "p10", "pf"]
     quick = t1.table1_cases(quick=True)
-    assert len(quick) == 6 and len({(c.trajectory, c.duration_s) for c in quick}) == 2
+    assert len(quick) == 8 and len({(c.trajectory, c.duration_s) for c in quick}) == 2
+    pf = t1.table1_cases(quick=True, controllers=["path-following"])
+    assert [c.name for c in pf] == ["circle_T1s_pf", "sinusoid_T2s_pf"]
+    assert pf[0].label == "path-following" and pf[0].thesis("e_mean") is None
+    with pytest.raises(ParameterError, match="unknown controller 'mpc' for Table 1"):
+        t1.table1_cases(controllers=["mpc"])
+    with pytest.raises(ParameterError, match="choose from"):
+        t1.Table1Case("circle", 1.0, "noscale")
     two = t1.table1_cases(periods=[2], controllers=["local"])
     assert [(c.trajectory, c.duration_s) for c in two] == [("circle", 2.0), ("sinusoid", 2.0)]
     with pytest.raises(ParameterError, match="not in the thesis's grid"):
@@ -179,6 +188,31 @@ def test_job_is_picklable():
     )
     assert settings.acceleration_limit == 10.0 and settings.period_s == 0.05
     assert settings.horizon_s == 1.0 and settings.simulator == "mujoco"
+    assert settings.path_following_options == t1.PATH_FOLLOWING_OPTIONS
+    with pytest.raises(ParameterError, match="bound_samples"):
+        t1.Table1Settings(bound_samples=5)
+
+
+def test_rows_options_and_bounds():
+    """The thesis's rows keep their options; the path-following rows get the thesis's
+    velocity bounds, T, τ_p and their own acceleration limit; each row's bound has its
+    controller's limits."""
+    settings = t1.Table1Settings()
+    local, p10, pf = (t1.Table1Case("circle", 1.0, c) for c in ("local", "p10", "pf"))
+    assert local.controller_options(settings)["stall_damping"] == 0.0
+    assert "horizon_s" not in local.controller_options(settings)
+    assert p10.controller_options(settings)["acceleration_limit"] == 10.0
+    options = pf.controller_options(settings)
+    assert options["horizon_s"] == 1.0 and "stall_damping" not in options
+    assert options["acceleration_limit"] == dict(t1.PATH_FOLLOWING_OPTIONS)["acceleration_limit"]
+    np.testing.assert_array_equal(options["velocity_limits"], t1.THESIS_VELOCITY_LIMITS)
+    thesis_bound = p10.bound_constraints(settings)
+    assert thesis_bound["acceleration_limit"] == 10.0 and thesis_bound["speed_cap"] == 1.0
+    assert thesis_bound["posture_gain_per_s"] == 0.0
+    assert pf.bound_constraints(settings)["posture_gain_per_s"] == 1.0
+    own = t1.Table1Settings(path_following_options=(("torque_limit_fraction", 0.5),))
+    bound = pf.bound_constraints(own)
+    assert bound["acceleration_limit"] == "dynamics" and bound["torque_limits"][0] == 88.0
 
 
 def _read_csv(path):
@@ -191,12 +225,14 @@ def _read_csv(path):
 def test_table1_command_reduced_grid(tmp_path, capsys, simulator):
     out = tmp_path / "results"
     argv = ["table1", "--quick", "--simulator", simulator, "--out", str(out)]
-    code = main([*argv, "--workers", "1", "--no-progress"])
+    code = main([*argv, "--workers", "1", "--no-progress", "--bound-samples", "201"])
     assert code == 0
     printed = capsys.readouterr().out
     header, rows = _read_csv(out / "table1.csv")
     assert header == [k for k, _, _ in t1.COLUMNS]
-    assert len(rows) == 6
+    for key in ("toppra_bound_s", "exec_over_bound", "path_dev_max_between_mm"):
+        assert key in header
+    assert len(rows) == 8
     md = (out / "table1.md").read_text()
     assert md in printed
     for _, title, _ in t1.COLUMNS:
@@ -205,16 +241,24 @@ def test_table1_command_reduced_grid(tmp_path, capsys, simulator):
         assert needed in md, needed
     assert "wall time" in md and "CPUs" in md
     assert "## The thesis's claim at the short periods" in md
+    assert "## The path-following rows (path-following)" in md and "201 path samples" in md
     assert ("MuJoCo" if simulator == "mujoco" else "kinematic loop") in md
+    assert {r["controller"] for r in rows} == {"Local", "p=6", "p=10", "path-following"}
     for row in rows:
         assert row["completed"] == "yes"
         assert row["viol_position"] == row["viol_velocity"] == row["viol_acceleration"] == "0"
-        assert row["e_mean_thesis"] and row["u_mean_thesis"] and row["s_mean_thesis"]
+        thesis_row = row["controller"] != "path-following"
+        assert bool(row["e_mean_thesis"] and row["u_mean_thesis"]) == thesis_row
         assert math.isfinite(float(row["e_mean"])) and 0.0 < float(row["s_mean"]) <= 1.0
         torque = float(row["torque_peak_nm"]) if row["torque_peak_nm"] else math.nan
         assert math.isfinite(torque) == (simulator == "mujoco")
+        bound, ratio = float(row["toppra_bound_s"]), float(row["exec_over_bound"])
+        assert float(row["T_tot_s"]) < bound < float(row["exec_time_s"]) + 1.0
+        assert ratio == pytest.approx(float(row["exec_time_s"]) / bound, rel=1e-12)
+        between, at = float(row["path_dev_max_between_mm"]), float(row["path_dev_max_mm"])
+        assert between >= at - 1e-9  # the samples are among the states between them
     runs = sorted(p.name for p in (out / "table1_runs").iterdir())
-    assert len(runs) == 12 and "circle_T1s_p10.npz" in runs
+    assert len(runs) == 16 and "circle_T1s_p10.npz" in runs and "circle_T1s_pf.npz" in runs
     log, record = load_run(out / "table1_runs" / "sinusoid_T2s_local.json")
     assert record["meta"]["simulator"] == simulator and len(log) == record["metrics"]["samples"]
     assert not [p for p in out.rglob("*.tmp")]
@@ -224,6 +268,42 @@ def test_bad_option_is_one_line_error(tmp_path, capsys):
     assert main(["table1", "--periods", "3", "--out", str(tmp_path), "--no-progress"]) == 1
     err = capsys.readouterr().err
     assert "not in the thesis's grid" in err and "Traceback" not in err
+
+
+#: The kinematic loop without the time-optimal bound.
+_NO_BOUND = t1.Table1Settings(simulator="kinematic", bound_samples=0)
+
+
+def test_without_toppra_the_bound_is_nan_with_a_note(monkeypatch):
+    from dqcontrol.errors import ConfigurationError
+    from dqcontrol.experiments import runner, time_optimal
+
+    def missing():
+        raise ConfigurationError("the time-optimal bound needs toppra (simulated)")
+
+    monkeypatch.setattr(time_optimal, "_import_toppra", missing)
+    monkeypatch.setattr(runner, "_BOUNDS", {})
+    case = t1.Table1Case("circle", 1.0, "local")
+    result = t1.run_case(case, t1.Table1Settings(simulator="kinematic", bound_samples=101))
+    assert math.isnan(result["toppra_bound_s"]) and "needs toppra" in result["note"]
+    (row,) = t1.table_rows([result])
+    assert math.isnan(row["toppra_bound_s"]) and math.isnan(row["exec_over_bound"])
+    assert row["completed"] == "yes"
+    skipped = t1.run_case(case, _NO_BOUND)
+    assert math.isnan(skipped["toppra_bound_s"]) and skipped["note"] == ""
+
+
+def test_recording_between_samples_leaves_the_mujoco_run_unchanged():
+    case = t1.Table1Case("circle", 1.0, "local")
+    plain = t1.run_case(case, t1.Table1Settings(bound_samples=0, between_samples=False))
+    recorded = t1.run_case(case, t1.Table1Settings(bound_samples=0))
+    for key in plain["metrics"].keys() - _TIMING:
+        a, b = plain["metrics"][key], recorded["metrics"][key]
+        assert a == b or (isinstance(a, float) and math.isnan(a) and math.isnan(b)), key
+    assert math.isnan(plain["path_dev_max_between_m"])
+    between = recorded["path_dev_max_between_m"]
+    assert plain["metrics"]["path_deviation_max_m"] <= between < 0.1
+    assert 0.0 < recorded["torque_peak_ratio"] <= 1.0
 
 
 def test_interrupt_keeps_completed_cases(tmp_path, monkeypatch):
@@ -239,7 +319,7 @@ def test_interrupt_keeps_completed_cases(tmp_path, monkeypatch):
     monkeypatch.setattr(t1, "run_case", flaky)
     with pytest.raises(KeyboardInterrupt):
         t1.run_table1(
-            tmp_path, quick=True, simulator="kinematic", workers=1, progress=False, save_runs=False
+            tmp_path, quick=True, settings=_NO_BOUND, workers=1, progress=False, save_runs=False
         )
     _, rows = _read_csv(tmp_path / "table1.csv")
     assert len(rows) == 2
@@ -247,13 +327,17 @@ def test_interrupt_keeps_completed_cases(tmp_path, monkeypatch):
 
 
 # ---------------------------------------------------------------------------- executors
+#: The kinematic loop with a coarse time-optimal bound (a fast reduced grid).
+_KINEMATIC = t1.Table1Settings(simulator="kinematic", bound_samples=201)
+
+
 @pytest.fixture(scope="module")
 def pool_results(tmp_path_factory):
     out = tmp_path_factory.mktemp("pool")
     return t1.run_table1(
         out,
         quick=True,
-        simulator="kinematic",
+        settings=_KINEMATIC,
         workers=2,
         progress=False,
         save_runs=False,
@@ -262,10 +346,33 @@ def pool_results(tmp_path_factory):
 
 def test_process_pool_matches_in_process(pool_results):
     assert pool_results.executor.startswith("process pool, 2 workers")
-    case = t1.Table1Case("circle", 1.0, "p10")
-    local = t1.run_case(case, t1.Table1Settings(simulator="kinematic"))
-    (remote,) = [r for r in pool_results.results if r["case"] == local["case"]]
-    _same_metrics(local["metrics"], remote["metrics"])
+    for controller in ("p10", "pf"):
+        case = t1.Table1Case("circle", 1.0, controller)
+        local = t1.run_case(case, _KINEMATIC)
+        (remote,) = [r for r in pool_results.results if r["case"] == local["case"]]
+        _same_metrics(local["metrics"], remote["metrics"])
+        assert local["toppra_bound_s"] == remote["toppra_bound_s"]
+
+
+def test_path_following_keeps_the_path_where_the_thesis_methods_do_not(pool_results):
+    """The reduced grid (circle 1 s, sinusoid 2 s) in the kinematic loop: the
+    path-following rows stay within 0.5 mm of the path at every sample, complete, and
+    cross no bound; the thesis's rows leave it by more (the test can fail)."""
+    rows = pool_results.rows
+    assert {(r["traj"], r["T_tot_s"]) for r in rows} == {("circle", 1.0), ("sinusoid", 2.0)}
+    following = [r for r in rows if r["controller"] == "path-following"]
+    thesis = [r for r in rows if r["controller"] != "path-following"]
+    assert len(following) == 2 and len(thesis) == 6
+    for r in following:
+        assert r["path_dev_max_mm"] <= 0.5, r
+        assert r["completed"] == "yes" and r["fallbacks"] == 0
+        assert r["viol_position"] == r["viol_velocity"] == r["viol_acceleration"] == 0
+        assert math.isfinite(r["exec_over_bound"])
+    for r in thesis:
+        assert r["path_dev_max_mm"] > 0.5, r
+    md = pool_results.markdown
+    assert "## The thesis's claim at the short periods" in md  # p=10 vs Local, unchanged
+    assert "## The path-following rows" in md
 
 
 def test_dask_cluster_matches_process_pool(tmp_path, pool_results):
@@ -280,13 +387,13 @@ def test_dask_cluster_matches_process_pool(tmp_path, pool_results):
         result = t1.run_table1(
             tmp_path,
             quick=True,
-            simulator="kinematic",
+            settings=_KINEMATIC,
             scheduler=cluster.scheduler_address,
             progress=False,
             save_runs=True,
         )
     assert result.executor.startswith("Dask distributed at tcp://")
-    assert len(result.results) == len(pool_results.results) == 6
+    assert len(result.results) == len(pool_results.results) == 8
     by_case = {str(r["case"]): r for r in pool_results.results}
     for r in result.results:
         _same_metrics(r["metrics"], by_case[str(r["case"])]["metrics"])
@@ -296,7 +403,7 @@ def test_dask_cluster_matches_process_pool(tmp_path, pool_results):
                 assert a[key] == pytest.approx(b[key], rel=1e-9, nan_ok=True), key
             else:
                 assert a[key] == b[key], key
-    assert len(list((tmp_path / "table1_runs").glob("*.json"))) == 6
+    assert len(list((tmp_path / "table1_runs").glob("*.json"))) == 8
 
 
 def test_unreachable_scheduler_is_a_clear_error(monkeypatch):

@@ -1,8 +1,11 @@
 """``dqcontrol run``: run controllers on a trajectory, print their metrics, write the results.
 
 The default is the README's first command: the thesis's KUKA LBR4p on the circle with
-``T_tot = 2 s``, the local and the predictive (p = 10) controllers simulated in MuJoCo with
-the thesis's bounds. Everything lands in ``OUT/<robot>_<trajectory>_T<T_tot>s_<simulator>/``:
+``T_tot = 2 s``, the local, the predictive (p = 10) and the path-following controllers
+simulated in MuJoCo with the thesis's bounds (:mod:`dqcontrol.experiments.thesis`).
+Controllers are built by name through :mod:`dqcontrol.registry`; trajectories are saved and
+rebuilt through their own metadata (:meth:`~dqcontrol.trajectories.Trajectory.to_metadata`).
+Everything lands in ``OUT/<robot>_<trajectory>_T<T_tot>s_<simulator>/``:
 per controller its run (``<ctrl>.npz`` + ``.json``), its figures (``<ctrl>_<figure>.png``)
 and its replay (``<ctrl>_replay.html``), and ``comparison.png`` for two or more controllers.
 
@@ -14,10 +17,17 @@ from __future__ import annotations
 
 import argparse
 import math
-import re
 import sys
 import time
 from pathlib import Path
+
+from dqcontrol.experiments.thesis import (
+    THESIS_ACCELERATION_LIMIT,
+    THESIS_HORIZON_S,
+    THESIS_PERIOD_S,
+    THESIS_VELOCITY_LIMITS,
+)
+from dqcontrol.registry import CONTROLLER_HELP
 
 __all__ = ["register"]
 
@@ -28,31 +38,27 @@ OUT/<robot>_<trajectory>_T<T_tot>s_<simulator>/: each run (.npz + .json, reload 
 phase, joint velocities, angles and torques, s(t) and sigma(t)), a self-contained HTML
 replay that plays in any browser, and a figure comparing the controllers.
 
-Defaults: the LBR4p on the circle (R = 0.1 m) with T_tot = 2 s, the local and the
-predictive (p = 10) controllers, T = 0.05 s, tau_p = 1 s, K = 10 1/s, MuJoCo, the thesis's
-bounds |qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s and |qdd| <= 10 rad/s^2."""
+Defaults: the LBR4p on the circle (R = 0.1 m) with T_tot = 2 s, the local, the predictive
+(p = 10) and the path-following (p = 10) controllers, T = 0.05 s, tau_p = 1 s, K = 10 1/s,
+MuJoCo, the thesis's bounds |qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s and |qdd| <= 10 rad/s^2
+for every controller."""
 
-_EPILOG = """\
-controllers (comma-separated):
-  local         the local method with time scaling
-  p6, p10, pN   the predictive method with N prediction instants (N >= 2)
-  noscale       the predictive method without time scaling (p = 10; noscaleN for N)
-  proportional  the invariant-error proportional controller (clipped to the bounds)
+_EPILOG = f"""\
+controllers (comma-separated, any case):
+{CONTROLLER_HELP}
 
 examples:
   dqcontrol run
   dqcontrol run --viewer --speed 0.5
-  dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10
+  dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10,pf
   dqcontrol run --period 0.001                      the 1 kHz controller
   dqcontrol run --robot panda --simulator kinematic
   dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0"""
 
-#: The thesis's joint-velocity bounds (eq. 4.13) [rad/s] and acceleration bound [rad/s²].
-THESIS_VELOCITY_LIMITS = tuple(math.pi * v for v in (1.0, 1.0, 1.0, 1.0, 2.5, 2.5, 2.5))
-THESIS_ACCELERATION_LIMIT = 10.0
 #: The physics step of the MuJoCo simulation [s]; ``T`` must be a multiple of it.
 PHYSICS_DT_S = 0.001
-_CONTROLLER_RE = re.compile(r"^(local|proportional|noscale(\d*)|p(\d+))$")
+#: The controllers of ``dqcontrol run`` without ``--controllers``.
+DEFAULT_CONTROLLERS = ("local", "p10", "pf")
 
 
 # ---------------------------------------------------------------------- option types
@@ -82,19 +88,19 @@ def _float_list(text: str) -> tuple[float, ...]:
 
 
 def parse_controllers(text: str) -> tuple[str, ...]:
-    """``"local,p10"`` → ``("local", "p10")``; argparse error for an unknown name."""
+    """``"local,p10,path-following"`` → ``("local", "p10", "pf")``: the registry's canonical
+    names, each once; argparse error (listing the known names) for an unknown one."""
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.registry import controller_spec
+
     names: list[str] = []
     for raw in text.split(","):
-        name = raw.strip().lower()
-        if not name:
+        if not raw.strip():
             continue
-        match = _CONTROLLER_RE.match(name)
-        count = match and (match.group(2) or match.group(3))
-        if not match or (count and int(count) < 2):
-            raise argparse.ArgumentTypeError(
-                f"unknown controller {raw.strip()!r}; choose from local, p6, p10 (pN for any "
-                "N >= 2), noscale, proportional"
-            )
+        try:
+            name = controller_spec(raw).name
+        except ParameterError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
         if name not in names:
             names.append(name)
     if not names:
@@ -107,8 +113,8 @@ def register(subparsers) -> None:
     """Add the ``run`` subcommand."""
     p = subparsers.add_parser(
         "run",
-        help="run controllers (default: LBR4p, circle, local vs p = 10, MuJoCo) and write "
-        "metrics, figures and replays",
+        help="run controllers (default: LBR4p, circle, local vs p = 10 vs path following, "
+        "MuJoCo) and write metrics, figures and replays",
         description=_DESCRIPTION,
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -150,14 +156,14 @@ def register(subparsers) -> None:
     g.add_argument(
         "--controllers",
         type=parse_controllers,
-        default=("local", "p10"),
+        default=DEFAULT_CONTROLLERS,
         metavar="LIST",
-        help="comma-separated controllers (default: local,p10; see below)",
+        help=f"comma-separated controllers (default: {','.join(DEFAULT_CONTROLLERS)}; see below)",
     )
     g.add_argument(
         "--period",
         type=_positive_float("s"),
-        default=0.05,
+        default=THESIS_PERIOD_S,
         metavar="T",
         help="control period T [s] (default: 0.05; 0.001 runs the 1 kHz controller)",
     )
@@ -165,14 +171,16 @@ def register(subparsers) -> None:
         "--gain",
         type=_positive_float("1/s"),
         metavar="K",
-        help="task gain K [1/s] of every controller (default: 10; noscale: its stable default)",
+        help="task gain K [1/s] of every controller that has one (default: 10; noscale: its "
+        "stable default; the path-following controller has none)",
     )
     g.add_argument(
         "--horizon",
         type=_positive_float("s"),
-        default=1.0,
+        default=THESIS_HORIZON_S,
         metavar="TAU_P",
-        help="prediction horizon tau_p of the predictive controllers [s] (default: 1)",
+        help="prediction horizon tau_p of the predictive and path-following controllers [s] "
+        "(default: 1)",
     )
     g.add_argument(
         "--velocity-limits",
@@ -185,7 +193,7 @@ def register(subparsers) -> None:
         type=_positive_float("rad/s^2"),
         default=THESIS_ACCELERATION_LIMIT,
         metavar="A",
-        help="joint acceleration bound [rad/s^2] (default: 10)",
+        help="joint acceleration bound [rad/s^2] of every controller (default: 10)",
     )
     g = p.add_argument_group("simulation, viewer and output")
     g.add_argument(
@@ -286,72 +294,43 @@ def robot_from_meta(meta: dict):
 
 
 def make_trajectory(kind: str, duration_s: float):
-    """The thesis's circle or sinusoid, and the ``meta`` that rebuilds it."""
-    from dqcontrol.trajectories import Circle, Sinusoid
+    """The thesis's circle or sinusoid, and the ``meta`` that rebuilds it (its own
+    :meth:`~dqcontrol.trajectories.Trajectory.to_metadata`)."""
+    from dqcontrol.trajectories import trajectory_from_metadata
 
-    if kind == "circle":
-        traj = Circle(duration_s)
-        return traj, {"trajectory": "circle", "duration_s": duration_s, "radius_m": 0.1}
-    traj = Sinusoid(duration_s)
-    return traj, {
-        "trajectory": "sinusoid",
-        "duration_s": duration_s,
-        "amplitude_m": traj.amplitude_m,
-        "omega_x_rad_per_m": traj.omega_x_rad_per_m,
-    }
+    traj = trajectory_from_metadata({"trajectory": kind, "duration_s": duration_s})
+    return traj, traj.to_metadata()
 
 
 def trajectory_from_meta(meta: dict, log):
     """The anchored trajectory of a saved run, or ``None`` if its meta does not say."""
-    from dqcontrol.trajectories import Circle, Sinusoid
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.trajectories import trajectory_from_metadata
 
-    kind, duration = meta.get("trajectory"), meta.get("duration_s")
-    if duration is None or len(log) == 0:
+    if len(log) == 0:
         return None
-    if kind == "circle":
-        traj = Circle(float(duration), float(meta.get("radius_m", 0.1)))
-    elif kind == "sinusoid":
-        traj = Sinusoid(
-            float(duration),
-            float(meta.get("amplitude_m", 0.1)),
-            float(meta.get("omega_x_rad_per_m", 60.0)),
-        )
-    else:
+    try:
+        traj = trajectory_from_metadata(meta)
+    except ParameterError:
         return None
+    if traj.reference is not None:
+        return traj
     return traj.anchored_at(log.target[0])  # target(0) is the anchor pose x0
 
 
 def make_controller(name: str, robot, trajectory, args, velocity_limits):
-    """The controller ``name`` (see :func:`parse_controllers`) with the options' settings."""
-    from dqcontrol.controllers import (
-        LocalController,
-        PredictiveController,
-        PredictiveNoScalingController,
-        ProportionalController,
-    )
+    """The controller ``name`` (see :func:`parse_controllers`) with the options' settings:
+    each controller takes those of the bounds, gain and horizon it has
+    (:func:`dqcontrol.registry.build_controller`)."""
+    from dqcontrol.registry import build_controller
 
-    common = {"velocity_limits": velocity_limits, "acceleration_limit": args.acceleration_limit}
-    if args.gain is not None:
-        common["gain_per_s"] = args.gain
-    period = args.period
-    if name == "local":
-        return LocalController(robot, trajectory, period, **common)
-    if name == "proportional":
-        return ProportionalController(robot, trajectory, period, **common)
-    match = _CONTROLLER_RE.match(name)
-    if name.startswith("noscale"):
-        p = int(match.group(2) or 10)
-        return PredictiveNoScalingController(
-            robot, trajectory, period, num_instants=p, horizon_s=args.horizon, **common
-        )
-    return PredictiveController(
-        robot,
-        trajectory,
-        period,
-        num_instants=int(match.group(3)),
-        horizon_s=args.horizon,
-        **common,
-    )
+    shared = {
+        "velocity_limits": velocity_limits,
+        "acceleration_limit": args.acceleration_limit,
+        "gain_per_s": args.gain,
+        "horizon_s": args.horizon,
+    }
+    return build_controller(name, robot, trajectory, args.period, shared=shared)
 
 
 # ---------------------------------------------------------------------- output helpers

@@ -13,6 +13,15 @@ Reproduce the thesis's Table 1: the circle at T_tot = 8, 4, 2, 1 s and the sinus
 16, 8, 4, 2 s, each with the local method and the predictive method at p = 6 and p = 10;
 T = 0.05 s, tau_p = 1 s, the thesis's bounds (|qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s,
 |qdd| <= 10 rad/s^2), start configuration LBR4P_Q0, the library's gains (K = 10 1/s).
+Beside them, the path-following controller (rows 'path-following'; p = 10 intervals, the
+same T, tau_p and velocity bounds, |qdd| <= 5 rad/s^2: the largest of those measured that
+keeps MuJoCo's servos below their torque limits).
+
+Every row also has the TOPP-RA lower bound of its task's execution time under its own
+velocity and acceleration bounds (speed cap s <= 1; NaN with a note if toppra is not
+installed), execution time / bound, the largest path deviation between the control
+samples (at every MuJoCo physics step, or along the kinematic loop's joint motion) and the
+peak torque over its limit.
 
 The cases run in parallel on all cores (or on a Dask cluster with --scheduler) with a
 progress bar. Writes OUT/table1.md (settings, machine, wall time, our figures beside the
@@ -21,9 +30,9 @@ thesis's) and OUT/table1.csv, both atomically, and each run's log to OUT/table1_
 
 _EPILOG = """\
 examples:
-  dqcontrol table1                         full grid in MuJoCo (24 cases)
+  dqcontrol table1                         full grid in MuJoCo (32 cases)
   dqcontrol table1 --quick --simulator kinematic
-  dqcontrol table1 --periods 1 2 --workers 2
+  dqcontrol table1 --controllers p10 pf --periods 1 2 --workers 2
   dqcontrol table1 --scheduler tcp://10.0.0.5:8786 --out /shared/results"""
 
 
@@ -31,7 +40,8 @@ def register(subparsers) -> None:
     """Add the ``table1`` subcommand."""
     p = subparsers.add_parser(
         "table1",
-        help="reproduce the thesis's Table 1 (circle and sinusoid, Local vs p = 6, 10)",
+        help="reproduce the thesis's Table 1 (circle and sinusoid, Local vs p = 6, 10) with "
+        "the path-following controller beside it",
         description=_DESCRIPTION,
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -61,9 +71,9 @@ def register(subparsers) -> None:
     p.add_argument(
         "--controllers",
         nargs="+",
-        choices=("local", "p6", "p10"),
+        type=_controller,
         metavar="CTRL",
-        help="only these controllers (local, p6, p10)",
+        help="only these controllers: local, p6, p10, pf (alias path-following)",
     )
     p.add_argument(
         "--simulator",
@@ -91,17 +101,48 @@ def register(subparsers) -> None:
         action="store_false",
         help="do not keep each run's log (.npz + .json) in OUT/table1_runs/",
     )
+    p.add_argument(
+        "--bound-samples",
+        type=_bound_samples,
+        default=None,
+        metavar="N",
+        help="path samples of the TOPP-RA bound (default: 2001; 0: no bound)",
+    )
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     p.set_defaults(func=_run)
 
 
+def _controller(text: str) -> str:
+    """A controller of the grid by its registry name or alias (argparse error if unknown)."""
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.experiments.table1 import _canonical
+
+    try:
+        return _canonical(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _bound_samples(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value != 0 and value < 10:
+        raise argparse.ArgumentTypeError(f"expected 0 or an integer >= 10, got {text!r}")
+    return value
+
+
 def _run(args: argparse.Namespace) -> int:
     from dqcontrol.errors import ParameterError
-    from dqcontrol.experiments.table1 import run_table1
+    from dqcontrol.experiments.table1 import Table1Settings, run_table1
 
     if args.workers is not None and args.workers < 1:
         raise ParameterError(f"--workers must be ≥ 1, got {args.workers}")
     command = _command_line(args)
+    settings = None
+    if args.bound_samples is not None:
+        settings = Table1Settings(simulator=args.simulator, bound_samples=args.bound_samples)
     try:
         result = run_table1(
             args.out,
@@ -110,6 +151,7 @@ def _run(args: argparse.Namespace) -> int:
             trajectories=args.trajectories,
             controllers=args.controllers,
             simulator=args.simulator,
+            settings=settings,
             workers=args.workers,
             scheduler=args.scheduler,
             save_runs=args.save_runs,
@@ -149,6 +191,8 @@ def _command_line(args: argparse.Namespace) -> str:
         if values:
             parts += [flag, *values]
     parts += ["--simulator", args.simulator]
+    if args.bound_samples is not None:
+        parts += ["--bound-samples", str(args.bound_samples)]
     if args.workers is not None:
         parts += ["--workers", str(args.workers)]
     if args.scheduler:

@@ -1,26 +1,39 @@
-"""The thesis's Table 1, reproduced (FORMULATION §7–8, issue 4).
+"""The thesis's Table 1, reproduced, with the path-following controller beside it
+(FORMULATION §7–8, §10).
 
 The grid: the circle at ``T_tot`` = 8, 4, 2, 1 s and the sinusoid at 16, 8, 4, 2 s, each
-run with the local method and the predictive method at p = 6 and p = 10; ``T = 0.05 s``,
-``τ_p = 1 s``, the thesis's velocity bounds ``π·[1,1,1,1,2.5,2.5,2.5]`` rad/s and constant
-acceleration bound 10 rad/s² (passed explicitly: the URDF carries the hardware's limits),
-start configuration :data:`~dqcontrol.model.library.LBR4P_Q0`, simulated in MuJoCo (or with
-the kinematic loop). The gains are the library's defaults (``K = 10 1/s``, ``T K = 0.5``,
-FORMULATION §9), *not* the thesis's.
+run with the local method, the predictive method at p = 6 and p = 10 (the thesis's three
+rows) and the path-following controller (p = 10 intervals, label ``path-following``).
+The experiment's numbers come from :mod:`dqcontrol.experiments.thesis`: ``T = 0.05 s``,
+``τ_p = 1 s``, the velocity bounds ``π·[1,1,1,1,2.5,2.5,2.5]`` rad/s, the constant
+acceleration bound 10 rad/s² (passed explicitly: the URDF carries the hardware's limits)
+and the start configuration :data:`~dqcontrol.model.library.LBR4P_Q0`, simulated in MuJoCo
+(or with the kinematic loop). The gains are the library's defaults (``K = 10 1/s``,
+``T K = 0.5``, FORMULATION §9), *not* the thesis's. The path-following rows take the
+thesis's velocity bounds, ``T``, ``τ_p`` and :attr:`Table1Settings.path_following_options`
+(default :data:`PATH_FOLLOWING_OPTIONS`).
+
+Besides the thesis's metrics, every row has the TOPP-RA lower bound of its task's
+execution time under the same velocity and acceleration bounds as its controller
+(:mod:`dqcontrol.experiments.time_optimal`; the thesis's rows along the least-norm joint
+path, the path-following rows along the joint path of their own posture level), the ratio
+of the execution time to it, and the largest path deviation between the control samples
+(along MuJoCo's physics steps, or the kinematic loop's straight joint motion).
 
 Each case is a :class:`Table1Case`; :func:`run_case` is a plain module-level function of
 picklable arguments that builds the robot, trajectory, controller and simulation inside the
-worker (Pinocchio and MuJoCo objects cannot be pickled) and returns a plain dict, so the
-same job runs in-process, on a :class:`concurrent.futures.ProcessPoolExecutor` or on a Dask
-distributed cluster (:func:`run_table1` with ``scheduler="tcp://host:port"``).
+worker (Pinocchio and MuJoCo objects cannot be pickled) through the case runner
+(:mod:`dqcontrol.experiments.runner`) and returns a plain dict, so the same job runs
+in-process, on a :class:`concurrent.futures.ProcessPoolExecutor` or on a Dask distributed
+cluster (:func:`run_table1` with ``scheduler="tcp://host:port"``).
 
 :func:`run_table1` writes ``table1.md`` and ``table1.csv`` atomically
 (:mod:`dqcontrol.runs.storage`): our ``e_mean``, ``u_mean``, ``s_mean`` next to the
 thesis's (:data:`THESIS_TABLE1`), plus path deviation, translation and rotation error,
-execution time, peak torque, bound violations and fallbacks; the ``.md`` starts with the
-settings, the machine and the wall time. With ``save_runs`` each run's log is kept as
-``table1_runs/<case>.npz`` + ``.json`` (on a remote Dask cluster: on the worker's file
-system, so use a shared folder).
+execution time, the time-optimal bound, peak torque, bound violations and fallbacks; the
+``.md`` starts with the settings, the machine and the wall time. With ``save_runs`` each
+run's log is kept as ``table1_runs/<case>.npz`` + ``.json`` (on a remote Dask cluster: on
+the worker's file system, so use a shared folder).
 """
 
 from __future__ import annotations
@@ -31,7 +44,6 @@ import math
 import os
 import platform
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -45,13 +57,21 @@ from pathlib import Path
 import numpy as np
 
 from dqcontrol.errors import ConfigurationError, ParameterError
+from dqcontrol.experiments.thesis import (
+    THESIS_ACCELERATION_LIMIT,
+    THESIS_HORIZON_S,
+    THESIS_PERIOD_S,
+    THESIS_VELOCITY_LIMITS,
+)
 
 __all__ = [
     "COLUMNS",
     "CONTROLLERS",
     "GRID_PERIODS",
+    "PATH_FOLLOWING_OPTIONS",
     "QUICK_PERIODS",
     "SHORT_PERIODS",
+    "THESIS_CONTROLLERS",
     "THESIS_TABLE1",
     "THESIS_VELOCITY_LIMITS",
     "TRAJECTORIES",
@@ -67,21 +87,30 @@ __all__ = [
 
 #: Trajectory kinds of the grid.
 TRAJECTORIES = ("circle", "sinusoid")
-#: Controller kinds of the grid: the local method, predictive with p = 6 and p = 10.
-CONTROLLERS = ("local", "p6", "p10")
-#: How each controller kind is written in the tables.
-CONTROLLER_LABELS = {"local": "Local", "p6": "p=6", "p10": "p=10"}
+#: The thesis's controllers: the local method, predictive with p = 6 and p = 10.
+THESIS_CONTROLLERS = ("local", "p6", "p10")
+#: Controllers of the grid (names of :mod:`dqcontrol.registry`): the thesis's and the
+#: path-following controller.
+CONTROLLERS = (*THESIS_CONTROLLERS, "pf")
 #: The thesis's periods ``T_tot`` [s] per trajectory.
 GRID_PERIODS = {"circle": (8.0, 4.0, 2.0, 1.0), "sinusoid": (16.0, 8.0, 4.0, 2.0)}
 #: The reduced grid (``quick=True``, CI): one period per trajectory, the shortest (where the
 #: thesis's claim is strongest).
 QUICK_PERIODS = {"circle": (1.0,), "sinusoid": (2.0,)}
-#: The "short periods" at which the thesis claims that p = 10 beats Local (issue 4).
+#: The "short periods" at which the thesis claims that p = 10 beats Local.
 SHORT_PERIODS = {"circle": (4.0, 2.0, 1.0), "sinusoid": (8.0, 4.0, 2.0)}
-#: The thesis's velocity bounds (eq. 4.13) [rad/s].
-THESIS_VELOCITY_LIMITS = tuple(float(v) for v in math.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5]))
-#: The thesis's constant acceleration bound [rad/s²].
-THESIS_ACCELERATION_LIMIT = 10.0
+#: Keyword arguments of the path-following rows besides the thesis's velocity bounds,
+#: ``T``, ``τ_p`` and p = 10: a constant acceleration bound of 5 rad/s². The command may
+#: change by ``a_max T`` from one period to the next, and MuJoCo's velocity servos answer
+#: such a step with an acceleration of about ``a_max T / τ_v`` (ten times ``a_max`` at
+#: ``T = 50 ms``, ``τ_v = 5 ms``), which neither the plan's acceleration nor its torque rows
+#: see: with the controller's dynamics-aware default or the thesis's 10 rad/s² the servos
+#: of joints 2 and 3 reach their torque limits on the short periods, with 5 rad/s² they stay
+#: below them in every case (docs/table1_analysis.md).
+PATH_FOLLOWING_OPTIONS: tuple[tuple[str, object], ...] = (("acceleration_limit", 5.0),)
+#: Path samples of the time-optimal bound (0: not computed).
+BOUND_SAMPLES = 2001
+
 
 #: The thesis's Table 1 (CoppeliaSim, T = 0.05 s, τ_p = 1 s; FORMULATION §8):
 #: ``(traj, T_tot) -> {metric: (Local, p=6, p=10)}``.
@@ -138,21 +167,31 @@ class Table1Settings:
         period_s: control period ``T`` [s] (thesis: 0.05).
         horizon_s: prediction horizon ``τ_p`` [s] (thesis: 1).
         velocity_limits: ``qd_max`` per joint [rad/s] (thesis: π·[1,1,1,1,2.5,2.5,2.5]).
-        acceleration_limit: constant ``a_max`` [rad/s²] (thesis: 10).
+        acceleration_limit: constant ``a_max`` of the thesis's controllers [rad/s²]
+            (thesis: 10).
         simulator: ``"mujoco"`` (torque-limited velocity servos) or ``"kinematic"``.
         q0: start configuration [rad] (default :data:`LBR4P_Q0`).
-        controller_options: extra keyword arguments for every controller, as ``(name,
-            value)`` pairs (default: the library's gains and weights with the stall
-            damping off, so that the cost is FORMULATION §5's exactly, as in the thesis).
+        controller_options: extra keyword arguments for the thesis's controllers, as
+            ``(name, value)`` pairs (default: the library's gains and weights with the
+            stall damping off, so that the cost is FORMULATION §5's exactly, as in the
+            thesis).
+        path_following_options: extra keyword arguments for the path-following rows
+            (default :data:`PATH_FOLLOWING_OPTIONS`); without an ``acceleration_limit`` the
+            controller's own default applies.
+        bound_samples: path samples of the time-optimal bound (0: not computed, NaN).
+        between_samples: measure the path deviation between the control samples.
     """
 
-    period_s: float = 0.05
-    horizon_s: float = 1.0
+    period_s: float = THESIS_PERIOD_S
+    horizon_s: float = THESIS_HORIZON_S
     velocity_limits: tuple[float, ...] = THESIS_VELOCITY_LIMITS
     acceleration_limit: float = THESIS_ACCELERATION_LIMIT
     simulator: str = "mujoco"
     q0: tuple[float, ...] | None = None
     controller_options: tuple[tuple[str, object], ...] = (("stall_damping", 0.0),)
+    path_following_options: tuple[tuple[str, object], ...] = PATH_FOLLOWING_OPTIONS
+    bound_samples: int = BOUND_SAMPLES
+    between_samples: bool = True
 
     def __post_init__(self) -> None:
         if self.simulator not in ("mujoco", "kinematic"):
@@ -163,17 +202,41 @@ class Table1Settings:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be finite and > 0, got {value!r}")
+        samples = self.bound_samples
+        if (
+            isinstance(samples, bool)
+            or not isinstance(samples, int)
+            or not (samples == 0 or samples >= 10)
+        ):
+            raise ParameterError(f"bound_samples must be 0 or an integer ≥ 10, got {samples!r}")
 
     def start_configuration(self) -> np.ndarray:
         """``q0`` [rad] as an array (:data:`LBR4P_Q0` unless given)."""
-        from dqcontrol.model.library import LBR4P_Q0
+        from dqcontrol.experiments.thesis import THESIS_Q0
 
-        return LBR4P_Q0.copy() if self.q0 is None else np.asarray(self.q0, dtype=float)
+        return THESIS_Q0.copy() if self.q0 is None else np.asarray(self.q0, dtype=float)
+
+
+def _canonical(controller: str) -> str:
+    """The registry's canonical name of ``controller``, checked to be in the grid."""
+    from dqcontrol.registry import controller_spec
+
+    try:
+        name = controller_spec(controller).name
+    except ParameterError:
+        name = None
+    if name not in CONTROLLERS:
+        raise ParameterError(
+            f"unknown controller {controller!r} for Table 1; choose from {CONTROLLERS} "
+            "(or an alias such as path-following)"
+        )
+    return name
 
 
 @dataclass(frozen=True, order=True)
 class Table1Case:
-    """One cell of the grid: trajectory kind, nominal duration ``T_tot`` [s], controller."""
+    """One cell of the grid: trajectory kind, nominal duration ``T_tot`` [s], controller
+    (a name of :data:`CONTROLLERS` or an alias; kept as the canonical name)."""
 
     trajectory: str
     duration_s: float
@@ -184,10 +247,7 @@ class Table1Case:
             raise ParameterError(
                 f"trajectory must be one of {TRAJECTORIES}, got {self.trajectory!r}"
             )
-        if self.controller not in CONTROLLERS:
-            raise ParameterError(
-                f"controller must be one of {CONTROLLERS}, got {self.controller!r}"
-            )
+        object.__setattr__(self, "controller", _canonical(self.controller))
         d = self.duration_s
         if not (isinstance(d, int | float) and math.isfinite(d) and d > 0):
             raise ParameterError(f"duration_s (T_tot) must be finite and > 0 [s], got {d!r}")
@@ -199,58 +259,88 @@ class Table1Case:
         return f"{self.trajectory}_T{self.duration_s:g}s_{self.controller}"
 
     @property
+    def thesis_row(self) -> bool:
+        """Whether the thesis has this controller (its rows, its constant bounds)."""
+        return self.controller in THESIS_CONTROLLERS
+
+    @property
     def label(self) -> str:
-        """How the controller is written in the tables (``Local``, ``p=6``, ``p=10``)."""
-        return CONTROLLER_LABELS[self.controller]
+        """How the controller is written in the tables (``Local``, ``p=6``, ``p=10``,
+        ``path-following``): the registry's label."""
+        from dqcontrol.registry import controller_spec
+
+        return controller_spec(self.controller).table_label
 
     def thesis(self, metric: str) -> float | None:
         """The thesis's value of ``metric`` (``e_mean``, ``u_mean``, ``s_mean``) or None."""
         entry = THESIS_TABLE1.get((self.trajectory, self.duration_s))
-        if entry is None:
+        if entry is None or not self.thesis_row:
             return None
-        return entry[metric][CONTROLLERS.index(self.controller)]
+        return entry[metric][THESIS_CONTROLLERS.index(self.controller)]
 
     def cost_estimate(self) -> float:
         """Rough relative cost (for scheduling the longest jobs first)."""
-        factor = {"local": 1.0, "p6": 2.0, "p10": 3.0}[self.controller]
+        factor = {"local": 1.0, "p6": 2.0, "p10": 3.0, "pf": 8.0}[self.controller]
         return self.duration_s * factor
+
+    def trajectory_metadata(self) -> dict:
+        """The task, as :func:`~dqcontrol.trajectories.trajectory_from_metadata` reads it."""
+        return {"trajectory": self.trajectory, "duration_s": self.duration_s}
+
+    def controller_options(self, settings: Table1Settings) -> dict:
+        """The controller's keyword arguments (besides robot, trajectory, period)."""
+        velocity = np.asarray(settings.velocity_limits, dtype=float)
+        if self.thesis_row:
+            kwargs = dict(settings.controller_options)
+            kwargs["velocity_limits"] = velocity
+            kwargs["acceleration_limit"] = float(settings.acceleration_limit)
+        else:
+            kwargs = {"velocity_limits": velocity, **dict(settings.path_following_options)}
+        if self.controller != "local":
+            kwargs["horizon_s"] = settings.horizon_s
+        return kwargs
 
     def build(self, settings: Table1Settings):
         """``(robot, controller)`` for this case (fresh objects; call in the worker)."""
-        from dqcontrol.controllers import LocalController, PredictiveController
-        from dqcontrol.trajectories import Circle, Sinusoid
+        from dqcontrol.experiments.runner import build_trajectory, lbr4p
+        from dqcontrol.registry import build_controller
 
-        robot = _lbr4p()
-        trajectory = (Circle if self.trajectory == "circle" else Sinusoid)(self.duration_s)
-        kwargs = dict(settings.controller_options)
-        kwargs["velocity_limits"] = np.asarray(settings.velocity_limits, dtype=float)
-        kwargs["acceleration_limit"] = float(settings.acceleration_limit)
-        if self.controller == "local":
-            controller = LocalController(robot, trajectory, settings.period_s, **kwargs)
-        else:
-            controller = PredictiveController(
-                robot,
-                trajectory,
-                settings.period_s,
-                num_instants=int(self.controller[1:]),
-                horizon_s=settings.horizon_s,
-                **kwargs,
-            )
+        robot = lbr4p()
+        trajectory = build_trajectory(self.trajectory_metadata())
+        controller = build_controller(
+            self.controller, robot, trajectory, settings.period_s,
+            **self.controller_options(settings),
+        )  # fmt: skip
         return robot, controller
 
+    def bound_constraints(self, settings: Table1Settings) -> dict:
+        """The keywords of the time-optimal bound with this row's limits: the thesis's rows
+        along the least-norm joint path (``K_p = 0``, what their damping term picks) with
+        their constant bounds; the path-following rows along their posture level's joint
+        path with their own velocity, acceleration and torque limits. Speed cap ``s ≤ 1``."""
+        options = self.controller_options(settings)
+        out = {
+            "velocity_limits": np.asarray(options["velocity_limits"], dtype=float),
+            "speed_cap": 1.0,
+            "samples": settings.bound_samples,
+        }
+        if self.thesis_row:
+            out["acceleration_limit"] = float(settings.acceleration_limit)
+            out["posture_gain_per_s"] = 0.0
+            return out
+        acceleration = options.get("acceleration_limit", "dynamics")
+        out["acceleration_limit"] = acceleration
+        if isinstance(acceleration, str):
+            for key in ("acceleration_floor", "acceleration_cap"):
+                if key in options:
+                    out[key] = options[key]
+        out["posture_gain_per_s"] = float(options.get("posture_gain_per_s", 1.0))
+        fraction = options.get("torque_limit_fraction")
+        if fraction is not None:
+            from dqcontrol.experiments.runner import lbr4p
 
-_LOCAL = threading.local()
-
-
-def _lbr4p():
-    """The LBR4p, loaded once per worker thread (the loops only read the model, but its
-    Pinocchio workspace is shared by every call, so threads must not share it)."""
-    robot = getattr(_LOCAL, "robot", None)
-    if robot is None:
-        from dqcontrol.model.library import load_lbr4p
-
-        robot = _LOCAL.robot = load_lbr4p()
-    return robot
+            out["torque_limits"] = float(fraction) * lbr4p().limits.effort_max
+        return out
 
 
 def table1_cases(
@@ -267,19 +357,16 @@ def table1_cases(
         periods: keep only these ``T_tot`` [s] of the thesis's grid (for each trajectory
             the ones it has, e.g. ``[2]`` gives circle 2 s and sinusoid 2 s).
         trajectories: subset of :data:`TRAJECTORIES`.
-        controllers: subset of :data:`CONTROLLERS`.
+        controllers: subset of :data:`CONTROLLERS` (aliases of the registry accepted).
 
     Raises:
         ParameterError: an unknown name or period, or an empty selection.
     """
     trajs = list(TRAJECTORIES if trajectories is None else trajectories)
-    ctrls = list(CONTROLLERS if controllers is None else controllers)
+    ctrls = [_canonical(c) for c in (CONTROLLERS if controllers is None else controllers)]
     for t in trajs:
         if t not in TRAJECTORIES:
             raise ParameterError(f"unknown trajectory {t!r}; choose from {TRAJECTORIES}")
-    for c in ctrls:
-        if c not in CONTROLLERS:
-            raise ParameterError(f"unknown controller {c!r}; choose from {CONTROLLERS}")
     grid = QUICK_PERIODS if quick else GRID_PERIODS
     wanted = None
     if periods is not None:
@@ -314,31 +401,41 @@ def run_case(
     """Run one case and return a plain dict (picklable; the job of every executor).
 
     Returns ``{"case": {trajectory, duration_s, controller}, "simulator", "metrics":
-    Metrics.as_dict(), "interrupted", "note", "meta", "wall_time_s", "files"}``; ``files``
-    is ``[npz, json]`` when ``save_dir`` is given (the run saved as ``<case.name>``).
+    Metrics.as_dict(), "path_dev_max_between_m", "torque_peak_ratio", "toppra_bound_s",
+    "interrupted", "note", "meta", "wall_time_s", "files"}``; ``files`` is ``[npz, json]``
+    when ``save_dir`` is given (the run saved as ``<case.name>``).
     """
+    from dqcontrol.experiments.runner import simulate, time_optimal_duration
     from dqcontrol.runs.storage import save_run
-    from dqcontrol.sim.kinematic import run_kinematic
-    from dqcontrol.sim.mujoco_loop import run_mujoco
 
     settings = Table1Settings() if settings is None else settings
     start = time.perf_counter()
-    _robot, controller = case.build(settings)
+    robot, controller = case.build(settings)
     q0 = settings.start_configuration()
+    options = case.controller_options(settings)
     meta = {
         "experiment": "table1",
         "case": case.name,
-        "trajectory": case.trajectory,
-        "duration_s": case.duration_s,
+        **case.trajectory_metadata(),
         "controller_kind": case.controller,
         "horizon_s": settings.horizon_s,
         "velocity_limits": list(settings.velocity_limits),
-        "acceleration_limit": settings.acceleration_limit,
-        "gain_per_s": controller.gain_per_s,
+        "acceleration_limit": options.get("acceleration_limit", "dynamics"),
+        "gain_per_s": getattr(controller, "gain_per_s", None),
         "q0": q0.tolist(),
     }
-    run = run_mujoco if settings.simulator == "mujoco" else run_kinematic
-    result = run(controller, q0, meta=meta)
+    run = simulate(
+        controller, q0, settings.simulator, meta=meta, between_samples=settings.between_samples
+    )
+    result = run.result
+    notes = [result.note] if result.note else []
+    bound = math.nan
+    if settings.bound_samples:
+        bound, why = time_optimal_duration(
+            robot, controller.trajectory, q0, **case.bound_constraints(settings)
+        )
+        if why:
+            notes.append(why)
     files = None
     if save_dir is not None:
         files = [str(p) for p in save_run(result, save_dir, case.name)]
@@ -346,12 +443,24 @@ def run_case(
         "case": asdict(case),
         "simulator": settings.simulator,
         "metrics": result.metrics.as_dict(),
+        "path_dev_max_between_m": run.between_deviation_max_m,
+        "torque_peak_ratio": _torque_peak_ratio(result, robot),
+        "toppra_bound_s": bound,
         "interrupted": bool(result.interrupted),
-        "note": result.note,
+        "note": "; ".join(notes),
         "meta": {k: v for k, v in result.log.meta.items() if k != "q0"},
         "wall_time_s": time.perf_counter() - start,
         "files": files,
     }
+
+
+def _torque_peak_ratio(result, robot) -> float:
+    """Largest ``|τ_j| / τ_max_j`` over the task's samples and the joints (1: a joint at its
+    torque limit); NaN without torques (kinematic loop)."""
+    peak = result.log.torque_peak[: result.metrics.samples]
+    if peak.size == 0 or not np.all(np.isfinite(peak)):
+        return math.nan
+    return float(np.max(np.abs(peak) / robot.limits.effort_max))
 
 
 # ---------------------------------------------------------------------------- the table
@@ -366,13 +475,17 @@ COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("u_mean_thesis", "u_mean thesis", ".4f"),
     ("s_mean", "s_mean", ".4f"),
     ("s_mean_thesis", "s_mean thesis", ".4f"),
-    ("path_dev_mean_mm", "path dev. mean [mm]", ".2f"),
-    ("path_dev_max_mm", "path dev. max [mm]", ".2f"),
+    ("path_dev_mean_mm", "path dev. mean [mm]", ".3f"),
+    ("path_dev_max_mm", "path dev. max [mm]", ".3f"),
+    ("path_dev_max_between_mm", "path dev. max between samples [mm]", ".3f"),
     ("trans_err_mean_mm", "transl. err. mean [mm]", ".2f"),
     ("rot_err_mean_deg", "rot. err. mean [deg]", ".3f"),
     ("exec_time_s", "exec. time [s]", ".2f"),
     ("exec_ratio", "exec./T_tot", ".2f"),
+    ("toppra_bound_s", "TOPP-RA bound [s]", ".3f"),
+    ("exec_over_bound", "exec./bound", ".3f"),
     ("torque_peak_nm", "peak torque [N·m]", ".1f"),
+    ("torque_peak_ratio", "peak torque / limit", ".3f"),
     ("viol_position", "viol. pos.", "d"),
     ("viol_velocity", "viol. vel.", "d"),
     ("viol_acceleration", "viol. acc.", "d"),
@@ -400,10 +513,13 @@ def _row(result: dict) -> dict:
     case = Table1Case(**result["case"])
     m = result["metrics"]
 
-    def mm(key: str) -> float:
-        v = m[key]
-        return float("nan") if v is None else 1e3 * v
+    def mm(value: float | None) -> float:
+        return float("nan") if value is None else 1e3 * value
 
+    bound = result.get("toppra_bound_s", math.nan)
+    bound = math.nan if bound is None else float(bound)
+    exec_time = m["execution_time_s"]
+    exec_over = exec_time / bound if exec_time is not None and bound > 0 else math.nan
     return {
         "traj": case.trajectory,
         "T_tot_s": case.duration_s,
@@ -414,13 +530,17 @@ def _row(result: dict) -> dict:
         "u_mean_thesis": case.thesis("u_mean"),
         "s_mean": m["s_mean"],
         "s_mean_thesis": case.thesis("s_mean"),
-        "path_dev_mean_mm": mm("path_deviation_mean_m"),
-        "path_dev_max_mm": mm("path_deviation_max_m"),
-        "trans_err_mean_mm": mm("translation_error_mean_m"),
+        "path_dev_mean_mm": mm(m["path_deviation_mean_m"]),
+        "path_dev_max_mm": mm(m["path_deviation_max_m"]),
+        "path_dev_max_between_mm": mm(result.get("path_dev_max_between_m")),
+        "trans_err_mean_mm": mm(m["translation_error_mean_m"]),
         "rot_err_mean_deg": math.degrees(m["rotation_error_mean_rad"]),
-        "exec_time_s": m["execution_time_s"],
+        "exec_time_s": exec_time,
         "exec_ratio": m["execution_ratio"],
+        "toppra_bound_s": bound,
+        "exec_over_bound": exec_over,
         "torque_peak_nm": m["torque_peak_nm"],
+        "torque_peak_ratio": result.get("torque_peak_ratio", math.nan),
         "viol_position": m["position_violations"],
         "viol_velocity": m["velocity_violations"],
         "viol_acceleration": m["acceleration_violations"],
@@ -546,6 +666,42 @@ def _claim_check(rows: list[dict]) -> str:
     return "\n".join(head + lines + tail)
 
 
+def _path_following_check(rows: list[dict]) -> str:
+    """Per case: the path-following row's largest path deviation and time against the
+    thesis's rows (their best deviation) and the time-optimal bound."""
+    label = Table1Case("circle", 1.0, "pf").label
+    by = {(r["traj"], r["T_tot_s"], r["controller"]): r for r in rows}
+    lines = []
+    for traj in TRAJECTORIES:
+        for d in sorted({r["T_tot_s"] for r in rows if r["traj"] == traj}, reverse=True):
+            pf = by.get((traj, d, label))
+            others = [r for (t, dd, c), r in by.items() if t == traj and dd == d and c != label]
+            if pf is None:
+                continue
+            best = min((r["path_dev_max_mm"] for r in others), default=math.nan)
+            lines.append(
+                f"| {traj} | {d:g} | {_fmt(pf['path_dev_max_mm'], '.3f')} | "
+                f"{_fmt(best, '.3f')} | {_fmt(pf['path_dev_max_between_mm'], '.3f')} | "
+                f"{_fmt(pf['exec_time_s'], '.2f')} | {_fmt(pf['exec_over_bound'], '.3f')} | "
+                f"{_fmt(pf['torque_peak_ratio'], '.3f')} | {pf['completed']} |"
+            )
+    if not lines:
+        return ""
+    head = [
+        f"## The path-following rows ({label})",
+        "",
+        "Largest path deviation at the control samples against the best of the thesis's "
+        "rows of the same case, the largest between the samples, the execution time and "
+        "its ratio to the time-optimal bound, and the peak torque over its limit (1: a "
+        "joint at its torque limit).",
+        "",
+        "| traj | T_tot [s] | dev. max [mm] | thesis's best dev. max [mm] | dev. max between "
+        "[mm] | exec. time [s] | exec./bound | peak torque / limit | completed |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    return "\n".join(head + lines)
+
+
 def _settings_lines(settings: Table1Settings, physics_dt_s: float | None = None) -> list[str]:
     """The settings as Markdown bullet lines (gains read from real controllers)."""
     local = Table1Case("circle", 1.0, "local").build(settings)[1]
@@ -574,7 +730,8 @@ def _settings_lines(settings: Table1Settings, physics_dt_s: float | None = None)
             if thesis_vel
             else ""
         ),
-        f"- acceleration bound |qdd| ≤ {settings.acceleration_limit:g} rad/s² (constant"
+        "- acceleration bound of the thesis's rows |qdd| ≤ "
+        f"{settings.acceleration_limit:g} rad/s² (constant"
         + (", the thesis's" if thesis_acc else "")
         + "); position bounds: the URDF's joint limits",
         f"- gains and weights: K = {local.gain_per_s:g} 1/s (T·K = "
@@ -590,7 +747,42 @@ def _settings_lines(settings: Table1Settings, physics_dt_s: float | None = None)
         "are shown beside ours, not matched",
         "- units: e_mean = mean ‖vec8(x_d) - vec8(x)‖ (dimensionless, as in the thesis); "
         "u_mean = mean ‖qd_cmd‖ [rad/s]; metrics over the samples until σ reaches T_tot",
+        _path_following_line(settings),
+        _bound_line(settings),
     ]
+
+
+def _path_following_line(settings: Table1Settings) -> str:
+    options = dict(settings.path_following_options)
+    acceleration = options.pop("acceleration_limit", "dynamics")
+    acc = (
+        f"|qdd| ≤ {acceleration:g} rad/s² (constant)"
+        if not isinstance(acceleration, str)
+        else "its own dynamics-aware acceleration limit ((τ_max - |g|)/M_jj)"
+    )
+    return (
+        "- path-following rows (registry name `pf`): p = 10 intervals over τ_p = "
+        f"{settings.horizon_s:g} s, the same velocity bounds, {acc}"
+        + (f", options {options}" if options else "")
+        + "; path first, progress second, posture third (FORMULATION §10)"
+    )
+
+
+def _bound_line(settings: Table1Settings) -> str:
+    if not settings.bound_samples:
+        return "- TOPP-RA bound: not computed (bound_samples = 0)"
+    return (
+        "- TOPP-RA bound: the time-optimal execution of the same geometric path from rest at "
+        f"q0 ({settings.bound_samples} path samples, speed cap s ≤ 1) under the row's own "
+        "velocity and acceleration bounds — the thesis's rows along the least-norm joint "
+        "path, the path-following rows along their posture level's; exec./bound ≥ 1. Path "
+        "dev. between samples: "
+        + (
+            "at every MuJoCo physics step"
+            if settings.simulator == "mujoco"
+            else "at 10 points per period of the kinematic loop's straight joint motion"
+        )
+    )
 
 
 def format_markdown(
@@ -633,6 +825,9 @@ def format_markdown(
     claim = _claim_check(rows)
     if claim:
         lines += ["", claim]
+    following = _path_following_check(rows)
+    if following:
+        lines += ["", following]
     return "\n".join(lines) + "\n"
 
 

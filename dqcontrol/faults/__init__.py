@@ -1,4 +1,4 @@
-"""Fault injection and the fault campaign (issue 6): the controllers under measurement
+"""Fault injection and the fault campaign: the controllers under measurement
 noise and delay, model mismatch, torque saturation, impossible tasks, awkward starts and
 failing or contradictory QPs.
 

@@ -1,10 +1,12 @@
 """The fault campaign: every controller on every task under every fault, and its report.
 
-One case is one closed-loop run of :func:`~dqcontrol.sim.run_mujoco` (the loop itself is
-not touched): the simulation is a :class:`~dqcontrol.sim.MujocoSimulation` (with the model
-faults as its options) or a :class:`~dqcontrol.faults.simulation.KinematicSimulation`,
-always wrapped in a :class:`~dqcontrol.faults.simulation.FaultySimulation` (measurement
-faults, and a record of the *true* state). What is judged (issue 6):
+One case is one closed-loop run of the case runner (:func:`dqcontrol.experiments.runner.
+simulate`, the same as Table 1's) through :func:`~dqcontrol.sim.run_mujoco` (the loop
+itself is not touched): the simulation is a :class:`~dqcontrol.sim.MujocoSimulation` (with
+the model faults as its options) or a
+:class:`~dqcontrol.faults.simulation.KinematicSimulation`, always wrapped in a
+:class:`~dqcontrol.faults.simulation.FaultySimulation` (measurement faults, and a record of
+the *true* state). What is judged:
 
 - **status**: ``completed`` (σ reached ``T_tot``), ``stopped`` (not completed, but the arm
   is at rest at the end: every true joint speed and every command below
@@ -39,15 +41,16 @@ import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field, fields
-from functools import cache
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
 from dqcontrol.controllers.base import Controller
 from dqcontrol.dq.algebra import dq_from_rt, dq_mul, translation
 from dqcontrol.errors import ParameterError
-from dqcontrol.faults.qp_faults import ContradictoryBoundsQP
+from dqcontrol.experiments.runner import lbr4p, simulate
+from dqcontrol.experiments.thesis import THESIS_PERIOD_S
+from dqcontrol.faults.qp_faults import ContradictoryBoundsQP, contradictory
 from dqcontrol.faults.scenarios import (
     CONTROLLERS,
     FAULTS,
@@ -60,11 +63,9 @@ from dqcontrol.faults.scenarios import (
     fault_by_name,
 )
 from dqcontrol.faults.simulation import FaultySimulation, KinematicSimulation
-from dqcontrol.model.library import load_lbr4p
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.runs.metrics import VIOLATION_TOL
 from dqcontrol.sim.kinematic import RunResult
-from dqcontrol.sim.mujoco_loop import run_mujoco
 from dqcontrol.sim.mujoco_sim import MujocoSimulation
 
 __all__ = [
@@ -81,7 +82,7 @@ __all__ = [
 ]
 
 #: Control period of the campaign [s] (the thesis's).
-PERIOD_S = 0.05
+PERIOD_S = THESIS_PERIOD_S
 #: Below this speed [rad/s] (every joint, true state and command) the arm is at rest.
 STOP_SPEED_RAD_S = 0.05
 #: Samples at the end of a run over which ``s_end`` is averaged (1 s at T = 50 ms).
@@ -185,12 +186,6 @@ class CaseResult:
         return out
 
 
-@cache
-def _robot() -> RobotModel:
-    """The LBR4p, loaded once per process."""
-    return load_lbr4p()
-
-
 @contextlib.contextmanager
 def _quiet_c_stdout(enabled: bool):
     """Send C-level stdout to /dev/null (OSQP prints an ERROR line for every rejected
@@ -215,6 +210,22 @@ def _quiet_c_stdout(enabled: bool):
                 os.dup2(saved, fd)
     finally:
         os.close(saved)
+
+
+def _build_controller(spec: CaseSpec, robot: RobotModel, trajectory) -> Controller:
+    """The case's controller, told of the fault as :meth:`Fault.controller_options` says;
+    solver faults in OSQP's settings, contradictory bounds through
+    :func:`~dqcontrol.faults.qp_faults.contradictory`."""
+    f, ctrl_spec = spec.fault, spec.controller
+    extra: dict = f.controller_options()
+    if ctrl_spec.qp and f.solver_settings:
+        extra["solver"] = "osqp"  # the solver faults are written in OSQP's settings
+        extra["solver_settings"] = dict(f.solver_settings)
+    if ctrl_spec.qp and f.contradiction is not None:
+        extra["contradiction"] = f.contradiction
+    if "contradiction" in extra or any(k == "contradiction" for k, _ in ctrl_spec.kwargs):
+        ctrl_spec = replace(ctrl_spec, cls=contradictory(ctrl_spec.cls))
+    return ctrl_spec.build(robot, trajectory, spec.period_s, **extra)
 
 
 def _build_trajectory(spec: CaseSpec, robot: RobotModel, q0: np.ndarray):
@@ -271,7 +282,7 @@ def run_case(
     controller before the run (the what-if experiments of :mod:`dqcontrol.faults.analysis`).
     """
     start_wall = time.perf_counter()
-    robot = _robot()
+    robot = lbr4p()
     f, ctrl_spec = spec.fault, spec.controller
     nan = float("nan")
     base = {
@@ -288,24 +299,19 @@ def run_case(
     try:
         q0 = f.start_configuration(robot)
         traj = _build_trajectory(spec, robot, q0)
-        extra: dict = f.controller_options()
-        if ctrl_spec.qp and f.solver_settings:
-            extra["solver"] = "osqp"  # the solver faults are written in OSQP's settings
-            extra["solver_settings"] = dict(f.solver_settings)
-        if ctrl_spec.qp and f.contradiction is not None:
-            extra["contradiction"] = f.contradiction
-        controller = ctrl_spec.build(robot, traj, spec.period_s, **extra)
+        controller = _build_controller(spec, robot, traj)
         if hook is not None:
             hook(controller)
         sim = _build_simulation(spec, robot)
         with _quiet_c_stdout(f.contradiction is not None):
-            result: RunResult = run_mujoco(
+            result: RunResult = simulate(
                 controller,
                 q0,
+                spec.simulator,
                 simulation=sim,
                 max_time_s=spec.max_time_s,
                 meta={"simulator": spec.simulator, "fault": f.name},
-            )
+            ).result
     except Exception as exc:  # noqa: BLE001 - the campaign reports, it does not stop
         tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
         return CaseResult(

@@ -22,13 +22,14 @@ from pathlib import Path
 import numpy as np
 
 from dqcontrol.dq.algebra import translation
+from dqcontrol.experiments.runner import lbr4p
 from dqcontrol.faults.analysis import (
     compensate_delay,
     mitigation_table,
     position_margin,
     render_mitigations,
 )
-from dqcontrol.faults.campaign import PERIOD_S, CaseSpec, _robot, run_case
+from dqcontrol.faults.campaign import PERIOD_S, CaseSpec, run_case
 from dqcontrol.faults.scenarios import CONTROLLERS, TRAJECTORIES, fault_by_name
 
 __all__ = ["limits_figure", "main", "unreachable_figure"]
@@ -65,7 +66,7 @@ def unreachable_figure(path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    robot = _robot()
+    robot = lbr4p()
     fig, axes = plt.subplots(2, 2, figsize=(9.0, 6.6))
     (ax_top, ax_s), (ax_dev, ax_qd) = axes
     path_drawn = False
@@ -101,7 +102,7 @@ def unreachable_figure(path: Path) -> Path:
 
 def _excess_mrad(r) -> tuple[np.ndarray, np.ndarray]:
     """Time [s] and the largest signed distance beyond a joint limit [mrad] (> 0: beyond)."""
-    lim = _robot().limits
+    lim = lbr4p().limits
     q = r.true_q
     excess = np.maximum(q - lim.q_max, lim.q_min - q).max(axis=1)
     return PERIOD_S * np.arange(q.shape[0]), 1000.0 * excess

@@ -2,7 +2,8 @@
 
 Every fault is a plain, picklable description (:class:`Fault`); turning it into a
 simulation, a start configuration, a trajectory or a controller happens in
-:mod:`dqcontrol.faults.campaign`. Faults are grouped as in issue 6:
+:mod:`dqcontrol.faults.campaign`. The controllers are :mod:`dqcontrol.registry`'s, the
+trajectories are described by their metadata. Faults are grouped by what they corrupt:
 
 - *measurement*: noise on ``q`` and ``qd``, a delay of one or two control periods
   (:class:`~dqcontrol.faults.simulation.FaultySimulation`);
@@ -23,18 +24,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dqcontrol.controllers import (
-    LocalController,
-    PredictiveController,
-    PredictiveNoScalingController,
-    ProportionalController,
-)
-from dqcontrol.controllers.base import Controller
 from dqcontrol.errors import ParameterError
-from dqcontrol.faults.qp_faults import contradictory
-from dqcontrol.model.library import LBR4P_Q0
+from dqcontrol.experiments.runner import build_trajectory
+from dqcontrol.experiments.thesis import THESIS_Q0
 from dqcontrol.model.robot import RobotModel
-from dqcontrol.trajectories import Circle, Sinusoid, Trajectory
+from dqcontrol.registry import ControllerSpec, controller_spec
+from dqcontrol.trajectories import Trajectory
 
 __all__ = [
     "CONTROLLERS",
@@ -54,50 +49,16 @@ NEAR_LIMIT_MARGIN_RAD = math.radians(0.8)
 
 
 # ----------------------------------------------------------------------------- controllers
-@dataclass(frozen=True)
-class ControllerSpec:
-    """A controller of the campaign.
-
-    Attributes:
-        name: its name in the tables.
-        cls: the controller class.
-        kwargs: keyword arguments (besides robot, trajectory, period).
-        qp: whether it is a QP controller (hard bounds as constraints); the proportional
-            controller only clips its command, and is reported separately.
-    """
-
-    name: str
-    cls: type[Controller]
-    kwargs: tuple[tuple[str, object], ...] = ()
-    qp: bool = True
-
-    @property
-    def num_instants(self) -> int:
-        """``p`` (1 for the local and proportional controllers)."""
-        return int(dict(self.kwargs).get("num_instants", 1))
-
-    def build(
-        self, robot: RobotModel, trajectory: Trajectory, period_s: float, **extra
-    ) -> Controller:
-        """The controller; ``extra`` adds or overrides keyword arguments."""
-        kwargs = dict(self.kwargs)
-        kwargs.update(extra)
-        cls = self.cls
-        if "contradiction" in kwargs:
-            cls = contradictory(cls)
-        return cls(robot, trajectory, period_s, **kwargs)
-
-
+#: The campaign's controllers (:mod:`dqcontrol.registry` specs under the controllers' own
+#: names, which the campaign's tables use).
 CONTROLLERS: dict[str, ControllerSpec] = {
-    c.name: c
-    for c in (
-        ControllerSpec("local", LocalController),
-        ControllerSpec("predictive_p6", PredictiveController, (("num_instants", 6),)),
-        ControllerSpec("predictive_p10", PredictiveController, (("num_instants", 10),)),
-        ControllerSpec(
-            "predictive_noscale_p6", PredictiveNoScalingController, (("num_instants", 6),)
-        ),
-        ControllerSpec("proportional", ProportionalController, qp=False),
+    name: controller_spec(name).renamed(name)
+    for name in (
+        "local",
+        "predictive_p6",
+        "predictive_p10",
+        "predictive_noscale_p6",
+        "proportional",
     )
 }
 #: Controllers of the reduced (CI) campaign.
@@ -119,19 +80,25 @@ class TrajectorySpec:
     duration_s: float
     quick_duration_s: float
 
-    def build(self, duration_s: float, *, unreachable: bool = False) -> Trajectory:
-        """The (unanchored) trajectory; ``unreachable`` gives the variant partly outside the
-        LBR4p's workspace from :data:`~dqcontrol.model.LBR4P_Q0`."""
+    def metadata(self, duration_s: float, *, unreachable: bool = False) -> dict:
+        """The task as trajectory metadata; ``unreachable`` gives the variant partly
+        outside the LBR4p's workspace from :data:`~dqcontrol.model.LBR4P_Q0`."""
+        meta = {"trajectory": self.name, "duration_s": duration_s}
         if self.name == "circle":
             # R = 0.4 m: the far side of the circle is 0.8 m from the start, beyond reach
-            return Circle(duration_s, radius_m=0.4 if unreachable else 0.1)
-        if self.name == "sinusoid":
+            meta["radius_m"] = 0.4 if unreachable else 0.1
+        elif self.name == "sinusoid":
             if unreachable:
                 # one period of ±0.6 m along the tool z (world vertical): the top is out of
                 # reach
-                return Sinusoid(duration_s, amplitude_m=0.6, omega_x_rad_per_m=15.0)
-            return Sinusoid(duration_s)
-        raise ParameterError(f"unknown trajectory {self.name!r}; known: circle, sinusoid")
+                meta.update(amplitude_m=0.6, omega_x_rad_per_m=15.0)
+        else:
+            raise ParameterError(f"unknown trajectory {self.name!r}; known: circle, sinusoid")
+        return meta
+
+    def build(self, duration_s: float, *, unreachable: bool = False) -> Trajectory:
+        """The (unanchored) trajectory of :meth:`metadata`."""
+        return build_trajectory(self.metadata(duration_s, unreachable=unreachable))
 
 
 TRAJECTORIES: dict[str, TrajectorySpec] = {
@@ -225,7 +192,7 @@ class Fault:
     def start_configuration(self, robot: RobotModel) -> np.ndarray:
         """The start configuration ``q0`` [rad]."""
         if self.start == "default":
-            return LBR4P_Q0.copy()
+            return THESIS_Q0.copy()
         if self.start == "singular":
             return np.zeros(robot.nq)
         if self.start == "near_limits":
@@ -238,13 +205,14 @@ class Fault:
 def near_limit_configuration(
     robot: RobotModel, margin_rad: float = NEAR_LIMIT_MARGIN_RAD
 ) -> np.ndarray:
-    """Every joint ``margin_rad`` inside the limit on the side of :data:`LBR4P_Q0`'s sign.
+    """Every joint ``margin_rad`` inside the limit on the side of :data:`LBR4P_Q0`'s sign
+    (the thesis's start, :data:`~dqcontrol.experiments.thesis.THESIS_Q0`).
 
     For the LBR4p this is ``[-2.953, -2.080, -2.953, -2.080, 2.953, -2.080, 2.953]`` rad: a
     folded arm, clear of the pedestal and of itself (no MuJoCo contact).
     """
     lim = robot.limits
-    side = np.sign(LBR4P_Q0) if robot.nq == LBR4P_Q0.size else np.ones(robot.nq)
+    side = np.sign(THESIS_Q0) if robot.nq == THESIS_Q0.size else np.ones(robot.nq)
     return np.where(side > 0, lim.q_max - margin_rad, lim.q_min + margin_rad)
 
 

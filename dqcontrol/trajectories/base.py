@@ -107,6 +107,34 @@ class Trajectory(ABC):
         """``name=value`` strings of the subclass's own parameters, for :meth:`__repr__`."""
         return []
 
+    #: The name of the kind in saved metadata (``None``: the kind cannot describe itself).
+    kind: str | None = None
+
+    def _metadata_params(self) -> dict | None:
+        """The subclass's constructor keywords besides ``duration_s`` and ``reference``, as
+        plain JSON values, or ``None`` if it cannot describe itself."""
+        return None
+
+    def to_metadata(self) -> dict:
+        """What rebuilds this trajectory, as plain JSON values:
+        ``{"trajectory": kind, "duration_s": T_tot, <parameters>}`` and ``"reference"``
+        (vec8) when it has one (:func:`~dqcontrol.trajectories.trajectory_from_metadata`).
+
+        Raises:
+            ParameterError: the trajectory is given by code (e.g. a
+                :class:`~dqcontrol.trajectories.FunctionTrajectory`), not by numbers.
+        """
+        params = self._metadata_params()
+        if self.kind is None or params is None:
+            raise ParameterError(
+                f"{type(self).__name__} cannot describe itself as metadata (it is defined by "
+                "code, not by numbers)"
+            )
+        meta = {"trajectory": self.kind, "duration_s": self._duration, **params}
+        if self._reference is not None:
+            meta["reference"] = [float(v) for v in self._reference]
+        return meta
+
     # ------------------------------------------------------------------ world targets
     def target(self, sigma: float) -> np.ndarray:
         """World target ``x_d(σ) = ref ⊗ traj(clip(σ, 0, T_tot))`` (vec8, FORMULATION §3).

@@ -83,5 +83,10 @@ class Circle(Trajectory):
         derivatives[:, 6] = self._half_r_omega * c
         return poses, derivatives
 
+    kind = "circle"
+
+    def _metadata_params(self) -> dict:
+        return {"radius_m": self._radius}
+
     def _repr_params(self) -> list[str]:
         return [f"radius_m={self._radius!r}"]

@@ -92,6 +92,11 @@ class Sinusoid(Trajectory):
         derivatives[:, 7] = 0.5 * (self._amplitude * self._rate * np.cos(phase))
         return poses, derivatives
 
+    kind = "sinusoid"
+
+    def _metadata_params(self) -> dict:
+        return {"amplitude_m": self._amplitude, "omega_x_rad_per_m": self._omega_x}
+
     def _repr_params(self) -> list[str]:
         return [
             f"amplitude_m={self.amplitude_m!r}",

@@ -214,6 +214,16 @@ class WaypointTrajectory(Trajectory):
             out = np.add.reduce((out @ factor).reshape(m, 4, 8) * weight, axis=1)
         return out
 
+    kind = "waypoints"
+
+    def _metadata_params(self) -> dict:
+        ori = None if self.orientations is None else self.orientations.tolist()
+        return {
+            "positions_m": self.positions_m.tolist(),
+            "orientations": ori,
+            "times_s": self.times_s.tolist(),
+        }
+
     def _repr_params(self) -> list[str]:
         fmt = {"precision": 4, "threshold": 30, "separator": ", "}
         ori = None if self.orientations is None else np.array2string(self.orientations, **fmt)

@@ -1,6 +1,11 @@
-"""Benchmarks of the control step (``dqcontrol bench``, ``benchmarks/bench_controllers.py``).
+"""Benchmarks of the control step (``dqcontrol bench``, ``python benchmarks/bench.py``).
 
-Every figure of issue 7 in one run, on the machine it runs on:
+This file lives in the source repository, not in the package: ``dqcontrol bench`` loads it
+from the ``benchmarks/`` folder beside the installed package (an editable install of a
+checkout), and says so when there is none. Controllers are built through
+:mod:`dqcontrol.registry`, with the thesis's bounds of :mod:`dqcontrol.experiments.thesis`.
+
+Every performance figure in one run, on the machine it runs on:
 
 - the step time of the four controllers at ``T = 1 ms`` (local with scaling, predictive
   p = 6 and p = 10 with scaling and p = 10 without, proportional), prediction, QP build
@@ -17,7 +22,7 @@ Every figure of issue 7 in one run, on the machine it runs on:
   real-time factor (simulated time / wall time);
 - the step time against p (2 … 20) and against the number of joints.
 
-Each target of the issue is printed as met or not met beside its figure. Timings are
+Each target is printed as met or not met beside its figure. Timings are
 medians over repeated runs; the machine is shared, so they move by ±10–20 % between runs.
 """
 
@@ -34,14 +39,10 @@ from pathlib import Path
 
 import numpy as np
 
-from dqcontrol.controllers import (
-    LocalController,
-    PredictiveController,
-    PredictiveNoScalingController,
-    ProportionalController,
-)
 from dqcontrol.controllers.tracking import DEFAULT_SOLVER
+from dqcontrol.experiments.thesis import THESIS_ACCELERATION_LIMIT, THESIS_VELOCITY_LIMITS
 from dqcontrol.model import LBR4P_Q0, RobotModel, load_lbr4p
+from dqcontrol.registry import build_controller
 from dqcontrol.trajectories import Circle
 
 __all__ = [
@@ -60,14 +61,14 @@ __all__ = [
     "step_times",
 ]
 
-THESIS_VEL = np.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5])
+THESIS_VEL = np.array(THESIS_VELOCITY_LIMITS)
 LBR4P_DH = {
     "d": [0.2, 0, 0.4, 0, 0.39, 0, 0.078],
     "alpha": [np.pi / 2, -np.pi / 2, np.pi / 2, -np.pi / 2, np.pi / 2, -np.pi / 2, 0],
 }
-#: Control period of the step figures [s] (the issue's 1 kHz).
+#: Control period of the step figures [s] (1 kHz).
 PERIOD_S = 0.001
-#: Issue 7's targets: (figure, comparison, bound, unit).
+#: The performance targets: (figure, comparison, bound, unit).
 TARGETS: dict[str, tuple[str, str, float, str]] = {
     "local": ("local step (scaling), median", "<=", 100.0, "µs"),
     "predictive_p6": ("predictive p = 6 step, median", "<=", 300.0, "µs"),
@@ -113,19 +114,18 @@ def machine() -> dict:
     }
 
 
+#: The registry's name of each kind of :data:`STEP_KINDS` (``{p}``: its count).
+_REGISTRY_NAMES = {"local": "local", "predictive": "p{p}", "noscale": "noscale{p}"}
+
+
 def _make(kind: str, robot: RobotModel, traj, period_s: float, solver: str | None, p: int = 10):
+    """A controller of the registry with the thesis's bounds (π rad/s for other arms)."""
     n = robot.nq
     vel = THESIS_VEL if n == 7 else np.full(n, np.pi)
-    kw = {"velocity_limits": vel, "acceleration_limit": 10.0}
-    if kind == "proportional":
-        return ProportionalController(robot, traj, period_s, **kw)
-    if kind == "local":
-        return LocalController(robot, traj, period_s, solver=solver, **kw)
-    if kind == "noscale":
-        return PredictiveNoScalingController(
-            robot, traj, period_s, num_instants=p, solver=solver, **kw
-        )
-    return PredictiveController(robot, traj, period_s, num_instants=p, solver=solver, **kw)
+    shared = {"velocity_limits": vel, "acceleration_limit": THESIS_ACCELERATION_LIMIT}
+    shared["solver"] = solver
+    name = _REGISTRY_NAMES.get(kind, kind).format(p=p)
+    return build_controller(name, robot, traj, period_s, shared=shared)
 
 
 def _name(kind: str, p: int) -> str:
@@ -344,11 +344,11 @@ def _kinematics_inputs() -> tuple[np.ndarray, np.ndarray]:
 
 def bench_kinematics(number: int = 2000, repeat: int = 9) -> dict:
     """Pose + pose Jacobian of the LBR4p, single and batched (p = 10 configurations) [µs]."""
-    robot = load_lbr4p()
+    fast = load_lbr4p().fast
     q, qs = _kinematics_inputs()
     return {
-        "single_us": _median_us(lambda: robot._pose_and_jacobian(q), number, repeat),
-        "batch10_us": _median_us(lambda: robot._poses_and_jacobians(qs), number // 10, repeat),
+        "single_us": _median_us(lambda: fast.pose_and_jacobian(q), number, repeat),
+        "batch10_us": _median_us(lambda: fast.poses_and_jacobians(qs), number // 10, repeat),
     }
 
 
@@ -461,11 +461,11 @@ def bench_dqrobotics(number: int = 2000, rounds: int = 15) -> dict | None:
     ours: dict[str, list[float]] = {k: [] for k in ("single", "ten", "classic")}
     for _ in range(rounds):
         ours["single"].append(
-            timeit.timeit(lambda: robot._pose_and_jacobian(q), number=n_single) / n_single
+            timeit.timeit(lambda: robot.fast.pose_and_jacobian(q), number=n_single) / n_single
         )
         cols["single"].append(timeit.timeit(peers["kin"], number=n_single) / n_single)
         ours["ten"].append(
-            timeit.timeit(lambda: robot._poses_and_jacobians(qs), number=n_ten) / n_ten
+            timeit.timeit(lambda: robot.fast.poses_and_jacobians(qs), number=n_ten) / n_ten
         )
         cols["ten"].append(timeit.timeit(peers["kin_ten"], number=n_ten) / n_ten)
         ours["classic"].append(float(np.median(loop(n_step))))
@@ -607,7 +607,7 @@ def format_report(res: dict) -> str:
     ]
     if res.get("quick"):
         lines.append("QUICK MODE: few steps, indicative figures only")
-    lines += ["", "targets (issue 7)"]
+    lines += ["", "targets"]
     for t in res["targets"].values():
         unit = t["target"].split()[-1]
         state = {True: "met", False: "NOT MET", None: "not measured"}[t["met"]]
@@ -722,3 +722,13 @@ def main(out: str | os.PathLike | None = "results/bench.json", quick: bool = Fal
         path = atomic_write_text(Path(out), json.dumps(res, indent=2, default=str) + "\n")
         print(f"\nwritten: {path}")
     return res
+
+
+if __name__ == "__main__":
+    import argparse
+
+    parser = argparse.ArgumentParser(description="Every step-time figure (as dqcontrol bench).")
+    parser.add_argument("--out", default="results/bench.json", help="JSON output file")
+    parser.add_argument("--quick", action="store_true", help="few steps (indicative only)")
+    args = parser.parse_args()
+    main(out=args.out, quick=args.quick)
