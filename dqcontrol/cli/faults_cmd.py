@@ -1,4 +1,4 @@
-"""``dqcontrol faults``: the fault campaign (issue 6) → ``<out>/faults.md`` and ``.csv``.
+"""``dqcontrol faults``: the fault campaign → ``<out>/faults.md`` and ``.csv``.
 
 Every controller on the circle and the sinusoid under measurement noise and delay, model
 mismatch, torque saturation, impossible tasks, awkward starts and failing or contradictory

@@ -1,5 +1,5 @@
 """The thesis's Table 1, reproduced, with the path-following controller beside it
-(FORMULATION §7–8, §10).
+(docs/theory.md §4, §7, §8).
 
 The grid: the circle at ``T_tot`` = 8, 4, 2, 1 s and the sinusoid at 16, 8, 4, 2 s, each
 run with the local method, the predictive method at p = 6 and p = 10 (the thesis's three
@@ -9,7 +9,7 @@ The experiment's numbers come from :mod:`dqcontrol.experiments.thesis`: ``T = 0.
 acceleration bound 10 rad/s² (passed explicitly: the URDF carries the hardware's limits)
 and the start configuration :data:`~dqcontrol.model.library.LBR4P_Q0`, simulated in MuJoCo
 (or with the kinematic loop). The gains are the library's defaults (``K = 10 1/s``,
-``T K = 0.5``, FORMULATION §9), *not* the thesis's. The path-following rows take the
+``T K = 0.5``, docs/theory.md §4.3), *not* the thesis's. The path-following rows take the
 thesis's velocity bounds, ``T``, ``τ_p`` and :attr:`Table1Settings.path_following_options`
 (default :data:`PATH_FOLLOWING_OPTIONS`).
 
@@ -112,7 +112,7 @@ PATH_FOLLOWING_OPTIONS: tuple[tuple[str, object], ...] = (("acceleration_limit",
 BOUND_SAMPLES = 2001
 
 
-#: The thesis's Table 1 (CoppeliaSim, T = 0.05 s, τ_p = 1 s; FORMULATION §8):
+#: The thesis's Table 1 (CoppeliaSim, T = 0.05 s, τ_p = 1 s):
 #: ``(traj, T_tot) -> {metric: (Local, p=6, p=10)}``.
 THESIS_TABLE1: dict[tuple[str, float], dict[str, tuple[float, float, float]]] = {
     ("circle", 8.0): {
@@ -173,8 +173,8 @@ class Table1Settings:
         q0: start configuration [rad] (default :data:`LBR4P_Q0`).
         controller_options: extra keyword arguments for the thesis's controllers, as
             ``(name, value)`` pairs (default: the library's gains and weights with the
-            stall damping off, so that the cost is FORMULATION §5's exactly, as in the
-            thesis).
+            stall damping off, so that the cost is the thesis's exactly, docs/theory.md
+            §4.2).
         path_following_options: extra keyword arguments for the path-following rows
             (default :data:`PATH_FOLLOWING_OPTIONS`); without an ``acceleration_limit`` the
             controller's own default applies.
@@ -618,7 +618,7 @@ def _verdict(ratio: float) -> str:
 
 
 def _claim_check(rows: list[dict]) -> str:
-    """p = 10 against Local at the short periods (the thesis's claim, issue 4)."""
+    """p = 10 against Local at the short periods (the thesis's claim)."""
     by = {(r["traj"], r["T_tot_s"], r["controller"]): r for r in rows}
 
     def ratio(a: float, b: float) -> float:
@@ -738,12 +738,12 @@ def _settings_lines(settings: Table1Settings, physics_dt_s: float | None = None)
         f"{settings.period_s * local.gain_per_s:g}), λ1 = {local.task_weight:g}, "
         f"λ2 = {local.scaling_weight:g}, μ = {local.regularization:g}, stall damping "
         f"{local.stall_damping:g}"
-        + (" (off: FORMULATION §5's cost exactly)" if local.stall_damping == 0.0 else "")
+        + (" (off: the thesis's cost exactly)" if local.stall_damping == 0.0 else "")
         + f"; phase prediction "
         f"'{pred.phase_prediction}', solver '{pred.solver}'"
         + (f"; extra options {extra}" if extra else ""),
         "- the thesis: CoppeliaSim, same T and τ_p, K = 200·T_tot (circle) and 500/P "
-        "(sinusoid), i.e. T·K ≥ 2 — outside the stable range (FORMULATION §9); its numbers "
+        "(sinusoid), i.e. T·K ≥ 2 — outside the stable range (docs/theory.md §4.3); its numbers "
         "are shown beside ours, not matched",
         "- units: e_mean = mean ‖vec8(x_d) - vec8(x)‖ (dimensionless, as in the thesis); "
         "u_mean = mean ‖qd_cmd‖ [rad/s]; metrics over the samples until σ reaches T_tot",
@@ -764,7 +764,7 @@ def _path_following_line(settings: Table1Settings) -> str:
         "- path-following rows (registry name `pf`): p = 10 intervals over τ_p = "
         f"{settings.horizon_s:g} s, the same velocity bounds, {acc}"
         + (f", options {options}" if options else "")
-        + "; path first, progress second, posture third (FORMULATION §10)"
+        + "; path first, progress second, posture third (docs/theory.md §8)"
     )
 
 
