@@ -158,10 +158,10 @@ def test_quick_bench_writes_every_figure(tmp_path):
 
 
 def test_compiled_cost_equals_numpy_blocks():
-    """``qp_cost.instant_p_values`` against the plain numpy cost of FORMULATION §5 for p
-    instants (flips where ``x_i · x_d,i < 0``, stall damping on the qd diagonal), and
-    ``scatter_symmetric`` against fancy indexing."""
-    from dqcontrol.controllers.qp_cost import instant_p_values, scatter_symmetric
+    """``qp_cost.add_task_grams`` (after ``align_signs``) against the plain numpy cost of
+    FORMULATION §5 for p instants (flips where ``x_i · x_d,i < 0``, stall damping on the qd
+    diagonal), and ``scatter_symmetric`` against fancy indexing."""
+    from dqcontrol.controllers.qp_cost import add_task_grams, align_signs, scatter_symmetric
 
     rng = np.random.default_rng(5)
     p, n = 10, 7
@@ -175,8 +175,6 @@ def test_compiled_cost_equals_numpy_blocks():
     diag[:, np.arange(n), np.arange(n)] = 1e-4
     diag[:, n, n] = 1e-2
     rows, cols = np.triu_indices(m)
-    gather = (np.arange(p)[:, None] * m * m + (rows * m + cols)[None, :]).ravel()
-    qd_pos = np.flatnonzero(np.tile((rows == cols) & (rows < n), p))
     sign = np.where((xs * xd).sum(axis=1) < 0.0, -1.0, 1.0)
     assert (sign < 0).any() and (sign > 0).any()
     g = np.concatenate(
@@ -184,30 +182,34 @@ def test_compiled_cost_equals_numpy_blocks():
     )
     blocks = weight * np.matmul(g.transpose(0, 2, 1), g) + diag
     blocks[:, np.arange(n), np.arange(n)] += stall
-    expected = 2.0 * blocks.ravel()[gather]
+    expected = 2.0 * blocks
     xs_in, jacs_in = xs.copy(), jacs.copy()
-    got = instant_p_values(
-        xs_in, jacs_in, xd, dxd, gain, weight, gather, diag.ravel()[gather], stall, qd_pos
-    )
+    align_signs(xs_in, jacs_in, xd)
+    got = 2.0 * diag
+    add_task_grams(xs_in, jacs_in, xd, dxd, gain, 2.0 * weight, got)
+    got[:, np.arange(n), np.arange(n)] += 2.0 * stall
     np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13)
+    np.testing.assert_array_equal(got, got.transpose(0, 2, 1))  # exactly symmetric
     np.testing.assert_array_equal(xs_in, xs * sign[:, None])  # flipped in place
     np.testing.assert_array_equal(jacs_in, jacs * sign[:, None, None])
 
+    values = got[0][rows, cols]
     h = np.zeros((m, m))
-    scatter_symmetric(h, rows.astype(np.int64), cols.astype(np.int64), got[: rows.size])
+    scatter_symmetric(h, rows.astype(np.int64), cols.astype(np.int64), values)
     ref = np.zeros((m, m))
-    ref[rows, cols] = got[: rows.size]
-    ref[cols, rows] = got[: rows.size]
+    ref[rows, cols] = values
+    ref[cols, rows] = values
     np.testing.assert_array_equal(h, ref)
 
 
 @pytest.mark.parametrize("braking", [True, False])
 def test_vp_boxes_equal_numpy_vp_box_bit_for_bit(braking):
-    """``joint_box.vp_boxes`` (the general step's bounds of every instant) against
-    ``bounds._vp_box`` on ``q`` for instant 0 and the clipped predictions for the others:
-    random states with joints beyond their limits, per-instant braking constants."""
+    """The joint-box kernels (``joint_box.applied_box_into`` on ``q`` for instant 0,
+    ``predicted_boxes_into`` on the clipped predictions for the others) against
+    ``bounds._vp_box``: random states with joints beyond their limits, per-instant braking
+    constants."""
     from dqcontrol.controllers.bounds import _vp_box, braking_constants
-    from dqcontrol.controllers.joint_box import vp_boxes
+    from dqcontrol.controllers.joint_box import applied_box_into, predicted_boxes_into
 
     rng = np.random.default_rng(17 + braking)
     beyond = 0
@@ -226,10 +228,17 @@ def test_vp_boxes_equal_numpy_vp_box_bit_for_bit(braking):
         q_box = np.minimum(np.maximum(q_hat, q_min), q_max)
         q_box[0] = q
         lo_ref, hi_ref = _vp_box(q_box, q_min, q_max, qd_max, period, brake if braking else None)
-        lower, upper = np.empty((p, n)), np.empty((p, n))
-        vp_boxes(q, q_hat, q_min, q_max, qd_max, period, braking, *brake, lower, upper)
-        np.testing.assert_array_equal(lower, lo_ref)
-        np.testing.assert_array_equal(upper, hi_ref)
+        lower, upper = np.full(p * n, -np.inf), np.full(p * n, np.inf)
+        index = np.arange(p * n).reshape(p, n)
+        stacked = np.array(brake)
+        applied_box_into(
+            q, q_min, q_max, qd_max, period, braking, stacked[:, 0], index[0], lower, upper
+        )
+        predicted_boxes_into(
+            q_hat, q_min, q_max, qd_max, period, braking, stacked, index, lower, upper
+        )
+        np.testing.assert_array_equal(lower.reshape(p, n), lo_ref)
+        np.testing.assert_array_equal(upper.reshape(p, n), hi_ref)
         beyond += bool(np.any((q < q_min) | (q > q_max)))
     assert beyond > 20  # the beyond-a-limit rule was exercised
 

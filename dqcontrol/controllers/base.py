@@ -21,6 +21,8 @@ from dqcontrol.errors import ConfigurationError, ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
+_FLOAT = np.dtype(float)
+
 __all__ = [
     "Controller",
     "StepDiagnostics",
@@ -217,6 +219,7 @@ class Controller(ABC):
         self.measurement_delay_periods = int(measurement_delay_periods)
         self._sent: deque[np.ndarray] = deque(maxlen=max(self.measurement_delay_periods, 1))
         self._reset_done = False
+        self._q_shape = (self.n,)
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray | None = None, sigma0: float = 0.0) -> None:
         """Start a new run from joint positions ``q0`` [rad] (and velocity ``qd0`` [rad/s]).
@@ -254,7 +257,15 @@ class Controller(ABC):
         """
         if not self._reset_done:
             raise ConfigurationError("call reset(q0) before the first step()")
-        q = self.robot.check_q(q)
+        # the common case checked here (a float array of the right shape, finite: its dot
+        # product is); anything else through the model's check and its error messages
+        if not (
+            type(q) is np.ndarray
+            and q.dtype == _FLOAT
+            and q.shape == self._q_shape
+            and math.isfinite(q.dot(q))
+        ):
+            q = self.robot.check_q(q)
         if qd is not None:
             qd = self.robot.check_q(qd, "qd")
         if self.measurement_delay_periods and self._sent:

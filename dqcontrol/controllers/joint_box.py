@@ -1,13 +1,16 @@
-"""The bound box joint by joint on floats, compiled: the scalar twin of :mod:`bounds`.
+"""The bound box joint by joint on floats, compiled: the kernels of the joint limits.
 
-The 1 kHz hot paths build the box of every joint in one compiled call, with the very
-floating-point operations of :func:`~dqcontrol.controllers.bounds.command_box` (tests check
-bit equality), because numpy's per-call cost on 7-element arrays exceeds the arithmetic:
-:func:`joint_boxes` (the local controller's QP bounds and, with :func:`project`, the
-proportional controller's clip) and :func:`vp_boxes` (the general step's bounds of every
-instant). Far from its limits a joint's box is just ``±qd_max`` (:func:`joint_constants`
-says how far is far); near them, :func:`near_limit_box`. Numba compiles them without
-fast-math: the IEEE operations in the order written.
+One implementation of each bound rule of docs/theory.md §5, used by every controller: the
+velocity/position/braking box of one joint (:func:`near_limit_box`) and the intersection
+with the acceleration interval under the conflict rule (:func:`intersect_hard`). The QP
+controllers' limits write them straight into the QP's bound vectors
+(:func:`applied_box_into`, :func:`predicted_boxes_into`, :func:`hard_interval_into`; the
+generic merge of any limit's bounds: :func:`intersect_into`, :func:`hard_into`); the
+proportional controller's clip takes the applied box of every joint in one call
+(:func:`joint_boxes`, with :func:`joint_constants` saying how far from a limit a joint's
+box is just ``±qd_max``). :mod:`~dqcontrol.controllers.bounds` computes the same numbers
+with numpy (the tests' reference, bit for bit). Numba compiles them without fast-math: the
+IEEE operations in the order written; minima and maxima propagate NaN as numpy's do.
 """
 
 from __future__ import annotations
@@ -18,7 +21,19 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["joint_boxes", "joint_constants", "near_limit_box", "project", "vp_boxes"]
+__all__ = [
+    "applied_box_into",
+    "clip_into",
+    "hard_interval_into",
+    "hard_into",
+    "intersect_hard",
+    "intersect_into",
+    "joint_boxes",
+    "joint_constants",
+    "near_limit_box",
+    "predicted_boxes_into",
+    "project",
+]
 
 
 def joint_constants(
@@ -130,16 +145,11 @@ def joint_boxes(
             hi = v_max
         else:
             lo, hi = near_limit_box(d_hi, d_lo, v_max, period_s, braking, at, two_a, at2)
-        # ∩ acceleration, with its conflict rule: where they do not meet, the point of
-        # the acceleration interval closest to the box
-        lo_box = lo_a if lo_a > lo else lo
-        hi_box = hi_a if hi_a < hi else hi
-        conflict[j] = 0
-        if lo_box > hi_box:
-            lo_box = hi_box = hi_a if hi_a < lo else lo_a
-            conflict[j] = 1
-            count += 1
-        # what DaqpQP.solve checks and clamps (a NaN limit or command fails here)
+        # ∩ acceleration, with its conflict rule
+        lo_box, hi_box, clash = intersect_hard(lo, hi, lo_a, hi_a)
+        conflict[j] = 1 if clash else 0
+        count += 1 if clash else 0
+        # what a QP backend checks and clamps (a NaN limit or command fails here)
         if not (q_lo <= q_hi and prev == prev and -1e30 <= lo_box <= hi_box <= 1e30):
             return -1
         bounds[0, j] = lo_box
@@ -165,37 +175,156 @@ def project(qd: np.ndarray, bounds: np.ndarray, out: np.ndarray) -> bool:
 
 
 @compiled
-def vp_boxes(
+def _max(a: float, b: float) -> float:
+    """``np.maximum(a, b)``: NaN if either is."""
+    if a != a or b != b:
+        return math.nan
+    return a if a > b else b
+
+
+@compiled
+def _min(a: float, b: float) -> float:
+    """``np.minimum(a, b)``: NaN if either is."""
+    if a != a or b != b:
+        return math.nan
+    return a if a < b else b
+
+
+@compiled
+def intersect_hard(lo: float, hi: float, lo_h: float, hi_h: float) -> tuple[float, float, bool]:
+    """``[lo, hi] ∩ [lo_h, hi_h]`` where the second interval is *hard* (the acceleration
+    bound): where they do not meet, the point of ``[lo_h, hi_h]`` closest to ``[lo, hi]``
+    (the conflict rule). Returns ``(lower, upper, conflict)``."""
+    lo_box = _max(lo, lo_h)
+    hi_box = _min(hi, hi_h)
+    if lo_box > hi_box:
+        target = hi_h if hi_h < lo else lo_h
+        return target, target, True
+    return lo_box, hi_box, False
+
+
+@compiled
+def intersect_into(
+    lower: np.ndarray, upper: np.ndarray, index: np.ndarray, lo: np.ndarray, up: np.ndarray
+) -> None:
+    """``lower[index] = max(lower[index], lo)``, ``upper[index] = min(upper[index], up)``
+    in place (a soft bound merged)."""
+    for e in range(index.shape[0]):
+        k = index[e]
+        lower[k] = _max(lower[k], lo[e])
+        upper[k] = _min(upper[k], up[e])
+
+
+@compiled
+def hard_into(
+    lower: np.ndarray,
+    upper: np.ndarray,
+    conflict: np.ndarray,
+    index: np.ndarray,
+    lo_h: np.ndarray,
+    up_h: np.ndarray,
+) -> int:
+    """A hard bound merged in place with the conflict rule (:func:`intersect_hard`);
+    ``conflict[index]`` set where it applied. Returns the number of conflicts."""
+    count = 0
+    for e in range(index.shape[0]):
+        k = index[e]
+        lo, hi, clash = intersect_hard(lower[k], upper[k], lo_h[e], up_h[e])
+        lower[k] = lo
+        upper[k] = hi
+        if clash:
+            conflict[k] = 1
+            count += 1
+    return count
+
+
+@compiled
+def hard_interval_into(
+    lower: np.ndarray,
+    upper: np.ndarray,
+    conflict: np.ndarray,
+    index: np.ndarray,
+    centre: np.ndarray,
+    half_width: np.ndarray,
+) -> int:
+    """:func:`hard_into` with the hard interval ``centre ± half_width`` (the acceleration
+    bound ``qd_prev ± T a_max``). Returns the number of conflicts."""
+    count = 0
+    for e in range(index.shape[0]):
+        k = index[e]
+        lo, hi, clash = intersect_hard(
+            lower[k], upper[k], centre[e] - half_width[e], centre[e] + half_width[e]
+        )
+        lower[k] = lo
+        upper[k] = hi
+        if clash:
+            conflict[k] = 1
+            count += 1
+    return count
+
+
+@compiled
+def applied_box_into(
     q: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    qd_max: np.ndarray,
+    period_s: float,
+    braking: bool,
+    brake: np.ndarray,
+    index: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> None:
+    """The box of the command applied now, from the measured ``q`` (n,), merged into
+    ``lower``/``upper`` at ``index`` (n,) (``bounds.velocity_position_box`` on ``q``).
+    ``brake`` (3, n) holds the braking constants ``a T``, ``2 a``, ``(a T)²`` (unused when
+    ``braking`` is False)."""
+    for j in range(q.shape[0]):
+        qj = q[j]
+        lo, hi = near_limit_box(
+            q_max[j] - qj, qj - q_min[j], qd_max[j], period_s, braking,
+            brake[0, j], brake[1, j], brake[2, j],
+        )  # fmt: skip
+        k = index[j]
+        lower[k] = _max(lower[k], lo)
+        upper[k] = _min(upper[k], hi)
+
+
+@compiled
+def predicted_boxes_into(
     q_hat: np.ndarray,
     q_min: np.ndarray,
     q_max: np.ndarray,
     qd_max: np.ndarray,
     period_s: float,
     braking: bool,
-    at: np.ndarray,
-    two_a: np.ndarray,
-    at2: np.ndarray,
+    brake: np.ndarray,
+    index: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
 ) -> None:
-    """The velocity/position (and braking) box of every instant and joint, as
-    ``bounds._vp_box`` on ``q_box`` = ``q`` for instant 0 and ``q̂_i`` clipped to the
-    limits for the others: written to ``lower``/``upper`` (p, n), bit for bit.
-
-    ``at``, ``two_a``, ``at2`` (p, n) are the braking constants at each instant (unused,
-    any values, when ``braking`` is False)."""
-    for i in range(q_hat.shape[0]):
+    """The boxes of the predicted blocks ``i ≥ 1``, each at ``q̂_i`` clipped to the limits
+    (``bounds.velocity_position_box`` on ``clip(q̂_i)``), merged into ``lower``/``upper`` at
+    ``index[i]`` (``q_hat`` and ``index`` are ``(p, n)``, the braking constants ``brake``
+    ``(3, p, n)``; row 0 is not read)."""
+    for i in range(1, q_hat.shape[0]):
         for j in range(q_hat.shape[1]):
-            if i == 0:
-                qj = q[j]
-            else:
-                qj = q_hat[i, j]
-                qj = q_min[j] if qj < q_min[j] else qj  # np.maximum(q̂, q_min) ...
-                qj = q_max[j] if qj > q_max[j] else qj  # ... then np.minimum(·, q_max)
+            qj = q_hat[i, j]
+            qj = q_min[j] if qj < q_min[j] else qj  # np.maximum(q̂, q_min) ...
+            qj = q_max[j] if qj > q_max[j] else qj  # ... then np.minimum(·, q_max)
             lo, hi = near_limit_box(
                 q_max[j] - qj, qj - q_min[j], qd_max[j], period_s, braking,
-                at[i, j], two_a[i, j], at2[i, j],
+                brake[0, i, j], brake[1, i, j], brake[2, i, j],
             )  # fmt: skip
-            lower[i, j] = lo
-            upper[i, j] = hi
+            k = index[i, j]
+            lower[k] = _max(lower[k], lo)
+            upper[k] = _min(upper[k], hi)
+
+
+@compiled
+def clip_into(z: np.ndarray, lower: np.ndarray, upper: np.ndarray, count: int) -> None:
+    """``z[:count] = min(max(z[:count], lower[:count]), upper[:count])`` in place (numpy's
+    ``minimum(maximum(·))``, NaN included)."""
+    for k in range(count):
+        z[k] = _min(_max(z[k], lower[k]), upper[k])

@@ -25,6 +25,7 @@ from dqcontrol.controllers.problem import (
     Limit,
     Problem,
     Solution,
+    fixed_variables,
     merge_bounds,
     objective,
 )
@@ -72,7 +73,13 @@ def build_problem(
         built.append(BuiltLevel(lev.name, lev.tolerance, tuple(residuals)))
     bounds, general = _limit_rows(limits, ctx)
     lower, upper, conflict = merge_bounds(ctx.layout, tuple(bounds))
-    return Problem(ctx.layout, tuple(built), tuple(bounds), tuple(general), lower, upper, conflict)
+    fixed = fixed_variables(ctx.layout, tuple(bounds))
+    if general:
+        lower = np.concatenate([lower] + [g.lower for g in general])
+        upper = np.concatenate([upper] + [g.upper for g in general])
+    return Problem(
+        ctx.layout, tuple(built), tuple(bounds), tuple(general), lower, upper, conflict, fixed
+    )
 
 
 @dataclass(frozen=True)
@@ -100,15 +107,12 @@ def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
     """Level ``k``'s dense QP with the rows ``held`` (``(A, lower, upper)``) of the levels
     above it."""
     p_mat, c = objective(problem.layout, problem.levels[k].residuals)
-    c_rows, lo, up = problem.general_rows()
-    nv = problem.layout.num_vars
-    blocks = [np.eye(nv), c_rows] + [h[0] for h in held]
     return DenseQP(
         p_mat,
         c,
-        np.vstack(blocks),
-        np.concatenate([problem.lower, lo] + [h[1] for h in held]),
-        np.concatenate([problem.upper, up] + [h[2] for h in held]),
+        np.vstack([problem.A] + [h[0] for h in held]),
+        np.concatenate([problem.lower] + [h[1] for h in held]),
+        np.concatenate([problem.upper] + [h[2] for h in held]),
     )
 
 

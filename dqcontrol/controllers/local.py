@@ -1,4 +1,4 @@
-"""The local method with time scaling (FORMULATION §5.2, thesis eq. 3.4–3.14, 4.9–4.12)."""
+"""The local method with time scaling (docs/theory.md §4.2, thesis eq. 3.4–3.14, 4.9–4.12)."""
 
 from __future__ import annotations
 
@@ -12,10 +12,11 @@ __all__ = ["LocalController"]
 
 
 class LocalController(TrackingController):
-    """One-instant QP: ``min λ1‖J qd - s w‖² + λ2(1-s)² + μ‖qd‖²`` within the hard bounds.
+    """One-block QP: ``min λ1‖J qd - s w‖² + λ2(1-s)² + μ‖qd‖²`` within the hard bounds.
 
     Decision ``z = [qd; s]``; see :class:`~dqcontrol.controllers.tracking.TrackingController`
-    for every keyword argument (gain, weights, bounds, solver settings).
+    for every keyword argument (gain, weights, bounds, solver, priority, extra terms and
+    limits).
     """
 
     name = "local"

@@ -1,4 +1,4 @@
-"""The predictive (MPC) method, with and without time scaling (FORMULATION §5.3–5.4)."""
+"""The predictive (MPC) method, with and without time scaling (docs/theory.md §4.2–4.3)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ from dqcontrol.trajectories import Trajectory
 
 __all__ = ["PredictiveController", "PredictiveNoScalingController"]
 
-#: Largest default ``K`` [1/s] of the method without scaling: below the two-period cycle
-#: measured from 4.6 s⁻¹ (:class:`PredictiveNoScalingController`).
+#: Largest default ``K`` [1/s] of the method without scaling: below the gain at which the
+#: applied command falls into a two-period cycle at the acceleration bound
+#: (:class:`PredictiveNoScalingController`, docs/theory.md §4.3).
 NOSCALE_GAIN_CAP_PER_S = 4.0
 
 
@@ -55,19 +56,12 @@ class PredictiveNoScalingController(PredictiveController):
     The thesis compared it with ``|qd| ≤ 2 rad/s`` and ``|qdd| ≤ 40 rad/s²``; pass those as
     ``velocity_limits`` / ``acceleration_limit`` to reproduce that comparison.
 
-    Default gain. The predicted poses ``x̂_i`` come from integrating the previous horizon
-    (``q̂ = q + W qd_prev``), and each ``qd_i`` answers the predicted error with gain ``K``;
-    from one step to the next, a deviation of the horizon is therefore multiplied by about
-    ``K W``. Without ``s_i`` to absorb it (the scaled method shrinks ``s_i`` instead), the
-    horizon diverges unless ``K ρ(W) < 1``; we measured divergence from ``K ρ(W) ≈ 1.2``
-    (p = 6 and 10, τ_p = 1 s, T = 50 ms). A second limit comes first: the applied command
-    falls into a two-period cycle at the acceleration bound (``qd`` alternating by
-    ``T a_max`` every step, the QP re-choosing ~35 active constraints each time) from ``K``
-    between 4.6 and 9.5 s⁻¹ (measured onsets on the LBR4p: circle, p = 6 and 10,
-    T = 1–50 ms, τ_p = 0.5–2 s: 5.1–9.5; the sinusoid at T = 50 ms: 4.6–5), where
-    ``0.9 / ρ(W)`` would allow 8.5 (p = 10, T = 1 ms) and 17 (τ_p = 0.5 s). The default
-    is therefore ``K = min(4, 0.9 / ρ(W))`` [1/s] (3.6 for p = 6 at T = 50 ms, 4 for
-    p = 10 and at 1 ms). Pass ``gain_per_s`` to choose another.
+    Default gain: ``K = min(4, 0.9 / ρ(W))`` [1/s], ``W`` the integration matrix of the
+    prediction. A deviation of the predicted horizon is multiplied by about ``K W`` from
+    one step to the next; without ``s_i`` to absorb it the horizon diverges unless
+    ``K ρ(W) < 1``, and from a lower gain still the applied command falls into a
+    two-period cycle at the acceleration bound (docs/theory.md §4.3). Pass ``gain_per_s``
+    to choose another.
     """
 
     def __init__(

@@ -13,13 +13,20 @@ A controller's QP at one step is *built* first and *solved* second:
   terms subject to the limits and to every higher level held at its optimum.
 
 :class:`Problem` is what was built at one step (inspectable: every term and limit by name
-with its rows and bounds) and :class:`Solution` what a backend returned.
+with its rows and bounds), :class:`BlockQP` the single-level QP with a block-diagonal
+Hessian that the structured backends take, and :class:`Solution` what a backend returned.
+
+Terms and limits may offer a *fast path* beside their rows (:meth:`Term.add_gram`,
+:meth:`Limit.tighten`, :meth:`Limit.row_bounds`): the same numbers written straight into
+the QP's arrays, for the kilohertz loop. Their rows stay the definition
+(:meth:`Term.residual`, :meth:`Limit.rows`): what :class:`Problem` holds and the tests
+check the fast paths against.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -30,6 +37,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from dqcontrol.controllers.context import StepContext
 
 __all__ = [
+    "BlockQP",
     "Bounds",
     "BuiltLevel",
     "DecisionLayout",
@@ -41,6 +49,9 @@ __all__ = [
     "Residual",
     "Solution",
     "Term",
+    "fixed_variables",
+    "merge_bounds",
+    "objective",
 ]
 
 
@@ -143,8 +154,10 @@ class Bounds(NamedTuple):
     """``lower ≤ z[index] ≤ upper`` from one limit.
 
     ``hard`` bounds (the acceleration bound) win a conflict: where their interval misses the
-    others', the merged bound is the point of the hard interval closest to them
-    (FORMULATION §6 conflict rule).
+    others', the merged bound is the point of the hard interval closest to them (the
+    conflict rule of docs/theory.md §5). ``fixed`` bounds are equalities by design
+    (``lower == upper`` at every step, e.g. ``s ≡ 1`` without time scaling): a backend may
+    fix them for the life of its workspace.
     """
 
     name: str
@@ -152,6 +165,7 @@ class Bounds(NamedTuple):
     lower: np.ndarray
     upper: np.ndarray
     hard: bool = False
+    fixed: bool = False
 
 
 class Inequality(NamedTuple):
@@ -168,6 +182,10 @@ class Term(ABC):
 
     Subclasses set ``name`` and ``weight`` and implement :meth:`residual`. ``constant``
     terms (rows independent of the step) are evaluated once per layout and cached.
+
+    Optional hooks: :meth:`prepare` (start of every step, before any row is read: a term
+    with memory fixes this step's values there), :meth:`observe` (after every step: the
+    memory's update), :meth:`reset`, and the fast path :meth:`add_gram`.
     """
 
     name: str = "term"
@@ -177,6 +195,16 @@ class Term(ABC):
     @abstractmethod
     def residual(self, ctx: StepContext) -> Residual:
         """The rows ``A z - b`` of this step."""
+
+    def prepare(self, ctx: StepContext) -> None:  # noqa: B027 - optional hook
+        """Start of a step: fix what :meth:`residual` and :meth:`add_gram` will read."""
+
+    def add_gram(self, ctx: StepContext, hessian: np.ndarray) -> bool:
+        """Fast path of a term whose rows each touch one block and whose ``b`` is zero:
+        add ``2 w Σ_i A_iᵀ A_i`` to the blocks ``hessian`` ``(p, m, m)`` in place (the
+        Hessian of ``w ‖A z‖²``) and return True; False (the default) when not offered,
+        and the caller then uses :meth:`residual`."""
+        return False
 
     def reset(self) -> None:  # noqa: B027 - optional hook
         """Forget any memory (called by the controller's reset)."""
@@ -190,13 +218,40 @@ class Limit(ABC):
 
     Subclasses set ``name`` and implement :meth:`rows`, returning :class:`Bounds`,
     :class:`Inequality`, a tuple of them, or ``None``.
+
+    Class attributes: ``constant`` (the rows never change: evaluated once), ``hard`` (its
+    :class:`Bounds` are hard: merged after every soft bound, with the conflict rule),
+    ``relaxable`` (dropped when the problem is infeasible, to regain feasibility).
+
+    Optional fast paths: :meth:`tighten` (the :class:`Bounds` of this step merged into the
+    variable bounds in place) and :meth:`row_bounds` (the bounds of its
+    :class:`Inequality` rows, whose matrix ``C`` must then be the same at every step).
     """
 
     name: str = "limit"
+    constant: bool = False
+    hard: bool = False
+    relaxable: bool = False
 
     @abstractmethod
     def rows(self, ctx: StepContext) -> Bounds | Inequality | tuple | None:
         """This step's rows, or ``None`` when the limit is inactive."""
+
+    def tighten(
+        self, ctx: StepContext, lower: np.ndarray, upper: np.ndarray, conflict: np.ndarray
+    ) -> bool:
+        """Fast path: intersect this step's :class:`Bounds` into ``lower``/``upper``
+        (the variables' entries, in place; hard ones with the conflict rule, marking
+        ``conflict``) exactly as :func:`merge_bounds` would, and return True; False when
+        not offered. A limit that offers it gives :class:`Inequality` rows only with the
+        same matrix at every step (their bounds through :meth:`row_bounds`)."""
+        return False
+
+    def row_bounds(self, ctx: StepContext, lower: np.ndarray, upper: np.ndarray) -> bool:
+        """Fast path: write the bounds of this step's :class:`Inequality` rows (in the
+        order :meth:`rows` gives them) to ``lower``/``upper`` and return True; False when
+        not offered."""
+        return False
 
 
 @dataclass(frozen=True)
@@ -240,12 +295,50 @@ class DenseQP(NamedTuple):
     upper: np.ndarray
 
 
+class BlockQP(NamedTuple):
+    """``minimize ½ zᵀ P z + cᵀ z  s.t.  lower ≤ [I; C] z ≤ upper`` with ``P`` block diagonal.
+
+    Attributes:
+        hessian: the diagonal blocks of ``P`` ``(p, m, m)``.
+        c: ``(p m,)``.
+        C: the general rows ``(r, p m)``.
+        lower, upper: bounds of the variables, then of the general rows ``(p m + r,)``.
+        fixed: indices of the variables fixed by design (``lower == upper`` at every step).
+        structure: a number naming the structure (the shapes, ``C``, ``fixed``): a backend
+            sets its workspace up for a structure once and only updates values while the
+            number stays the same. Whoever builds the QPs gives a new number whenever the
+            structure changes (:class:`~dqcontrol.controllers.assembly.BlockAssembly` draws
+            them from one counter, so numbers are never reused).
+        warm: a guess of the solution ``(p m,)`` for solvers that take one, or ``None``.
+    """
+
+    hessian: np.ndarray
+    c: np.ndarray
+    C: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    fixed: tuple[int, ...] = ()
+    structure: int = 0
+    warm: np.ndarray | None = None
+
+    def dense(self) -> DenseQP:
+        """The same QP with ``P`` and ``A`` as dense arrays."""
+        p, m, _ = self.hessian.shape
+        p_mat = np.zeros((p * m, p * m))
+        for i in range(p):
+            p_mat[i * m : (i + 1) * m, i * m : (i + 1) * m] = self.hessian[i]
+        return DenseQP(p_mat, self.c, np.vstack([np.eye(p * m), self.C]), self.lower, self.upper)
+
+
 @dataclass(frozen=True)
 class Problem:
     """Everything built at one step: the layout, the levels, the limits' rows.
 
-    ``lower``/``upper`` are the merged variable bounds (every :class:`Bounds`, with the
-    conflict rule) and ``conflict`` marks the variables where a hard bound won.
+    ``lower``/``upper`` bound the rows of ``A = [I; C]``: first the variables (every
+    :class:`Bounds` merged, with the conflict rule; ``conflict`` marks the variables where
+    a hard bound won, ``fixed`` those fixed by design), then every :class:`Inequality`'s
+    rows in order. The problem also reads as the dense QP of its first level,
+    ``P, c, A, lower, upper`` (attributes, and iteration in that order).
     """
 
     layout: DecisionLayout
@@ -255,17 +348,45 @@ class Problem:
     lower: np.ndarray
     upper: np.ndarray
     conflict: np.ndarray
+    fixed: np.ndarray | None = None
 
     def general_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(C, lower, upper)`` of every :class:`Inequality` stacked."""
         nv = self.layout.num_vars
+        return self.C, self.lower[nv:], self.upper[nv:]
+
+    @property
+    def C(self) -> np.ndarray:  # noqa: N802 - the matrix's name in the formulas
+        """The general rows ``(r, len(z))``."""
+        nv = self.layout.num_vars
         if not self.inequalities:
-            return np.zeros((0, nv)), np.zeros(0), np.zeros(0)
-        return (
-            np.vstack([g.C for g in self.inequalities]),
-            np.concatenate([g.lower for g in self.inequalities]),
-            np.concatenate([g.upper for g in self.inequalities]),
-        )
+            return np.zeros((0, nv))
+        return np.vstack([g.C for g in self.inequalities])
+
+    @property
+    def A(self) -> np.ndarray:  # noqa: N802
+        """``[I; C]``, the rows ``lower``/``upper`` bound."""
+        return np.vstack([np.eye(self.layout.num_vars), self.C])
+
+    @property
+    def P(self) -> np.ndarray:  # noqa: N802
+        """The first level's Hessian."""
+        return self.objective(0)[0]
+
+    @property
+    def c(self) -> np.ndarray:
+        """The first level's linear term."""
+        return self.objective(0)[1]
+
+    def __iter__(self):
+        """``P, c, A, lower, upper`` of the first level (a :class:`DenseQP`)."""
+        return iter(self.dense(0))
+
+    def __getitem__(self, index):
+        return tuple(self.dense(0))[index]
+
+    def __len__(self) -> int:
+        return 5
 
     def objective(self, level: int) -> tuple[np.ndarray, np.ndarray]:
         """``(P, c)`` of level ``level``: ``½ zᵀ P z + cᵀ z = Σ w ‖A z - b‖² - const``."""
@@ -274,15 +395,7 @@ class Problem:
     def dense(self, level: int = 0) -> DenseQP:
         """Level ``level``'s QP without the rows that hold the higher levels."""
         p_mat, c = self.objective(level)
-        c_rows, lo, up = self.general_rows()
-        nv = self.layout.num_vars
-        return DenseQP(
-            p_mat,
-            c,
-            np.vstack([np.eye(nv), c_rows]),
-            np.concatenate([self.lower, lo]),
-            np.concatenate([self.upper, up]),
-        )
+        return DenseQP(p_mat, c, self.A, self.lower, self.upper)
 
     def describe(self) -> str:
         """One line per level, term and limit with its row count."""
@@ -325,7 +438,9 @@ def merge_bounds(
     layout: DecisionLayout, bounds: tuple[Bounds, ...]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Intersect every :class:`Bounds`; hard bounds are applied last with the conflict rule
-    (where the hard interval misses the others, the point of it closest to them)."""
+    (where the hard interval misses the others, the point of it closest to them).
+
+    Returns ``(lower, upper, conflict)`` over the variables."""
     nv = layout.num_vars
     lo = np.full(nv, -np.inf)
     up = np.full(nv, np.inf)
@@ -350,8 +465,16 @@ def merge_bounds(
     return lo, up, conflict
 
 
-@dataclass(frozen=True)
-class Solution:
+def fixed_variables(layout: DecisionLayout, bounds: tuple[Bounds, ...]) -> np.ndarray:
+    """Mask of the variables some ``fixed`` :class:`Bounds` fixes."""
+    out = np.zeros(layout.num_vars, dtype=bool)
+    for b in bounds:
+        if b.fixed:
+            out[b.index] = True
+    return out
+
+
+class Solution(NamedTuple):
     """What a backend returned for one QP.
 
     Attributes:
@@ -367,5 +490,5 @@ class Solution:
     status: str
     iterations: int = 0
     solve_time_s: float = 0.0
-    x: np.ndarray | None = field(default=None, repr=False)
-    duals: np.ndarray | None = field(default=None, repr=False)
+    x: np.ndarray | None = None
+    duals: np.ndarray | None = None

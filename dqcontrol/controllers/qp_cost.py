@@ -1,14 +1,14 @@
-"""The QP Hessian of the tracking controllers in compiled calls (the 1 kHz step).
+"""The tracking cost's Hessian blocks in compiled calls (docs/theory.md §4.2, §7.3).
 
-For one instant the cost of FORMULATION §5 is ``λ1 ‖J qd - w s‖² + qdᵀ D qd (+ stall)``
-in ``z = [qd, s]``, i.e. ``½ zᵀ H z`` with ``H = 2 (λ1 Gᵀ G + D)``, ``G = [J, -w]`` and
-``-w = K (x - x_d) - dx_d/dσ``. :func:`local_hessian` builds ``H`` from the pose, its
-Jacobian and the target pair on floats, compiled with Numba: the same arithmetic as the
-general step's ``P`` (``TrackingController._step_general``), in one call instead of a
-dozen numpy calls on 8×8 arrays. ``tests/test_local_fast.py`` checks the two steps agree.
-:func:`instant_p_values` does the same for the p instants of the predictive controller,
-straight to the values of ``P``'s stored upper triangles, and :func:`scatter_symmetric`
-writes such values into DAQP's dense ``H``.
+For one block ``i`` the tracking term of docs/theory.md §4.2 is ``λ1 ‖J_i qd_i - s_i w_i‖²``
+in ``z_i = [qd_i, s_i]``, i.e. ``λ1 ‖G_i z_i‖²`` with ``G_i = [J_i, -w_i]`` and
+``-w_i = K (x_i - x_d,i) - dx_d/dσ,i``; its Hessian block is ``2 λ1 G_iᵀ G_i``.
+:func:`add_task_grams` adds it to a block-diagonal Hessian in one compiled call per step
+instead of a dozen numpy calls on 8×8 arrays; :func:`task_matrices` gives the ``G_i``
+themselves (the term's residual rows), with the same floating-point operations;
+:func:`align_signs` flips poses (and Jacobians) to ``x · x_d ≥ 0`` (docs/theory.md §1);
+:func:`scatter_symmetric` writes stored upper-triangle values into a dense matrix.
+Numba compiles them without fast-math: the IEEE operations in the order written.
 """
 
 from __future__ import annotations
@@ -17,15 +17,21 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["gram", "instant_p_values", "local_hessian", "scatter_symmetric"]
+__all__ = [
+    "add_task_grams",
+    "align_signs",
+    "measured_state",
+    "gram",
+    "scatter_blocks",
+    "scatter_symmetric",
+    "task_matrices",
+]
 
 
 @compiled
 def gram(g: np.ndarray) -> np.ndarray:
-    """``Gᵀ G`` (m, m) of ``G`` (8, m), new, symmetric: each entry the plain sum over the
-    8 rows in order. The general step's single instant uses it too, so that its ``P`` and
-    :func:`local_hessian`'s are the same numbers bit for bit (a BLAS product sums in its
-    own order)."""
+    """``Gᵀ G`` (m, m) of ``G`` (r, m), new, symmetric: each entry the plain sum over the
+    rows in order."""
     m = g.shape[1]
     h = np.empty((m, m))
     for i in range(m):
@@ -39,21 +45,63 @@ def gram(g: np.ndarray) -> np.ndarray:
 
 
 @compiled
-def _task_matrix(
-    x: np.ndarray, jac: np.ndarray, xd: np.ndarray, dxd: np.ndarray, gain: float, g: np.ndarray
+def align_signs(xs: np.ndarray, jacs: np.ndarray, xd: np.ndarray) -> None:
+    """Negate ``xs[i]`` and ``jacs[i]`` in place where ``xs[i] · xd[i] < 0``: the error is
+    then formed between the nearer of ``±x`` and ``x_d``."""
+    for i in range(xs.shape[0]):
+        align = 0.0
+        for k in range(8):
+            align += xs[i, k] * xd[i, k]
+        if align < 0.0:
+            for k in range(8):
+                xs[i, k] = -xs[i, k]
+                for j in range(jacs.shape[2]):
+                    jacs[i, k, j] = -jacs[i, k, j]
+
+
+@compiled
+def measured_state(
+    x: np.ndarray,
+    jac: np.ndarray,
+    pair: np.ndarray,
+    q: np.ndarray,
+    sigma: float,
+    poses: np.ndarray,
+    jacs: np.ndarray,
+    xd: np.ndarray,
+    dxd: np.ndarray,
+    q_lin: np.ndarray,
+    sigma_lin: np.ndarray,
 ) -> None:
-    """``g = G = [J, K (x - x_d) - dx_d/dσ]`` (8, n+1) of one instant, after negating ``x``
-    and ``jac`` in place when ``x · x_d < 0`` (the error between the nearer of ``±x`` and
-    ``x_d``)."""
-    n = jac.shape[1]
+    """One block at the measured state: ``x`` and ``jac`` negated in place where
+    ``x · x_d < 0`` (as :func:`align_signs`), then copied with the target pair
+    ``[x_d; dx_d/dσ]``, ``q`` and ``σ`` into the one-row arrays ``poses`` (1, 8),
+    ``jacs`` (1, 8, n), ``xd``, ``dxd`` (1, 8), ``q_lin`` (1, n), ``sigma_lin`` (1,)."""
     align = 0.0
     for k in range(8):
-        align += x[k] * xd[k]
+        align += x[k] * pair[0, k]
     if align < 0.0:
         for k in range(8):
             x[k] = -x[k]
-            for j in range(n):
+            for j in range(jac.shape[1]):
                 jac[k, j] = -jac[k, j]
+    for k in range(8):
+        poses[0, k] = x[k]
+        xd[0, k] = pair[0, k]
+        dxd[0, k] = pair[1, k]
+        for j in range(jac.shape[1]):
+            jacs[0, k, j] = jac[k, j]
+    for j in range(q.shape[0]):
+        q_lin[0, j] = q[j]
+    sigma_lin[0] = sigma
+
+
+@compiled
+def _task_matrix(
+    x: np.ndarray, jac: np.ndarray, xd: np.ndarray, dxd: np.ndarray, gain: float, g: np.ndarray
+) -> None:
+    """``g = G = [J, K (x - x_d) - dx_d/dσ]`` (8, n+1) of one block."""
+    n = jac.shape[1]
     for k in range(8):
         for j in range(n):
             g[k, j] = jac[k, j]
@@ -61,73 +109,48 @@ def _task_matrix(
 
 
 @compiled
-def local_hessian(
-    x: np.ndarray,
-    jac: np.ndarray,
-    pair: np.ndarray,
-    gain_per_s: float,
-    two_task_weight: float,
-    diag2: np.ndarray,
-    two_stall: float,
+def task_matrices(
+    xs: np.ndarray, jacs: np.ndarray, xd: np.ndarray, dxd: np.ndarray, gain_per_s: float
 ) -> np.ndarray:
-    """``H = 2 λ1 Gᵀ G + 2 D (+ 2 μ_stall on the qd diagonal)``, ``(n+1, n+1)``, new.
-
-    ``x`` (8,) and ``jac`` (8, n) are the pose and its Jacobian (fresh arrays: they are
-    negated in place when ``x · x_d < 0``, so that the error is formed between the
-    nearer of ``±x`` and ``x_d``); ``pair`` is ``[x_d; dx_d/dσ]`` (2, 8); ``diag2`` is
-    ``2 D`` (n+1, n+1); ``two_task_weight`` is ``2 λ1`` and ``two_stall`` ``2 μ_stall``
-    times the stall factor (0 unless stalled).
-    """
-    n = jac.shape[1]
-    m = n + 1
-    g = np.empty((8, m))
-    _task_matrix(x, jac, pair[0], pair[1], gain_per_s, g)
-    h = gram(g)
-    for i in range(m):
-        for j in range(m):
-            h[i, j] = h[i, j] * two_task_weight + diag2[i, j]
-        if i < n:
-            h[i, i] += two_stall
-    return h
+    """``G_i = [J_i, K (x_i - x_d,i) - dx_d,i]`` for every block, ``(p, 8, n+1)``, new."""
+    p, n = jacs.shape[0], jacs.shape[2]
+    out = np.empty((p, 8, n + 1))
+    for i in range(p):
+        _task_matrix(xs[i], jacs[i], xd[i], dxd[i], gain_per_s, out[i])
+    return out
 
 
 @compiled
-def instant_p_values(
+def add_task_grams(
     xs: np.ndarray,
     jacs: np.ndarray,
     xd: np.ndarray,
     dxd: np.ndarray,
     gain_per_s: float,
-    task_weight: float,
-    gather: np.ndarray,
-    diag_values: np.ndarray,
-    stall: float,
-    qd_diag_pos: np.ndarray,
-) -> np.ndarray:
-    """The stored values of ``P = 2 (λ1 blkdiag(G_iᵀ G_i) + D (+ stall))`` for p instants.
+    two_weight: float,
+    hessian: np.ndarray,
+) -> None:
+    """``hessian[i] += 2 λ1 G_iᵀ G_i`` in place for every block.
 
-    ``xs`` (p, 8), ``jacs`` (p, 8, n): predicted poses and Jacobians (fresh: negated in
-    place where ``x_i · x_d,i < 0``); ``xd``, ``dxd`` (p, 8): targets and their
-    σ-derivatives; ``G_i = [J_i, K (x_i - x_d,i) - dx_d,i]``. ``gather`` indexes the
-    stored entries in the flattened ``(p, m, m)`` blocks, ``diag_values`` is ``D`` at
-    those entries, ``qd_diag_pos`` the positions of the ``qd`` diagonal among them.
+    ``xs`` (p, 8), ``jacs`` (p, 8, n): poses and Jacobians (sign-aligned to the targets);
+    ``xd``, ``dxd`` (p, 8): targets and their σ-derivatives; ``two_weight`` is ``2 λ1``;
+    ``hessian`` ``(p, n+1, n+1)``. Each entry is ``h + (Gᵀ G)_ab · 2 λ1`` with ``(Gᵀ G)_ab``
+    the plain sum over the 8 rows in order, and the block stays exactly symmetric.
     """
     p, n = jacs.shape[0], jacs.shape[2]
     m = n + 1
-    blocks = np.empty((p, m, m))
     g = np.empty((8, m))
     for i in range(p):
         _task_matrix(xs[i], jacs[i], xd[i], dxd[i], gain_per_s, g)
-        blocks[i] = gram(g)
-    flat = blocks.ravel()
-    values = np.empty(gather.shape[0])
-    for e in range(gather.shape[0]):
-        values[e] = flat[gather[e]] * task_weight + diag_values[e]
-    for e in qd_diag_pos:
-        values[e] += stall
-    for e in range(values.shape[0]):
-        values[e] *= 2.0
-    return values
+        for a in range(m):
+            for b in range(a, m):
+                acc = 0.0
+                for k in range(8):
+                    acc += g[k, a] * g[k, b]
+                v = acc * two_weight
+                hessian[i, a, b] = hessian[i, a, b] + v
+                if b != a:
+                    hessian[i, b, a] = hessian[i, b, a] + v
 
 
 @compiled
@@ -138,3 +161,14 @@ def scatter_symmetric(
     for e in range(values.shape[0]):
         h[rows[e], cols[e]] = values[e]
         h[cols[e], rows[e]] = values[e]
+
+
+@compiled
+def scatter_blocks(h: np.ndarray, blocks: np.ndarray) -> None:
+    """Write the ``(p, m, m)`` blocks on the diagonal of the dense ``h`` ``(p m, p m)``."""
+    m = blocks.shape[1]
+    for i in range(blocks.shape[0]):
+        o = i * m
+        for a in range(m):
+            for b in range(m):
+                h[o + a, o + b] = blocks[i, a, b]

@@ -1,14 +1,21 @@
-"""DAQP (a dual active-set solver for dense QPs) behind the interface of :class:`OsqpQP`.
+"""DAQP (a dual active-set solver for dense QPs): the default backend of the QP
+controllers (docs/theory.md §6, §7.5).
 
-The default backend (``solver="daqp"``; OSQP stays selectable with ``solver="osqp"``).
 The controllers' QPs are small and dense per block (p (n+1) variables), and an active-set
 method solves them exactly in a few iterations where a first-order method needs hundreds;
 the workspace is set up once (:class:`daqp.Model`) and later steps only update ``H``, ``f``
-and the bounds, starting from the previous step's active set. A new ``H`` costs DAQP a
-dense factorisation, cubic in p (n+1); a block-diagonal ``P`` (``block_size``, the
-predictive controllers) is therefore handed over as the equivalent least-distance problem
-of ``qp_ldp.py``, whose ``H`` never changes (docs/performance.md). ``dqcontrol bench``
-compares the two backends.
+and the bounds, starting from the previous step's active set.
+
+As a backend (:meth:`DaqpQP.solve_blocks`) it specialises on the structure of the
+:class:`~dqcontrol.controllers.problem.BlockQP` it is given, and sets its workspace up
+again whenever that structure changes:
+
+- one block and no general row (the local controller): DAQP's own dense form, the whole
+  ``H`` handed over at every step (:meth:`DaqpQP.solve_dense`);
+- several blocks or general rows (the predictive controllers): a new ``H`` would cost DAQP
+  a dense factorisation, cubic in p (n+1), so the QP goes over as the equivalent
+  least-distance problem of ``qp_ldp.py``, whose ``H`` never changes; the problem as it is
+  where a block is not positive definite.
 """
 
 from __future__ import annotations
@@ -21,7 +28,9 @@ from functools import cache
 import numpy as np
 import scipy.sparse as sp
 
-from dqcontrol.controllers.qp_cost import scatter_symmetric
+from dqcontrol._compiled import compiled
+from dqcontrol.controllers.problem import BlockQP, Solution
+from dqcontrol.controllers.qp_cost import scatter_blocks, scatter_symmetric
 from dqcontrol.controllers.qp_ldp import block_ldp, ldp_solution
 from dqcontrol.controllers.qp_solver import QPSolution, invalid_bounds
 from dqcontrol.errors import ParameterError
@@ -50,10 +59,25 @@ def _kept(c: np.ndarray) -> np.ndarray | None:
 
 
 _REFUSED = "error: DAQP refused the update"
+_new_solution = tuple.__new__  # a NamedTuple from all its fields
+
+
+@compiled
+def bounds_state(lower: np.ndarray, upper: np.ndarray) -> int:
+    """0: every row has ``-1e30 ≤ lower ≤ upper ≤ 1e30``; 1: consistent, but some bound
+    beyond ±1e30 (to be clamped: DAQP's infinity); -1: some ``lower > upper`` or NaN."""
+    state = 0
+    for k in range(lower.shape[0]):
+        lo, up = lower[k], upper[k]
+        if not lo <= up:
+            return -1
+        if lo < -1e30 or up > 1e30:
+            state = 1
+    return state
 
 
 class DaqpQP:
-    """Same contract as :class:`~dqcontrol.controllers.qp_solver.OsqpQP`.
+    """DAQP with its structure set once and values updated at every step.
 
     The first ``n`` rows of ``A`` must be the identity (bounds on the variables, as in the
     controllers); the remaining rows are general constraints. ``equality_rows`` (indices
@@ -64,17 +88,24 @@ class DaqpQP:
     would stay pinned after its bounds widen again, and DAQP would report that wrong
     optimum as solved.
 
-    ``block_size`` (the predictive controllers: ``n + 1``) declares ``P`` block diagonal
-    with blocks of that size: each solve then hands DAQP the equivalent least-distance
-    problem (``qp_ldp.py``; DAQP's ``H`` stays the identity, so a new ``P`` costs no dense
-    refactorisation), and falls back to the problem as it is where a block is not
-    positive definite. Both give the same optimum (to ~1e-11 here).
+    ``block_size`` declares ``P`` block diagonal with blocks of that size: each solve then
+    hands DAQP the equivalent least-distance problem (``qp_ldp.py``; DAQP's ``H`` stays the
+    identity, so a new ``P`` costs no dense refactorisation), and falls back to the
+    problem as it is where a block is not positive definite. Both give the same optimum
+    (to ~1e-11 here).
+
+    Constructed without ``p_pattern``, the structure comes from the first
+    :meth:`solve_blocks` (the controllers' use: a backend, docs/theory.md §7.5).
     """
+
+    name = "daqp"
+    #: :meth:`solve_blocks` ignores :attr:`BlockQP.warm` (the active set is the warm start).
+    uses_warm_start = False
 
     def __init__(
         self,
-        p_pattern: sp.csc_matrix,
-        a_matrix: sp.csc_matrix,
+        p_pattern: sp.csc_matrix | None = None,
+        a_matrix: sp.csc_matrix | None = None,
         settings: dict | None = None,
         equality_rows: np.ndarray | None = None,
         block_size: int | None = None,
@@ -82,6 +113,30 @@ class DaqpQP:
         import daqp  # optional dependency, imported only when chosen
 
         self._daqp = daqp
+        self.settings = dict(settings or {})
+        known = daqp.Model().settings
+        unknown = sorted(set(self.settings) - set(known))
+        if unknown:
+            raise ParameterError(
+                f"solver_settings: DAQP has no setting {unknown}; it knows {sorted(known)}"
+            )
+        self.last_method = "daqp"
+        self._structure: int | None = None
+        self._shape: tuple = ()
+        self._box = False
+        self._model = None
+        self._block = 0
+        if p_pattern is not None:
+            self._configure(p_pattern, a_matrix, equality_rows, block_size)
+
+    def _configure(
+        self,
+        p_pattern: sp.csc_matrix,
+        a_matrix: sp.csc_matrix,
+        equality_rows: np.ndarray | None,
+        block_size: int | None,
+    ) -> None:
+        """Set the structure (and forget any workspace)."""
         self.p_pattern = sp.csc_matrix(p_pattern)
         self.p_pattern.sort_indices()
         self.a_matrix = sp.csc_matrix(a_matrix)
@@ -95,20 +150,13 @@ class DaqpQP:
         pat = self.p_pattern.tocoo()
         self._rows, self._cols = pat.row.astype(np.int64), pat.col.astype(np.int64)
         self._h = np.zeros((nv, nv))
-        self.settings = dict(settings or {})
-        known = daqp.Model().settings
-        unknown = sorted(set(self.settings) - set(known))
-        if unknown:
-            raise ParameterError(
-                f"solver_settings: DAQP has no setting {unknown}; it knows {sorted(known)}"
-            )
         self._sense = np.zeros(self.num_cons, dtype=c_int)
         if equality_rows is not None:
             self._sense[np.asarray(equality_rows)] = 5  # DAQP: active and immutable
         self._model = None
         self._f_given: np.ndarray | None = None  # the f DAQP holds (not a copy of)
-        self.last_method = "daqp"
         self._block = 0
+        self._ldp_model = None
         if block_size is not None:
             self._setup_blocks(int(block_size))
 
@@ -153,24 +201,100 @@ class DaqpQP:
         start = time.perf_counter()
         if not (lower <= upper).all():  # also catches NaN
             return invalid_bounds(lower, upper, start)
+        scatter_symmetric(self._h, self._rows, self._cols, p_values)  # compiled
+        x, ok, status, iterations = self._solve_h(c, lower, upper)
+        return QPSolution(x, None, ok, status, iterations, time.perf_counter() - start)
+
+    def _solve_h(
+        self, c: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> tuple[np.ndarray | None, bool, str, int]:
+        """Solve with the ``H`` in ``self._h`` (checked bounds): the least-distance form
+        where it applies, else the problem as it is."""
         h = self._h
-        scatter_symmetric(h, self._rows, self._cols, p_values)  # compiled: no index arrays
         if self._block and block_ldp(
             h, self._block, c, lower, upper, self._a_ptr, self._a_idx, self._a_val,
             self._m_buf, self._lo_buf, self._up_buf, self._linv_t, self._w,
         ):  # fmt: skip
-            x, ok, status, iterations = self._solve_ldp()
-            return QPSolution(x, None, ok, status, iterations, time.perf_counter() - start)
+            self.last_method = "least_distance"
+            return self._solve_ldp()
+        self.last_method = "daqp"
         lo = np.maximum(lower, -1e30)
         up = np.minimum(upper, 1e30)
-        x, ok, status, iterations = self._solve(h, c, lo, up)
-        return QPSolution(x, None, ok, status, iterations, time.perf_counter() - start)
+        return self._solve(h, c, lo, up)
+
+    def solve_blocks(self, qp: BlockQP) -> Solution:
+        """Solve a :class:`~dqcontrol.controllers.problem.BlockQP`, the workspace set up for
+        its structure (one block without general rows: the dense form; otherwise the
+        least-distance one). Never raises for a failed solve: the solution says so."""
+        start = time.perf_counter()
+        hessian = qp.hessian
+        if qp.structure != self._structure or hessian.shape != self._shape:
+            self._configure_blocks(qp)
+            self._structure, self._shape = qp.structure, hessian.shape
+        lower, upper = qp.lower, qp.upper
+        if self._box:
+            state = bounds_state(lower, upper)  # compiled: 0 usable, 1 clamp, -1 refused
+            if state < 0:
+                bad = invalid_bounds(lower, upper, start)
+                return Solution(False, bad.status, 0, bad.solve_time_s)
+            if state > 0:
+                lower, upper = np.maximum(lower, -1e30), np.minimum(upper, 1e30)
+            model = self._model
+            if model is not None and qp.c is self._f_given:
+                # the usual step, as solve_dense (written out: it runs at 1 kHz)
+                try:
+                    if model.update(H=hessian[0], bupper=upper, blower=lower) < 0:
+                        self._model = None
+                        return Solution(False, _REFUSED, 0, time.perf_counter() - start)
+                    x, _fval, flag, info = model.solve()
+                except Exception as exc:  # noqa: BLE001 - never stop the control loop
+                    self._model = None
+                    return Solution(False, f"error: {exc}", 0, time.perf_counter() - start)
+                if (flag == 1 or flag == 2) and x is not None and math.isfinite(x.dot(x)):
+                    iterations = info.get("iterations", 0) if isinstance(info, dict) else 0
+                    return _new_solution(
+                        Solution,
+                        (True, "solved", int(iterations), time.perf_counter() - start, x, None),
+                    )
+                x, ok, status, iterations = _outcome(x, flag, info)
+                if not ok:
+                    self._model = None
+            else:
+                x, ok, status, iterations = self._solve(hessian[0], qp.c, lower, upper)
+            return _new_solution(
+                Solution, (ok, status, iterations, time.perf_counter() - start, x, None)
+            )
+        if not (lower <= upper).all():  # also catches NaN
+            bad = invalid_bounds(lower, upper, start)
+            return Solution(False, bad.status, 0, bad.solve_time_s)
+        scatter_blocks(self._h, hessian)  # compiled: the diagonal blocks of H
+        x, ok, status, iterations = self._solve_h(qp.c, lower, upper)
+        return Solution(ok, status, iterations, time.perf_counter() - start, x)
+
+    @property
+    def form(self) -> str:
+        """The form DAQP gets: ``"dense"`` (the problem as it is) or ``"least_distance"``."""
+        return "least_distance" if self._block else "dense"
+
+    def _configure_blocks(self, qp: BlockQP) -> None:
+        """The structure of ``qp``: ``P`` block diagonal, ``A = [I; C]``, the fixed
+        variables as equalities; the least-distance form unless one block and no row."""
+        p, m, _ = qp.hessian.shape
+        rows = qp.C.shape[0]
+        block = sp.csc_matrix(np.triu(np.ones((m, m))))
+        pattern = sp.block_diag([block] * p, format="csc")
+        a_rows = [sp.identity(p * m, format="csc")]
+        if rows:
+            a_rows.append(sp.csc_matrix(qp.C))
+        fixed = np.array(qp.fixed, dtype=np.int64) if qp.fixed else None
+        self._box = p == 1 and rows == 0
+        self._configure(pattern, sp.vstack(a_rows, format="csc"), fixed, None if self._box else m)
 
     def solve_dense(
         self, h: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.ndarray
     ) -> tuple[np.ndarray | None, bool, str, int, float]:
-        """:meth:`solve` for a caller that has the whole ``H`` and checked bounds: the local
-        controller's hot path (one instant, no :class:`QPSolution`).
+        """:meth:`solve` for a caller that has the whole ``H`` and checked bounds: the
+        single-block form of :meth:`solve_blocks` (no :class:`QPSolution`).
 
         ``h`` is the full symmetric ``H`` (C-contiguous; DAQP keeps it until the next
         update: do not write to it afterwards). The caller guarantees what :meth:`solve`

@@ -1,8 +1,12 @@
-"""OSQP behind a small interface: structure once, values every step, warm-started.
+"""OSQP behind a small interface: structure once, values every step, warm-started
+(docs/theory.md §6, §7.5).
 
-The controllers describe their QP as ``minimize ½ zᵀ P z + cᵀ z  s.t.  l ≤ A z ≤ u`` with
-a *fixed* sparsity pattern; :class:`OsqpQP` sets OSQP up once and afterwards only updates
-the value arrays (``P``'s upper-triangle values, ``c``, ``l``, ``u``) in place.
+A QP ``minimize ½ zᵀ P z + cᵀ z  s.t.  l ≤ A z ≤ u`` with a *fixed* sparsity pattern:
+:class:`OsqpQP` sets OSQP up once and afterwards only updates the value arrays (``P``'s
+upper-triangle values, ``c``, ``l``, ``u``) in place. As a backend
+(:meth:`OsqpQP.solve_blocks`) it takes the structure from the
+:class:`~dqcontrol.controllers.problem.BlockQP` it is given (block-diagonal ``P``,
+``A = [I; C]``) and sets OSQP up again whenever that structure changes.
 
 Settings: tolerances 1e-9 absolute/relative, adaptive ρ, no OSQP *polishing*: OSQP 1.x
 prints an unguarded line on every polished solve without an active set (osqp/osqp#785) and
@@ -29,6 +33,7 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
+from dqcontrol.controllers.problem import BlockQP, Solution
 from dqcontrol.errors import ParameterError
 
 __all__ = [
@@ -120,7 +125,8 @@ def _check_osqp_settings(settings: dict) -> None:
 
 
 class OsqpQP:
-    """An OSQP problem whose structure is fixed at construction.
+    """An OSQP problem whose structure is fixed at construction (or by the first
+    :meth:`solve_blocks`).
 
     Args:
         p_pattern: upper-triangular sparse matrix giving the structure of ``P`` (CSC).
@@ -128,28 +134,65 @@ class OsqpQP:
         settings: OSQP settings overriding :data:`DEFAULT_OSQP_SETTINGS`.
     """
 
+    name = "osqp"
+    #: :meth:`solve_blocks` starts OSQP from :attr:`BlockQP.warm` when given.
+    uses_warm_start = True
+
     def __init__(
-        self, p_pattern: sp.csc_matrix, a_matrix: sp.csc_matrix, settings: dict | None = None
+        self,
+        p_pattern: sp.csc_matrix | None = None,
+        a_matrix: sp.csc_matrix | None = None,
+        settings: dict | None = None,
     ) -> None:
+        self.settings = dict(DEFAULT_OSQP_SETTINGS)
+        if settings:
+            self.settings.update(settings)
+        self.refine = bool(self.settings.pop("refine", True))
+        self.hot_start = bool(self.settings.pop("hot_start", True))
+        _check_osqp_settings(self.settings)
+        self.last_method = ""
+        self._structure: tuple | None = None
+        self._solver: osqp.OSQP | None = None
+        self._active: tuple[np.ndarray, np.ndarray] | None = None
+        if p_pattern is not None:
+            self._configure(p_pattern, a_matrix)
+
+    def _configure(self, p_pattern: sp.csc_matrix, a_matrix: sp.csc_matrix) -> None:
+        """Set the structure (and forget the workspace)."""
         self.p_pattern = sp.csc_matrix(p_pattern)
         self.p_pattern.sort_indices()
         self.a_matrix = sp.csc_matrix(a_matrix)
         self.a_matrix.sort_indices()
         self.num_vars = self.p_pattern.shape[0]
         self.num_cons = self.a_matrix.shape[0]
-        self.settings = dict(DEFAULT_OSQP_SETTINGS)
-        if settings:
-            self.settings.update(settings)
-        self._solver: osqp.OSQP | None = None
-        self.refine = bool(self.settings.pop("refine", True))
-        self.hot_start = bool(self.settings.pop("hot_start", True))
-        _check_osqp_settings(self.settings)
-        self._active: tuple[np.ndarray, np.ndarray] | None = None
-        self.last_method = ""
+        self._solver = None
+        self._active = None
         # dense views for the refinement
         pat = self.p_pattern.tocoo()
         self._p_rows, self._p_cols = pat.row, pat.col
         self._a_dense = self.a_matrix.toarray()
+
+    def solve_blocks(self, qp: BlockQP) -> Solution:
+        """Solve a :class:`~dqcontrol.controllers.problem.BlockQP` (OSQP set up for its
+        structure: ``P``'s stored values are the blocks' upper triangles)."""
+        p, m, _ = qp.hessian.shape
+        key = (qp.hessian.shape, qp.structure)
+        if key != self._structure:
+            block = sp.csc_matrix(np.triu(np.ones((m, m))))
+            a_rows = [sp.identity(p * m, format="csc")]
+            if qp.C.shape[0]:
+                a_rows.append(sp.csc_matrix(qp.C))
+            self._configure(
+                sp.block_diag([block] * p, format="csc"), sp.vstack(a_rows, format="csc")
+            )
+            # CSC order of each block's upper triangle in the flattened (p, m, m) blocks
+            cols, rows = np.triu_indices(m)[::-1]
+            order = np.lexsort((rows, cols))
+            within = rows[order] * m + cols[order]
+            self._gather = (np.arange(p)[:, None] * m * m + within[None, :]).ravel()
+            self._structure = key
+        res = self.solve(qp.hessian.ravel()[self._gather], qp.c, qp.lower, qp.upper, qp.warm)
+        return Solution(res.ok, res.status, res.iterations, res.solve_time_s, res.x, res.y)
 
     @property
     def p_nnz(self) -> int:

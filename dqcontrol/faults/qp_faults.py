@@ -2,14 +2,16 @@
 
 The least invasive way to make a controller's QP infeasible is to leave the controller's
 code alone and corrupt the bounds on their way to the solver: :func:`contradictory` builds
-a subclass of any :class:`~dqcontrol.controllers.TrackingController` whose ``qp`` is a
-:class:`ContradictoryBoundsQP` proxy around the real solver (OSQP or DAQP). During a window
-of control steps the proxy rewrites the bounds:
+a subclass of any :class:`~dqcontrol.controllers.TrackingController` whose backend
+(``qp``, the object every step's QP goes through, docs/theory.md §7.5) is wrapped in a
+:class:`ContradictoryBoundsQP`. The QP is built by the controller's own terms and limits
+and solved by its own backend, on the path that production runs take; during a window of
+control steps the wrapper rewrites the bounds in between:
 
 - ``"crossed"``: the applied command's box of one joint gets ``lower > upper`` (a QP with
-  no feasible point that every solver must refuse; OSQP refuses it at setup). Relaxing the
-  predicted instants cannot help, so the controller must use its safe fallback
-  (FORMULATION §6: brake within ``a_max``, ``s = 0``).
+  no feasible point that every solver must refuse). Relaxing the predicted instants
+  cannot help, so the controller must use its safe fallback (brake within ``a_max``,
+  ``s = 0``, docs/theory.md §5).
 - ``"coupled"`` (predictive controllers, ``p ≥ 2``): every box is consistent on its own, but
   the second instant's box of one joint is moved beyond what the acceleration coupling
   ``|qd_2 - qd_1| ≤ (τ_2 - τ_1) a_max`` allows from the first instant's box — a primal
@@ -36,18 +38,21 @@ MODES = ("crossed", "coupled")
 
 
 class ContradictoryBoundsQP:
-    """Proxy of a controller's QP solver that makes its bounds contradictory when ``active``.
+    """A backend wrapper that makes the bounds contradictory while ``active``.
 
     Args:
-        inner: the real solver (:class:`~dqcontrol.controllers.qp_solver.OsqpQP` or
-            :class:`~dqcontrol.controllers.qp_daqp.DaqpQP`).
-        num_joints: ``n``; the variables are ``[qd_1, s_1, …, qd_p, s_p]``.
+        inner: the controller's backend (a :class:`~dqcontrol.controllers.backends.base.
+            BlockBackend`, or a dense :class:`~dqcontrol.controllers.backends.base.Backend`
+            for a controller with several priority levels).
+        num_joints: ``n``; the variables are ``[qd_1, s_1, …, qd_p, s_p]``, then the
+            acceleration coupling rows.
         num_instants: ``p``.
         mode: ``"crossed"`` or ``"coupled"`` (module docstring).
         joint: the joint whose bounds are corrupted.
         gap: how far the bounds are pushed apart [rad/s], > 0.
 
-    Every other attribute (``p_pattern``, ``a_matrix``, ``reset`` ...) is the inner solver's.
+    Every other attribute (``reset``, ``name``, ``uses_warm_start`` …) is the inner
+    backend's.
     """
 
     def __init__(
@@ -90,8 +95,9 @@ class ContradictoryBoundsQP:
         return getattr(self.inner, name)
 
     def corrupt(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Copies of ``lower``/``upper`` with the contradiction of :attr:`mode`, and whether
-        one was made (``"coupled"`` leaves a relaxed QP, whose instant 2 is free, alone)."""
+        """Copies of ``lower``/``upper`` (the variables' bounds, then the general rows') with
+        the contradiction of :attr:`mode`, and whether one was made (``"coupled"`` leaves a
+        relaxed QP, whose instant 2 is free, alone)."""
         lo, up = lower.copy(), upper.copy()
         j, m = self.joint, self.n + 1
         if self.mode == "crossed":
@@ -105,16 +111,27 @@ class ContradictoryBoundsQP:
         lo[row] = up[row] = up[j] + up[coupling] + self.gap
         return lo, up, True
 
-    def solve(self, p_values, c, lower, upper, warm_x=None):
-        """Solve with contradictory bounds while :attr:`active`, else unchanged."""
-        contradicted = False
-        if self.active:
-            lower, upper, contradicted = self.corrupt(lower, upper)
-        sol = self.inner.solve(p_values, c, lower, upper, warm_x)
+    def _count(self, contradicted: bool, sol):
         if contradicted:
             self.corrupted_solves += 1
             self.false_successes += int(sol.ok)
         return sol
+
+    def solve_blocks(self, qp):
+        """The block QP with contradictory bounds while :attr:`active`, else unchanged."""
+        contradicted = False
+        if self.active:
+            lower, upper, contradicted = self.corrupt(qp.lower, qp.upper)
+            qp = qp._replace(lower=lower, upper=upper)
+        return self._count(contradicted, self.inner.solve_blocks(qp))
+
+    def solve(self, key, qp):
+        """A priority level's dense QP, corrupted the same way while :attr:`active`."""
+        contradicted = False
+        if self.active:
+            lower, upper, contradicted = self.corrupt(qp.lower, qp.upper)
+            qp = qp._replace(lower=lower, upper=upper)
+        return self._count(contradicted, self.inner.solve(key, qp))
 
 
 @cache
@@ -127,7 +144,9 @@ def contradictory(base: type[TrackingController]) -> type[TrackingController]:
     - ``window_steps``: ``(first, stop)``, the control steps ``first ≤ k < stop`` (counted
       from :meth:`reset`, 0-based) whose QP is corrupted; default ``(10, 30)``.
 
-    Everything else — the QP, the fallback, the relaxation — is ``base``'s own code.
+    Everything else — the QP's terms and limits, the backend, the fallback, the
+    relaxation — is ``base``'s own code; the wrapper sits between the built QP and the
+    backend (the public :attr:`~dqcontrol.controllers.qp_controller.QPController.qp`).
     """
     if not (isinstance(base, type) and issubclass(base, TrackingController)):
         raise ParameterError(f"base must be a TrackingController subclass, got {base!r}")

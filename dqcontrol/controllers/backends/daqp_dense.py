@@ -1,4 +1,5 @@
-"""DAQP on dense QPs: one workspace per problem, updated in place each step."""
+"""DAQP on dense QPs: one workspace per problem (priority level), updated in place each
+step (docs/theory.md §7.5)."""
 
 from __future__ import annotations
 

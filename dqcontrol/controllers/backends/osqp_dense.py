@@ -1,4 +1,5 @@
-"""OSQP on dense QPs, refined to the exact optimum of the active set it finds."""
+"""OSQP on dense QPs, refined to the exact optimum of the active set it finds
+(docs/theory.md §7.5)."""
 
 from __future__ import annotations
 

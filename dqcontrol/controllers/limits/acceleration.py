@@ -1,5 +1,5 @@
 """Joint acceleration: the applied command against the last one, and each block against
-the previous block (FORMULATION §6, §5.3, §10).
+the previous block (docs/theory.md §4.2, §5).
 
 - ``|qd_0 - qd_applied| ≤ T a_max,0``: a *hard* bound (it wins a conflict with the
   position and velocity bounds: the joint then brakes as hard as it allows);
@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.joint_box import hard_interval_into
 from dqcontrol.controllers.problem import Bounds, DecisionLayout, Inequality, Limit
 
 __all__ = ["AccelerationLimit"]
@@ -31,9 +32,14 @@ class AccelerationLimit(Limit):
         period_s: control period ``T`` [s].
         coupling_s: ``h_i`` for ``i = 1 … p-1`` [s] (empty for one block).
         coupling_fraction: share of ``a_max`` the coupling rows allow (``(0, 1]``).
+
+    The first block's bound uses the step's period (``ctx.period_s``). Fast paths: the
+    hard bound merged in one compiled call, and the coupling rows' bounds, both computed
+    once for as long as ``ctx.a_max`` is the same array (a constant ``a_max``).
     """
 
     name = "acceleration"
+    hard = True
 
     def __init__(
         self,
@@ -52,9 +58,43 @@ class AccelerationLimit(Limit):
         c[rows, idx[1:].ravel()] = 1.0
         c[rows, idx[:-1].ravel()] = -1.0
         self._c = c
+        self._step_key: tuple = (None, None)
+        self._step0 = np.zeros(n)
+        self._dv_key: object = None
+        self._dv = np.zeros(0)
+
+    def _first_step(self, ctx: StepContext) -> np.ndarray:
+        """``T a_max,0`` [rad/s], cached while ``ctx.a_max`` and ``T`` stay the same."""
+        a_max, period = ctx.a_max, ctx.period_s
+        key = self._step_key
+        if a_max is not key[0] or period != key[1]:
+            self._step0 = period * a_max[0]
+            self._step_key = (a_max, period)
+        return self._step0
+
+    def _coupling(self, ctx: StepContext) -> np.ndarray:
+        """``h_i a_max,i`` of every coupling row, cached while ``ctx.a_max`` is the same."""
+        if ctx.a_max is not self._dv_key:
+            self._dv = (self.coupling_s[:, None] * ctx.a_max[1:]).ravel()
+            self._dv_key = ctx.a_max
+        return self._dv
+
+    def tighten(self, ctx, lower, upper, conflict) -> bool:
+        key = self._step_key
+        step0 = self._step0
+        if ctx.a_max is not key[0] or ctx.period_s != key[1]:
+            step0 = self._first_step(ctx)
+        hard_interval_into(lower, upper, conflict, self._first, ctx.qd_prev, step0)
+        return True
+
+    def row_bounds(self, ctx, lower, upper) -> bool:
+        dv = self._coupling(ctx)
+        np.negative(dv, out=lower)
+        upper[:] = dv
+        return True
 
     def rows(self, ctx: StepContext) -> tuple:
-        step0 = self.period_s * ctx.a_max[0]
+        step0 = ctx.period_s * ctx.a_max[0]
         first = Bounds(
             "acceleration_first",
             self._first,

@@ -1,0 +1,58 @@
+"""Tracking: ``J_i qd_i - s_i w_i`` at every block (docs/theory.md §4.2, thesis eq. 3.4–3.21).
+
+With the block's pose ``x̂_i`` and Jacobian ``J_i`` (sign-aligned to the target, at the
+block's predicted state), the target ``x_d(σ̂_i)`` and its derivative,
+
+    w_i = dx_d/dσ(σ̂_i) + K (x_d(σ̂_i) - x̂_i)            (vec8)
+
+is the velocity the task asks for at full speed; the rows ``J_i qd_i - s_i w_i`` ask the
+joints for it at the speed ``s_i``. They are linear in the decision because ``w_i`` is data.
+In ``z_i = [qd_i, s_i]`` the rows are ``G_i z_i`` with ``G_i = [J_i, -w_i]`` (8 × (n+1)).
+Without time scaling variables the rows are ``J_i qd_i - w_i``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import Residual, Term
+from dqcontrol.controllers.qp_cost import add_task_grams, task_matrices
+
+__all__ = ["TrackingTerm"]
+
+
+class TrackingTerm(Term):
+    """``λ1 Σ_i ‖J_i qd_i - s_i w_i‖²``.
+
+    Args:
+        gain_per_s: the task-error gain ``K`` [1/s] in ``w_i``.
+        weight: ``λ1`` (dimensionless).
+
+    The fast path (:meth:`add_gram`) adds ``2 λ1 G_iᵀ G_i`` to each Hessian block in one
+    compiled call (``qp_cost.add_task_grams``).
+    """
+
+    name = "tracking"
+
+    def __init__(self, gain_per_s: float, weight: float = 1.0) -> None:
+        self.gain_per_s = float(gain_per_s)
+        self.weight = float(weight)
+
+    def residual(self, ctx: StepContext) -> Residual:
+        g = task_matrices(
+            ctx.poses, ctx.jacobians, ctx.targets, ctx.target_derivatives, self.gain_per_s
+        )
+        if ctx.layout.with_scaling:
+            return Residual(self.name, self.weight, np.zeros(g.shape[0] * 8), blocks=g)
+        n = ctx.layout.num_joints
+        return Residual(self.name, self.weight, g[:, :, n].ravel() * -1.0, blocks=g[:, :, :n])
+
+    def add_gram(self, ctx: StepContext, hessian: np.ndarray) -> bool:
+        if not ctx.layout.with_scaling:
+            return False
+        add_task_grams(
+            ctx.poses, ctx.jacobians, ctx.targets, ctx.target_derivatives, self.gain_per_s,
+            2.0 * self.weight, hessian,
+        )  # fmt: skip
+        return True
