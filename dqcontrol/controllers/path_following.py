@@ -112,6 +112,14 @@ class PathFollowingController(Controller):
             units, about half a metre or half a radian per unit).
         relinearise_threshold_rad: a measured ``q`` this far from the predicted one counts
             as a disturbance [rad].
+        torque_limit_fraction: bound the joint torques of the plan through the inverse
+            dynamics to this share of the URDF's effort limits (``None``: no torque rows).
+        servo_time_constant_s: the joints follow each new velocity command as a first-order
+            lag of this time constant ``τ_v`` [s] (a velocity servo); the prediction includes
+            it, starting from the measured velocity (0: ideal velocity tracking). A command
+            step ``Δ`` then asks the servo for ``Δ/τ_v`` at once, so the dynamics-aware
+            acceleration limit is scaled by ``min(1, τ_v/T)`` (a constant one is taken as
+            given).
         solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
     """
 
@@ -141,6 +149,7 @@ class PathFollowingController(Controller):
         linearisation_tolerance_m: float = 1e-5,
         relinearise_threshold_rad: float = 0.02,
         torque_limit_fraction: float | None = None,
+        servo_time_constant_s: float = 0.0,
         acceleration_reserve: float = 0.9,
         trust_radius_rad: float = 0.05,
         trust_radius_phase_s: float = 0.02,
@@ -198,7 +207,15 @@ class PathFollowingController(Controller):
         )
         self.position_margin_rad = margin
         self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)
-        self.prediction_model = ConsistentPrediction(breaks, n, self.period_s, self.s_max)
+        self.servo_time_constant_s = check_positive(
+            "servo_time_constant_s", servo_time_constant_s, "s", allow_zero=True
+        )
+        # behind a servo of time constant τ_v a command step of Δ asks for Δ/τ_v at once:
+        # over a period T the mean acceleration is then held to τ_v/T of what the torques allow
+        self._servo_share = min(1.0, self.servo_time_constant_s / self.period_s) or 1.0
+        self.prediction_model = ConsistentPrediction(
+            breaks, n, self.period_s, self.s_max, self.servo_time_constant_s
+        )
         layout = self.layout = self.prediction_model.layout
         self.posture = PostureTerm(layout, posture_gain_per_s)
         self._posture_reference = posture_reference
@@ -260,7 +277,14 @@ class PathFollowingController(Controller):
         if self.torque_limit_fraction is not None:
             effort = self.robot.limits.effort_max
             torque = (
-                TorqueLimit(layout, self.period_s, coupling, effort, self.torque_limit_fraction),
+                TorqueLimit(
+                    layout,
+                    self.period_s,
+                    coupling,
+                    effort,
+                    self.torque_limit_fraction,
+                    self.servo_time_constant_s or None,
+                ),  # fmt: skip
             )
         return torque + (
             VelocityLimit(layout, self.qd_max),
@@ -309,10 +333,13 @@ class PathFollowingController(Controller):
             a_max = self.robot.fast.acceleration_limits_batch(
                 starts, 1.0, self.acceleration_floor, self.acceleration_cap
             )
+            if self._servo_share < 1.0:
+                a_max = a_max * self._servo_share
         extras = {
             "s_prev": self._s_prev,
             "lag_s": self._steps * self.period_s - self.sigma,
             "posture_scale": 0.0 if self._stalled_steps >= self._stall_steps else 1.0,
+            "qd_measured": self.prediction_model.qd_measured,
         }
         return StepContext(
             self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev,
@@ -353,6 +380,7 @@ class PathFollowingController(Controller):
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
         model = self.prediction_model
+        model.qd_measured = self.qd_prev if qd is None else qd
         pred = model.predict(q, self.sigma)
         poor = self._poor or self._disturbed(q)
         iterations, solve_time, done = 0, 0.0, 0
@@ -402,7 +430,8 @@ class PathFollowingController(Controller):
                 f"QP failed ({result.solution.status}); safe fallback: brake within a_max, s = 0"
             )
             self._poor = True
-        self._expected_q = q + self.period_s * qd_cmd
+        model = self.prediction_model
+        self._expected_q = model.state_after_first(q, qd_cmd)
         self._s_prev = s_now
         self._steps += 1
         moving = s_now >= STALL_SCALING or self.sigma == 0.0

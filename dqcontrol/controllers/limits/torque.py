@@ -9,6 +9,11 @@ applied command, from the last applied one); at the block's linearisation state
 
 linear in the decision, and ``|τ_i| ≤ f τ_max`` (``f``: the share of the URDF's effort limits
 the plan may use; the rest is left to the joint servos' feedback).
+
+Behind a velocity servo of time constant ``τ_v`` the applied command is not reached over
+``T`` but approached from the measured velocity at the rate ``(qd_0 - qd_meas)/τ_v``: the
+first block then uses ``h_0 = τ_v`` and the measured velocity (``ctx.extras["qd_measured"]``),
+which bounds the servo's own torque peak after the command changes.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ class TorqueLimit(Limit):
         coupling_s: ``h_i`` for ``i = 1 … p-1`` [s].
         effort_max: ``τ_max`` [N·m] per joint.
         fraction: ``f`` in ``(0, 1]``.
+        first_step_s: ``h_0`` [s] (default ``T``; ``τ_v`` behind a velocity servo).
     """
 
     name = "torque"
@@ -41,9 +47,11 @@ class TorqueLimit(Limit):
         coupling_s: np.ndarray,
         effort_max: np.ndarray,
         fraction: float,
+        first_step_s: float | None = None,
     ) -> None:
         self.layout = layout
-        self.steps_s = np.concatenate(([float(period_s)], np.asarray(coupling_s, dtype=float)))
+        first = float(period_s if first_step_s is None else first_step_s)
+        self.steps_s = np.concatenate(([first], np.asarray(coupling_s, dtype=float)))
         self.limit = float(fraction) * np.asarray(effort_max, dtype=float)
 
     def rows(self, ctx: StepContext) -> Inequality:
@@ -58,13 +66,14 @@ class TorqueLimit(Limit):
         fast = ctx.robot.fast
         for i in range(p):
             m, _g = fast.mass_gravity(starts[i])
-            bias = fast.bias_forces(starts[i], pred.warm_qd[i])
+            velocity = ctx.extras.get("qd_measured", ctx.qd_prev) if i == 0 else pred.warm_qd[i]
+            bias = fast.bias_forces(starts[i], velocity)
             rows = slice(i * n, (i + 1) * n)
             scaled = m / self.steps_s[i]
             c[rows, idx[i]] = scaled
             shift = bias.copy()
             if i == 0:
-                shift -= scaled @ ctx.qd_prev
+                shift -= scaled @ ctx.extras.get("qd_measured", ctx.qd_prev)
             else:
                 c[rows, idx[i - 1]] = -scaled
             lo[rows] = -self.limit - shift

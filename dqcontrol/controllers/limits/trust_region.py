@@ -44,7 +44,7 @@ class TrustRegionLimit(Limit):
         self.radius_phase_s = float(radius_phase_s)
         self._weights: np.ndarray | None = None
 
-    def _matrices(self, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _matrices(self, weights: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self._weights is not weights:
             layout = self.layout
             p, n = layout.num_blocks, layout.num_joints
@@ -54,13 +54,13 @@ class TrustRegionLimit(Limit):
             for i in range(p):
                 for j in range(i + 1):
                     cq[i * n + np.arange(n), idx[j]] = weights[i, j]
-                    cs[i, sdx[j]] = weights[i, j]
+                    cs[i, sdx[j]] = phase[i, j]
             self._weights, self._cq, self._cs = weights, cq, cs
         return self._cq, self._cs
 
     def rows(self, ctx: StepContext) -> tuple:
         pred = ctx.prediction
-        cq, cs = self._matrices(pred.weights)
+        cq, cs = self._matrices(pred.weights, pred.phase_weights)
         out = []
         if np.isfinite(self.radius_rad):
             centre = (pred.q_lin - pred.q_base).ravel()

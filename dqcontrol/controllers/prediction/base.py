@@ -16,9 +16,10 @@ class Prediction(NamedTuple):
     """The states of each block of the horizon as affine functions of the decision.
 
     ``q_i(z) = q_base[i] + Σ_j weights[i, j] qd_j`` and
-    ``σ_i(z) = sigma_base[i] + Σ_j weights[i, j] s_j``; ``q_lin``, ``sigma_lin`` are the
-    points where the kinematics are linearised. For the thesis's model the states are data
-    (``weights = 0``, ``q_base = q_lin``).
+    ``σ_i(z) = sigma_base[i] + Σ_j sigma_weights[i, j] s_j`` (``sigma_weights`` ``None``:
+    the same as ``weights``); ``q_lin``, ``sigma_lin`` are the points where the kinematics
+    are linearised. For the thesis's model the states are data (``weights = 0``,
+    ``q_base = q_lin``).
     """
 
     q_lin: np.ndarray
@@ -28,6 +29,12 @@ class Prediction(NamedTuple):
     weights: np.ndarray
     warm_qd: np.ndarray
     warm_s: np.ndarray
+    sigma_weights: np.ndarray | None = None
+
+    @property
+    def phase_weights(self) -> np.ndarray:
+        """The matrix of ``σ_i(z)`` (``sigma_weights``, or ``weights`` when not given)."""
+        return self.weights if self.sigma_weights is None else self.sigma_weights
 
 
 class PredictionModel(ABC):

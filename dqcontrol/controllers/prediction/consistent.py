@@ -8,7 +8,15 @@ The horizon is cut into intervals at the breakpoints ``b_0 = 0 < b_1 = T < … <
 
     q_{i+1} = q + Σ_{j≤i} Δ_j qd_j,        σ_{i+1} = σ + Σ_{j≤i} Δ_j s_j,
 
-(``weights[i, j] = Δ_j`` for ``j ≤ i``). The kinematics are linearised at the previous
+(``weights[i, j] = Δ_j`` for ``j ≤ i``). With a joint velocity loop that follows each new
+command as a first-order lag of time constant ``τ_v`` (``lag_s``), a joint starting interval
+``j`` at velocity ``v`` moves ``Δ_j qd_j + c_j (v - qd_j)`` with ``c_j = τ_v (1 - e^{-Δ_j/τ_v})``;
+taking ``v`` as the previous interval's command (the measured velocity for the first), the
+states stay exact and linear in the decision:
+
+    q_{i+1} = q + c_0 qd_meas + Σ_{j≤i} [(Δ_j - c_j) qd_j + c_{j+1} qd_j [j < i]].
+
+The phase has no lag. The kinematics are linearised at the previous
 plan shifted by one period (interval averages of the old piecewise-constant plan over the
 new intervals, the last value held past the horizon), integrated the same way, so the
 linearisation point is itself a decision whose states are exact.
@@ -67,10 +75,17 @@ class ConsistentPrediction(PredictionModel):
         num_joints: ``n``.
         period_s: control period ``T`` [s] (the shift between steps).
         s_max: largest time scaling (the shifted plan's ``s`` is clipped to it).
+        lag_s: time constant ``τ_v`` of the joint velocity loop [s] (0: the joints follow
+            each command at once).
     """
 
     def __init__(
-        self, breaks: np.ndarray, num_joints: int, period_s: float, s_max: float = 1.0
+        self,
+        breaks: np.ndarray,
+        num_joints: int,
+        period_s: float,
+        s_max: float = 1.0,
+        lag_s: float = 0.0,
     ) -> None:
         durations = np.diff(breaks)
         self.layout = DecisionLayout(num_joints, breaks[:-1], durations, with_scaling=True)
@@ -78,7 +93,17 @@ class ConsistentPrediction(PredictionModel):
         self.period_s = float(period_s)
         self.s_max = float(s_max)
         p = durations.size
-        self.weights = np.tril(np.broadcast_to(durations, (p, p)))
+        self.sigma_weights = np.tril(np.broadcast_to(durations, (p, p)))
+        self.lag_s = float(lag_s)
+        if self.lag_s > 0.0:
+            c = self.lag_s * (1.0 - np.exp(-durations / self.lag_s))
+            follow = np.tril(np.broadcast_to(np.append(c[1:], 0.0), (p, p)), -1)
+            self.weights = np.tril(np.broadcast_to(durations - c, (p, p))) + follow
+            self._c0 = float(c[0])
+        else:
+            self.weights = self.sigma_weights
+            self._c0 = 0.0
+        self.qd_measured = np.zeros(num_joints)
         self._shift = shift_matrix(self.breaks, self.period_s)
         self.plan_qd = np.zeros((p, num_joints))
         self.plan_s = np.zeros(p)
@@ -90,18 +115,24 @@ class ConsistentPrediction(PredictionModel):
 
     def at(self, q: np.ndarray, sigma: float, qd_lin: np.ndarray, s_lin: np.ndarray) -> Prediction:
         """The prediction linearised at the decision ``(qd_lin, s_lin)``."""
-        q_lin = q + self.weights @ qd_lin
-        sigma_lin = sigma + self.weights @ s_lin
+        base = q + self._c0 * self.qd_measured if self._c0 else q
+        q_lin = base + self.weights @ qd_lin
+        sigma_lin = sigma + self.sigma_weights @ s_lin
         p = self.layout.num_blocks
         return Prediction(
             q_lin,
             sigma_lin,
-            np.broadcast_to(q, (p, q.size)),
+            np.broadcast_to(base, (p, q.size)),
             np.full(p, float(sigma)),
             self.weights,
             qd_lin,
             s_lin,
+            self.sigma_weights,
         )
+
+    def state_after_first(self, q: np.ndarray, qd_0: np.ndarray) -> np.ndarray:
+        """``q_1`` after the first interval with the command ``qd_0`` [rad]."""
+        return q + self._c0 * self.qd_measured + self.weights[0, 0] * qd_0
 
     def predict(self, q: np.ndarray, sigma: float) -> Prediction:
         qd_lin = self._shift @ self.plan_qd

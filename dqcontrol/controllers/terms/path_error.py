@@ -55,11 +55,11 @@ class PathErrorTerm(Term):
         proj = tangent_projectors(ctx.poses)  # (p, 6, 8)
         pj = np.einsum("pab,pbn->pan", proj, ctx.jacobians)  # E_i J_i (p, 6, n)
         pd = np.einsum("pab,pb->pa", proj, ctx.target_derivatives)  # E_i x_d' (p, 6)
-        g = np.empty((p, 6, m))
-        g[:, :, :n] = pj
-        g[:, :, n] = -pd
-        # block (i, j) of A is weights[i, j] G_i
-        a = (pred.weights[:, None, :, None] * g[:, :, None, :]).reshape(6 * p, p * m)
+        # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -sigma_weights[i, j] E_i x_d' on s_j
+        a = np.empty((p, 6, p, m))
+        a[:, :, :, :n] = pred.weights[:, None, :, None] * pj[:, :, None, :]
+        a[:, :, :, n] = -pred.phase_weights[:, None, :] * pd[:, :, None]
+        a = a.reshape(6 * p, p * m)
         gap = np.einsum("pab,pb->pa", proj, ctx.poses - ctx.targets)
         gap += np.einsum("pan,pn->pa", pj, pred.q_base - pred.q_lin)
         gap -= pd * (pred.sigma_base - pred.sigma_lin)[:, None]
