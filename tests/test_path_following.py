@@ -207,9 +207,9 @@ def test_panda_on_a_custom_path(panda):
 
 @pytest.mark.xfail(
     strict=True,
-    reason="known defect: at the workspace boundary (a singular, stretched arm) the levels "
-    "chatter in the null space (|qd| up to 1 rad/s) and the tool drifts 0.4-0.7 mm off the "
-    "path after s reaches 0 (docs/theory.md §8.7)",
+    reason="known defect: at the workspace boundary (a singular, stretched arm) the arm keeps "
+    "creeping after s reaches 0 (|qd| 0.01-0.05 rad/s) and the tool drifts 0.4-0.6 mm off the "
+    "path (docs/theory.md §8.7)",
 )
 def test_unreachable_path_stops_on_it_at_rest(lbr4p):
     # a straight line that leaves the workspace (3 m away)

@@ -55,11 +55,18 @@ from dqcontrol.controllers.terms.path_error import PathErrorTerm, tangent_projec
 from dqcontrol.controllers.terms.posture import PostureTerm
 from dqcontrol.controllers.terms.progress import ProgressTerm
 from dqcontrol.controllers.terms.scaling_smoothness import ScalingSmoothnessTerm
+from dqcontrol.controllers.terms.singularity_damping import SingularityDampingTerm
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
 __all__ = ["PathFollowingController"]
+
+#: Weight of the path error against its level's damping (docs/theory.md §8.2).
+PATH_WEIGHT = 1e4
+#: ``ε`` and ``λ_max`` of the singularity damping (docs/theory.md §8.3).
+SINGULAR_THRESHOLD = 0.04
+SINGULAR_DAMPING = 0.04
 
 #: The task counts as stalled while the applied ``s`` stays below this.
 STALL_SCALING = 0.01
@@ -254,8 +261,18 @@ class PathFollowingController(Controller):
 
     def _levels(self, path_tol: float, progress_tol: float) -> tuple[Level, ...]:
         layout, mu = self.layout, self.damping
+        first = float(layout.durations_s[0])
+        self.singularity = SingularityDampingTerm(
+            layout, SINGULAR_THRESHOLD, SINGULAR_DAMPING, PATH_WEIGHT * first * first
+        )
         path = Level(
-            (PathErrorTerm(1e4), DampingTerm(layout, mu, include_scaling=True)), path_tol, "path"
+            (
+                PathErrorTerm(PATH_WEIGHT),
+                DampingTerm(layout, mu, include_scaling=True),
+                self.singularity,
+            ),
+            path_tol,
+            "path",
         )
         progress = Level(
             (
