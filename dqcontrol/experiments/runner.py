@@ -81,21 +81,16 @@ class CaseRun:
     Attributes:
         result: the loop's :class:`~dqcontrol.sim.kinematic.RunResult` (log and metrics).
         controller: the controller, after the run (its trajectory is the anchored one).
-        between_deviation_m: path deviation [m] at the states between consecutive control
-            samples of the task (those the metrics count), or ``None`` if not recorded.
+        between_deviation_max_m: largest path deviation [m] over the states between
+            consecutive control samples of the task (those the metrics count, the samples
+            included), NaN if not measured.
         wall_time_s: wall time of the loop and of the measurements [s].
     """
 
     result: RunResult
     controller: Controller
-    between_deviation_m: np.ndarray | None
+    between_deviation_max_m: float
     wall_time_s: float
-
-    @property
-    def between_deviation_max_m(self) -> float:
-        """Largest :attr:`between_deviation_m` [m] (NaN if none was recorded)."""
-        dev = self.between_deviation_m
-        return float(dev.max()) if dev is not None and dev.size else math.nan
 
 
 class _PhysicsStepRecorder:
@@ -176,38 +171,54 @@ def simulate(
         if between_samples:
             recorder = sim = _PhysicsStepRecorder(sim)
         result = run_mujoco(controller, q0, simulation=sim, max_time_s=max_time_s, meta=meta)
-    between = None
+    between = math.nan
     if between_samples and simulation is None:
-        states = _between_states(controller, result, recorder)
-        between = _deviation(controller, states)
+        between = _largest_deviation(controller, _between_states(controller, result, recorder))
     return CaseRun(result, controller, between, time.perf_counter() - start)
 
 
 def _between_states(controller: Controller, result: RunResult, recorder) -> np.ndarray:
-    """Joint positions between consecutive samples the metrics count (the samples
-    included); the period after the last one, in which σ passes ``T_tot`` and the arm
-    moves on beyond the path's end, is not."""
+    """Joint positions over each period between consecutive samples the metrics count,
+    ``(K, m + 1, n)``: the sample, then the states within the period, the last being the
+    next sample. The period after the last sample, in which σ passes ``T_tot`` and the arm
+    moves on beyond the path's end, is not included."""
     intervals = max(result.metrics.samples - 1, 0)
     log = result.log
     n = controller.robot.nq
-    if recorder is not None:
-        periods = recorder.positions[:intervals]
-        if not periods:
-            return np.zeros((0, n))
-        return np.concatenate([np.asarray(p) for p in periods])
     if intervals == 0:
-        return np.zeros((0, n))
+        return np.zeros((0, 1, n))
+    if recorder is not None:
+        within = np.asarray(recorder.positions[:intervals]).reshape(intervals, -1, n)
+        return np.concatenate((log.q[:intervals, None, :], within), axis=1)
     fractions = np.arange(KINEMATIC_SUBSAMPLES + 1) / KINEMATIC_SUBSAMPLES
     steps = controller.period_s * log.qd_command[:intervals]
-    states = log.q[:intervals, None, :] + fractions[None, :, None] * steps[:, None, :]
-    return states.reshape(-1, n)
+    return log.q[:intervals, None, :] + fractions[None, :, None] * steps[:, None, :]
 
 
-def _deviation(controller: Controller, states: np.ndarray) -> np.ndarray:
+def _largest_deviation(controller: Controller, states: np.ndarray) -> float:
+    """The largest path deviation [m] over ``states`` ``(K, m + 1, n)`` (periods whose first
+    and last states are samples).
+
+    Exact, but measured only where it can exceed the samples' largest: a state's deviation
+    is at most a sample's plus its distance from that sample, so a state whose bound from
+    both ends of its period is below the samples' largest cannot be the maximum.
+    """
     if states.size == 0 or not np.isfinite(states).all():
-        return np.zeros(0)
-    points = translation(controller.robot.poses(states))
-    return np.asarray(controller.trajectory.path_deviation(points))
+        return math.nan
+    k, m, n = states.shape
+    path = controller.trajectory
+    points = translation(controller.robot.poses(states.reshape(-1, n))).reshape(k, m, 3)
+    first = np.asarray(path.path_deviation(points[:, 0]))
+    last = np.asarray(path.path_deviation(points[:, -1]))
+    best = float(max(first.max(), last.max()))
+    reach = np.minimum(
+        first[:, None] + np.linalg.norm(points - points[:, :1], axis=2),
+        last[:, None] + np.linalg.norm(points - points[:, -1:], axis=2),
+    )
+    candidates = points[reach > best]
+    if candidates.size:
+        best = max(best, float(np.max(path.path_deviation(candidates))))
+    return best
 
 
 # ---------------------------------------------------------------------------- the bound
