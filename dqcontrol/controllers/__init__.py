@@ -1,23 +1,52 @@
-"""The four controllers of FORMULATION §5 behind one interface (:class:`Controller`)."""
+"""The controllers behind one interface (:class:`Controller`, docs/theory.md §4), and the
+composable QP core they are built on (docs/theory.md §7): the contracts of a term, a limit,
+a priority level and the problem built at each step, and :class:`QPController`, which runs
+any composition of them."""
 
 from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult
 from dqcontrol.controllers.bounds import Box, command_box, safe_command, velocity_position_box
+from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.local import LocalController
 from dqcontrol.controllers.prediction import integration_matrix, prediction_instants
 from dqcontrol.controllers.predictive import PredictiveController, PredictiveNoScalingController
+from dqcontrol.controllers.problem import (
+    BlockQP,
+    Bounds,
+    DecisionLayout,
+    Inequality,
+    Level,
+    Limit,
+    Problem,
+    Residual,
+    Solution,
+    Term,
+)
 from dqcontrol.controllers.proportional import ProportionalController
+from dqcontrol.controllers.qp_controller import QPController
 from dqcontrol.controllers.tracking import QPProblem, TrackingController
 
 __all__ = [
+    "BlockQP",
+    "Bounds",
     "Box",
     "Controller",
+    "DecisionLayout",
+    "Inequality",
+    "Level",
+    "Limit",
     "LocalController",
     "PredictiveController",
     "PredictiveNoScalingController",
+    "Problem",
     "ProportionalController",
+    "QPController",
     "QPProblem",
+    "Residual",
+    "Solution",
+    "StepContext",
     "StepDiagnostics",
     "StepResult",
+    "Term",
     "TrackingController",
     "command_box",
     "integration_matrix",

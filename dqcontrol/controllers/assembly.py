@@ -110,11 +110,10 @@ class BlockAssembly:
     def _setup_limits(self, ctx: StepContext) -> None:
         layout = ctx.layout
         nv = layout.num_vars
-        ordered = sorted(self.limits, key=lambda lim: lim.hard)  # soft first (stable)
         template_bounds: list[Bounds] = []
         rows: list[tuple[Limit, Inequality]] = []
         fixed: list[int] = []
-        for limit in ordered:
+        for limit in self.limits:  # the general rows in the limits' order
             items = _items(limit.rows(ctx))
             for item in items:
                 if isinstance(item, Bounds) and item.fixed:
@@ -142,7 +141,7 @@ class BlockAssembly:
                 lower[a:b], upper[a:b] = item.lower, item.upper
         self._lower0, self._upper0 = lower, upper
         self._fixed = tuple(sorted(set(fixed)))
-        self._plan(ordered, slots)
+        self._plan(sorted(self.limits, key=lambda lim: lim.hard), slots)  # soft first
         self.conflict = conflict
         self._clash = conflict[: layout.num_joints]
         self._no_clash = bytes(layout.num_joints)

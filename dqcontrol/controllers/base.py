@@ -1,4 +1,4 @@
-"""The one interface of every controller (FORMULATION §5).
+"""The one interface of every controller (docs/theory.md §4).
 
 A controller is reset with the initial state, then called once per control period ``T``
 with the measured joint positions (and velocities); it returns the joint-velocity command,
@@ -145,8 +145,8 @@ def check_position_margin(margin_rad: float, q_min: np.ndarray, q_max: np.ndarra
 
 def fast_constructor(cls: type, **required: object) -> Callable[..., object]:
     """A constructor of the frozen dataclass ``cls`` that fills the instance's ``__dict__``
-    in one update instead of one ``object.__setattr__`` per field (≈0.7 µs instead of ≈3):
-    for the results of the 1 kHz control steps.
+    in one update instead of one ``object.__setattr__`` per field: for the results of the
+    1 kHz control steps.
 
     The defaults come from an instance built by ``cls(**required)``; the result is the
     same object ``cls(**fields)`` would build. ``cls`` itself is returned where that
@@ -174,12 +174,12 @@ class Controller(ABC):
     Args:
         robot: the robot model (Pinocchio, vec8 kinematics).
         trajectory: the task; if its ``reference`` is ``None`` it is anchored at the
-            robot's pose at :meth:`reset` (FORMULATION §3 default reference frame).
+            robot's pose at :meth:`reset` (the default reference frame of docs/theory.md §3).
         period_s: control period ``T`` [s].
         measurement_delay_periods: ``d ≥ 0``; when the measured ``q`` is ``d`` periods old,
             the controller works from ``q + T Σ(last d commands)``, its prediction of the
-            present (default 0: no compensation). Without it, a 2-period delay let a joint
-            pass its limit by up to ``d T qd_max`` in the fault campaign (docs/faults.md).
+            present (default 0: no compensation; a joint may then pass its limit by up to
+            ``d T qd_max``).
     """
 
     #: Short name used in logs and tables.

@@ -1,4 +1,5 @@
-"""Hard joint bounds on a velocity command (FORMULATION §6, thesis eq. 3.8–3.13, 3.19–3.20).
+"""Hard joint bounds on a velocity command (docs/theory.md §5, thesis eq. 3.8–3.13,
+3.19–3.20).
 
 For a command ``qd`` applied during one period ``T`` from the joint position ``q``:
 
@@ -134,7 +135,7 @@ def command_box(
     period_s: float,
     braking_aware: bool = True,
 ) -> Box:
-    """The admissible interval of the command applied now (FORMULATION §6).
+    """The admissible interval of the command applied now (docs/theory.md §5).
 
     Intersection of the velocity, position-through-one-period (optionally braking-aware)
     and acceleration bounds; where the acceleration bound conflicts with the others it is
@@ -168,6 +169,6 @@ def safe_command(box: Box) -> np.ndarray:
     """The safest admissible command: the point of ``box`` closest to standing still.
 
     It decelerates towards zero as fast as the acceleration bound allows and respects every
-    other bound the box holds (FORMULATION §6 fallback).
+    other bound the box holds (the fallback of docs/theory.md §5).
     """
     return box.project(np.zeros_like(box.lower))

@@ -57,7 +57,7 @@ def aligned_kinematics(
     robot: RobotModel, trajectory: Trajectory, q_lin: np.ndarray, sigma_lin: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(poses, jacobians, targets, target_derivatives)`` at the linearisation states, each
-    pose (and its Jacobian) negated where ``x · x_d < 0`` (FORMULATION §1)."""
+    pose (and its Jacobian) negated where ``x · x_d < 0`` (docs/theory.md §1)."""
     xs, jacs = robot.fast.poses_and_jacobians(q_lin)
     xd, dxd = trajectory.targets(sigma_lin)
     flip = np.einsum("pk,pk->p", xs, xd) < 0.0

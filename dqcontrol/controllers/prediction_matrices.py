@@ -1,4 +1,4 @@
-"""Prediction instants and the integration of the previous horizon (FORMULATION §5.3).
+"""Prediction instants and the integration of the previous horizon (docs/theory.md §4.2).
 
 The predictive controller solves for commands ``qd_i`` at the instants
 ``τ_i = τ_p (i-1)² / (p-1)²`` (thesis eq. 3.15). To predict ``q(t + τ_i)`` it takes the

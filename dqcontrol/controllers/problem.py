@@ -416,17 +416,18 @@ def objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
     nv = layout.num_vars
     p_mat = np.zeros((nv, nv))
     c = np.zeros(nv)
-    m = layout.block_size
+    p, m = layout.num_blocks, layout.block_size
+    diagonal = p_mat.reshape(p, m, p, m)  # a view: [i, :, i, :] is block i
+    blocks = np.arange(p)
     for r in residuals:
         w2 = 2.0 * r.weight
+        if w2 == 0.0:
+            continue
         if r.blocks is not None:
-            gram = np.einsum("pri,prj->pij", r.blocks, r.blocks)
-            bb = r.b.reshape(r.blocks.shape[0], r.blocks.shape[1])
-            lin = np.einsum("pri,pr->pi", r.blocks, bb)
-            for i in range(layout.num_blocks):
-                sl = slice(i * m, (i + 1) * m)
-                p_mat[sl, sl] += w2 * gram[i]
-                c[sl] -= w2 * lin[i]
+            gram = np.matmul(r.blocks.transpose(0, 2, 1), r.blocks)
+            lin = np.matmul(r.blocks.transpose(0, 2, 1), r.b.reshape(p, -1, 1))[:, :, 0]
+            diagonal[blocks, :, blocks, :] += w2 * gram
+            c -= w2 * lin.ravel()
         else:
             a_w = r.A if r.row_weights is None else r.A * r.row_weights[:, None]
             p_mat += w2 * (a_w.T @ r.A)

@@ -1,16 +1,17 @@
-"""Proportional control on the invariant dual-quaternion error (FORMULATION §5.1).
+"""Proportional control on the invariant dual-quaternion error (docs/theory.md §4.1).
 
 Thesis eq. 2.31–2.34: with ``e = 1 - x* x_d`` and ``N = H-8(x_d) C8 J``, imposing
 ``ė = -K e`` gives ``N qd = K vec8(e) - vec8(x* ẋ_d)``, solved with the damped
 pseudo-inverse ``N⁺ = Nᵀ (N Nᵀ + λ² I)⁻¹`` so singular configurations stay bounded.
-There is no time scaling (``σ = t``); the command is clipped to the hard bounds of §6
-(reported as ``saturated``), which keeps the arm safe but may deform the path — the
-reason the QP controllers exist.
+There is no time scaling (``σ = t``); the command is clipped to the hard bounds of
+docs/theory.md §5 (reported as ``saturated``), which keeps the arm safe but may deform the
+path — the reason the QP controllers exist.
 
-The step runs at 1 kHz (issue 7), and on arrays this small each numpy call costs more than
-its arithmetic, so it is written for few calls: both Hamilton matrices from the target
-pair in one product, the box in one compiled call (:func:`_clip_to_box`, the operations
-of ``bounds.command_box``), the results built without per-field
+The step runs at 1 kHz, and on arrays this small each numpy call costs more than its
+arithmetic, so it is written for few calls: both Hamilton matrices from the target pair in
+one product, the box in one compiled call (:func:`_clip_to_box`: the joint box and the
+acceleration bound with its conflict rule, the kernels of the QP controllers' limits,
+``joint_box.near_limit_box`` and ``intersect_hard``), the results built without per-field
 ``__setattr__``. ``tests/test_proportional_fast.py`` checks it against the plain
 computation.
 """
@@ -112,13 +113,13 @@ class ProportionalController(Controller):
 
     Args:
         robot, trajectory, period_s: see :class:`~dqcontrol.controllers.base.Controller`.
-        gain_per_s: ``K`` [1/s]; keep ``T K`` well below 2 (FORMULATION §9).
+        gain_per_s: ``K`` [1/s]; keep ``T K`` well below 2 (docs/theory.md §4.3).
         damping: ``λ`` of the damped pseudo-inverse (dimensionless, ≥ 0).
         velocity_limits: ``qd_max`` [rad/s] (default: the URDF's).
         acceleration_limit: ``a_max`` [rad/s²] for the clipping box.
         braking_aware: add the stop-before-the-limit position bound (bounds.py).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
-            [rad] (default 5 mrad, see TrackingController).
+            [rad] (default 5 mrad, see :class:`~dqcontrol.controllers.tracking.TrackingController`).
         measurement_delay_periods: see :class:`~dqcontrol.controllers.base.Controller`.
         saturate: clip the command to the hard bounds (default True).
     """

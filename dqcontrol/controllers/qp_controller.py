@@ -28,7 +28,13 @@ import numpy as np
 
 from dqcontrol.controllers.assembly import BlockAssembly, overrides
 from dqcontrol.controllers.backends.base import make_backend, make_block_backend
-from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult, fast_constructor
+from dqcontrol.controllers.base import (
+    Controller,
+    StepDiagnostics,
+    StepResult,
+    fast_constructor,
+    per_joint,
+)
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.joint_box import clip_into
 from dqcontrol.controllers.levels import build_problem, solve_levels
@@ -55,6 +61,8 @@ class QPController(Controller):
         limits: every limit (any order: hard bounds are merged last).
         solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
         s_max: the largest time scaling the applied ``s`` is clipped to.
+        acceleration_limit: ``a_max`` [rad/s²] of every block (scalar or per joint), in the
+            step context (subclasses may compute it per state instead).
 
     Attributes:
         qp: the backend the QP goes to: a :class:`~dqcontrol.controllers.backends.base.
@@ -77,10 +85,13 @@ class QPController(Controller):
         solver: str | None = None,
         solver_settings: dict | None = None,
         s_max: float = 1.0,
+        acceleration_limit: float | np.ndarray = 10.0,
         measurement_delay_periods: int = 0,
     ) -> None:
         super().__init__(robot, trajectory, period_s, measurement_delay_periods)
         if prediction is not None:
+            a_max = per_joint("acceleration_limit", acceleration_limit, self.n, "rad/s²")
+            self._a_batch = np.tile(a_max, (prediction.layout.num_blocks, 1))
             self.compose(prediction, levels, limits, solver, solver_settings, s_max)
 
     def compose(
@@ -116,6 +127,7 @@ class QPController(Controller):
         self._scaled_s = self._scaled()
         self._fast = self.robot.fast
         self._conflict = np.zeros(self.layout.num_vars, dtype=bool)
+        self._level_note = ""
         self._ctx: StepContext | None = None
         self._cache: dict = {}
         self._new_diag = fast_constructor(StepDiagnostics, status="solved")
@@ -135,8 +147,10 @@ class QPController(Controller):
         self._ctx = None
 
     def _acceleration(self, q_lin: np.ndarray) -> np.ndarray:
-        """``a_max`` [rad/s²] at each block's state ``(p, n)``; subclasses define it."""
-        raise NotImplementedError
+        """``a_max`` [rad/s²] at each block's state ``(p, n)``: the constant
+        ``acceleration_limit`` here (the same array at every step); subclasses may make it
+        depend on the state."""
+        return self._a_batch
 
     # ------------------------------------------------------------------ one step
     def _context(self, q: np.ndarray) -> StepContext:
@@ -236,6 +250,12 @@ class QPController(Controller):
             if again.failed_level != 0:
                 result, relaxed = again, True
         sol = result.solution
+        if result.failed_level is not None and result.failed_level > 0:
+            failed = result.per_level[result.failed_level]
+            self._level_note = (
+                f"level {result.failed_level + 1} failed ({failed.status}); the higher "
+                "levels' optimum kept"
+            )
         self._conflict = problem.conflict
         return sol, problem.lower, problem.upper, bool(problem.conflict[: self.n].any()), relaxed
 
@@ -260,7 +280,8 @@ class QPController(Controller):
             # general row, all of z: its s too, which s_now has read already)
             clip_into(z, lower, upper, z.size if z.size == lower.size else n)
             qd_cmd = z[:n]
-            message = _RELAXED if relaxed else ""
+            message = _RELAXED if relaxed else self._level_note
+            self._level_note = ""
         else:
             z = None
             qd_cmd = np.minimum(np.maximum(np.zeros(n), lower[:n]), upper[:n])  # fallback

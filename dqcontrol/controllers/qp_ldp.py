@@ -1,9 +1,9 @@
 """A block-diagonal QP as a least-distance problem, for DAQP (the predictive step's solve).
 
 The predictive controllers' Hessian is block diagonal (one ``(n+1)``-square block per
-instant), but DAQP factorises and inverts the dense ``H`` whenever it changes: ≈200 µs at
-p = 10 even with no constraint but the bounds. With the Cholesky factors of the blocks,
-``H = L Lᵀ`` (L block diagonal, a few hundred flops), the change of variables
+instant), but DAQP factorises and inverts the dense ``H`` whenever it changes, a cost
+cubic in the number of variables whatever the constraints. With the Cholesky factors of
+the blocks, ``H = L Lᵀ`` (L block diagonal, a few hundred flops), the change of variables
 ``u = Lᵀ z + L⁻¹ c`` turns
 
     minimize ½ zᵀ H z + cᵀ z   s.t.  lower ≤ A z ≤ upper
@@ -13,7 +13,7 @@ into the least-distance problem
     minimize ½ ‖u‖²   s.t.  lower + A w ≤ M u ≤ upper + A w,   M = A L⁻ᵀ,  w = L⁻ᵀ L⁻¹ c
 
 with ``z = L⁻ᵀ u - w``. DAQP then keeps ``H = I`` for good and gets a new ``M`` and new
-bounds at every step, which costs it a fraction of a refactorisation (docs/performance.md).
+bounds at every step, which costs it a fraction of a refactorisation (docs/theory.md §6).
 :func:`block_ldp` builds ``M``, the bounds and the factors in one compiled call, exploiting
 the blocks and the sparsity of ``A = [I; A_general]``; :func:`ldp_solution` maps ``u`` back.
 """
@@ -27,6 +27,100 @@ import numpy as np
 from dqcontrol._compiled import compiled
 
 __all__ = ["block_ldp", "ldp_solution"]
+
+
+@compiled
+def _factor_block(
+    h: np.ndarray, o: int, block: int, factor: np.ndarray, inv: np.ndarray, linv_t: np.ndarray
+) -> bool:
+    """Cholesky factor ``L`` of the block of ``h`` at offset ``o``, its inverse in ``inv``
+    and ``L⁻ᵀ`` in ``linv_t`` (block, block); False when the block is not safely positive
+    definite (a squared pivot ≤ 1e-12 times its largest diagonal entry, or NaN)."""
+    scale = 0.0
+    for i in range(block):
+        scale = max(scale, h[o + i, o + i])
+    for i in range(block):
+        for j in range(i + 1):
+            s = h[o + i, o + j]
+            for k in range(j):
+                s -= factor[i, k] * factor[j, k]
+            if i == j:
+                if not s > 1e-12 * scale:
+                    return False
+                factor[i, i] = math.sqrt(s)
+            else:
+                factor[i, j] = s / factor[j, j]
+    # the inverse (lower triangular), column by column
+    for j in range(block):
+        for i in range(j):
+            inv[i, j] = 0.0
+        inv[j, j] = 1.0 / factor[j, j]
+        for i in range(j + 1, block):
+            s = 0.0
+            for k in range(j, i):
+                s -= factor[i, k] * inv[k, j]
+            inv[i, j] = s / factor[i, i]
+    for i in range(block):
+        for j in range(block):
+            linv_t[i, j] = inv[j, i]
+    return True
+
+
+@compiled
+def _shift_block(
+    inv: np.ndarray, c: np.ndarray, o: int, block: int, g: np.ndarray, w: np.ndarray
+) -> None:
+    """``w = L⁻ᵀ (L⁻¹ c)`` on the block at offset ``o`` (``inv`` = ``L⁻¹``)."""
+    for i in range(block):
+        s = 0.0
+        for k in range(i + 1):
+            s += inv[i, k] * c[o + k]
+        g[i] = s
+    for i in range(block):
+        s = 0.0
+        for k in range(i, block):
+            s += inv[k, i] * g[k]
+        w[o + i] = s
+
+
+@compiled
+def _distance_rows(
+    block: int,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    a_ptr: np.ndarray,
+    a_idx: np.ndarray,
+    a_val: np.ndarray,
+    linv_t: np.ndarray,
+    w: np.ndarray,
+    m_out: np.ndarray,
+    lo_out: np.ndarray,
+    up_out: np.ndarray,
+) -> None:
+    """``M = A L⁻ᵀ`` and the bounds shifted by ``A w`` (clamped to ±1e30): the identity rows
+    give the blocks of ``L⁻ᵀ``, a general row the combination of the rows of ``L⁻ᵀ`` its
+    entries name."""
+    n = w.shape[0]
+    m_out[:, :] = 0.0
+    for r in range(n):
+        b, i = r // block, r % block
+        o = b * block
+        for j in range(block):
+            m_out[r, o + j] = linv_t[b, i, j]
+        lo_out[r] = max(lower[r] + w[r], -1e30)
+        up_out[r] = min(upper[r] + w[r], 1e30)
+    for r in range(a_ptr.shape[0] - 1):
+        row = n + r
+        shift = 0.0
+        for e in range(a_ptr[r], a_ptr[r + 1]):
+            col, val = a_idx[e], a_val[e]
+            b, i = col // block, col % block
+            o = b * block
+            for j in range(block):
+                m_out[row, o + j] += val * linv_t[b, i, j]
+            shift += val * w[col]
+        lo_out[row] = max(lower[row] + shift, -1e30)
+        up_out[row] = min(upper[row] + shift, 1e30)
 
 
 @compiled
@@ -62,67 +156,10 @@ def block_ldp(
     g = np.empty(block)
     for b in range(n // block):
         o = b * block
-        scale = 0.0
-        for i in range(block):
-            scale = max(scale, h[o + i, o + i])
-        # Cholesky factor (lower) of the block
-        for i in range(block):
-            for j in range(i + 1):
-                s = h[o + i, o + j]
-                for k in range(j):
-                    s -= factor[i, k] * factor[j, k]
-                if i == j:
-                    if not s > 1e-12 * scale:
-                        return False
-                    factor[i, i] = math.sqrt(s)
-                else:
-                    factor[i, j] = s / factor[j, j]
-        # its inverse (lower triangular), column by column
-        for j in range(block):
-            for i in range(j):
-                inv[i, j] = 0.0
-            inv[j, j] = 1.0 / factor[j, j]
-            for i in range(j + 1, block):
-                s = 0.0
-                for k in range(j, i):
-                    s -= factor[i, k] * inv[k, j]
-                inv[i, j] = s / factor[i, i]
-        for i in range(block):
-            for j in range(block):
-                linv_t[b, i, j] = inv[j, i]
-        # w = L⁻ᵀ (L⁻¹ c) on this block
-        for i in range(block):
-            s = 0.0
-            for k in range(i + 1):
-                s += inv[i, k] * c[o + k]
-            g[i] = s
-        for i in range(block):
-            s = 0.0
-            for k in range(i, block):
-                s += inv[k, i] * g[k]
-            w[o + i] = s
-    # M = A L⁻ᵀ: the identity rows give the blocks of L⁻ᵀ, a general row the combination
-    # of the rows of L⁻ᵀ its entries name; the bounds shift by A w
-    m_out[:, :] = 0.0
-    for r in range(n):
-        b, i = r // block, r % block
-        o = b * block
-        for j in range(block):
-            m_out[r, o + j] = linv_t[b, i, j]
-        lo_out[r] = max(lower[r] + w[r], -1e30)
-        up_out[r] = min(upper[r] + w[r], 1e30)
-    for r in range(a_ptr.shape[0] - 1):
-        row = n + r
-        shift = 0.0
-        for e in range(a_ptr[r], a_ptr[r + 1]):
-            col, val = a_idx[e], a_val[e]
-            b, i = col // block, col % block
-            o = b * block
-            for j in range(block):
-                m_out[row, o + j] += val * linv_t[b, i, j]
-            shift += val * w[col]
-        lo_out[row] = max(lower[row] + shift, -1e30)
-        up_out[row] = min(upper[row] + shift, 1e30)
+        if not _factor_block(h, o, block, factor, inv, linv_t[b]):
+            return False
+        _shift_block(inv, c, o, block, g, w)
+    _distance_rows(block, lower, upper, a_ptr, a_idx, a_val, linv_t, w, m_out, lo_out, up_out)
     return True
 
 

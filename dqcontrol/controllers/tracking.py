@@ -196,19 +196,12 @@ class TrackingController(QPController):
             robot, trajectory, period_s, measurement_delay_periods=measurement_delay_periods
         )
         period_s = self.period_s
-        if solver is None:
-            solver = default_solver(solver_settings)
+        solver = default_solver(solver_settings) if solver is None else solver
         if solver not in ("osqp", "daqp"):
             raise ParameterError(f"solver must be 'osqp' or 'daqp', got {solver!r}")
         self._check_weights(gain_per_s, task_weight, scaling_weight, regularization)
         self._check_stall(stall_damping, stall_scaling, stall_delay_s)
-        if phase_prediction not in ("previous", "nominal"):
-            raise ParameterError(
-                f"phase_prediction must be 'previous' or 'nominal', got {phase_prediction!r}"
-            )
-        if priority not in ("weighted", "strict"):
-            raise ParameterError(f"priority must be 'weighted' or 'strict', got {priority!r}")
-        self.phase_prediction, self.priority = phase_prediction, priority
+        self._check_choices(phase_prediction, priority)
         self.scaling = bool(scaling)
         self.instants_s = _instants(instants_s)
         self.p = self.instants_s.size
@@ -230,6 +223,15 @@ class TrackingController(QPController):
         self.compose(prediction, levels, limits, solver, solver_settings)
 
     # ------------------------------------------------------------------ settings
+    def _check_choices(self, phase_prediction: str, priority: str) -> None:
+        if phase_prediction not in ("previous", "nominal"):
+            raise ParameterError(
+                f"phase_prediction must be 'previous' or 'nominal', got {phase_prediction!r}"
+            )
+        if priority not in ("weighted", "strict"):
+            raise ParameterError(f"priority must be 'weighted' or 'strict', got {priority!r}")
+        self.phase_prediction, self.priority = phase_prediction, priority
+
     def _check_weights(self, gain_per_s, task_weight, scaling_weight, regularization) -> None:
         self._gain_per_s = check_positive("gain_per_s (K)", gain_per_s, "1/s")
         self._task_weight = check_positive("task_weight (lambda1)", task_weight, "-")
@@ -300,6 +302,7 @@ class TrackingController(QPController):
             )
         mu = self.regularization
         tol = STRICT_TOLERANCE
+        self._tracking.tangent = True  # the rows a level can hold (docs/theory.md §7.6)
         return (
             Level((self._tracking, DampingTerm(layout, mu, include_scaling=True)), tol,
                   "tracking"),

@@ -66,7 +66,9 @@ class DaqpBackend:
                 self._models[key] = (model, a.shape, (h, f, a, up, lo))
             else:
                 model = entry[0]
-                if model.update(H=h, f=f, A=a, bupper=up, blower=lo) < 0:
+                # DAQP's update cannot take an A without rows (only bounds): leave it out
+                rows = {"A": a} if a.shape[0] else {}
+                if model.update(H=h, f=f, bupper=up, blower=lo, **rows) < 0:
                     self._models.pop(key, None)
                     return Solution(False, "error: DAQP refused the update", 0, _since(start))
                 self._models[key] = (model, a.shape, (h, f, a, up, lo))

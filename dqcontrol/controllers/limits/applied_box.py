@@ -1,5 +1,5 @@
 """The applied command's own box: velocity, position through one period, and braking
-(FORMULATION §6), as soft bounds on ``qd_0``.
+(docs/theory.md §5), as soft bounds on ``qd_0``.
 
 Merged with the hard acceleration bound of the first block (the conflict rule), this is
 the thesis's command box: where a joint moves too fast towards its limit to stop in time,

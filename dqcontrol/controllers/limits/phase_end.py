@@ -1,4 +1,4 @@
-"""The phase stays within the task: ``σ_p ≤ T_tot + T`` (FORMULATION §10).
+"""The phase stays within the task: ``σ_p ≤ T_tot + T`` (docs/theory.md §8.4).
 
 Past ``T_tot`` the target is held (zero derivative), so a plan whose phase ran beyond it
 would promise progress that moves nothing; the row keeps the plan's phase on the path. The

@@ -1,5 +1,5 @@
 """Joint positions at every predicted state, and a terminal braking condition
-(FORMULATION §10, docs/theory.md §8.4).
+(docs/theory.md §8.4).
 
 With states affine in the decision (``q_i = q_base_i + Σ_j W_ij qd_j``), the position
 bounds are exact linear rows ``q_min ≤ q_i ≤ q_max`` at every breakpoint. At the last

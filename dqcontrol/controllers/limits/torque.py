@@ -1,5 +1,5 @@
 """Joint torques through the inverse dynamics at the predicted states
-(FORMULATION §10, docs/theory.md §8.4).
+(docs/theory.md §8.4).
 
 For block ``i`` the command changes from ``qd_{i-1}`` to ``qd_i`` over ``h_i`` (``T`` for the
 applied command, from the last applied one); at the block's linearisation state

@@ -1,4 +1,4 @@
-"""Joint velocity bounds on every block: ``-qd_max ≤ qd_i ≤ qd_max`` (FORMULATION §6)."""
+"""Joint velocity bounds on every block: ``-qd_max ≤ qd_i ≤ qd_max`` (docs/theory.md §5)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""The consistent prediction: states linear in the decision (FORMULATION §10,
-docs/theory.md §8.1).
+"""The consistent prediction: states linear in the decision (docs/theory.md §8.1).
 
 The horizon is cut into intervals at the breakpoints ``b_0 = 0 < b_1 = T < … < b_p = τ_p``
 (the first interval is the control period, the rest spaced parabolically as eq. 3.15).

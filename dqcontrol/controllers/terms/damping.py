@@ -1,5 +1,5 @@
 """Damping ``μ ‖qd_i‖²`` (and optionally ``μ ‖s_i‖²``): the small regularisation that makes
-a level's cost strictly convex (FORMULATION §5.2)."""
+a level's cost strictly convex (docs/theory.md §4.2)."""
 
 from __future__ import annotations
 

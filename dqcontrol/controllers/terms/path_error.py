@@ -1,4 +1,4 @@
-"""The path error at every predicted state, linearised (FORMULATION §10, docs/theory.md §8.2).
+"""The path error at every predicted state, linearised (docs/theory.md §8.2).
 
 With ``x̄_i = f(q̄_i)`` sign-aligned to ``x_d(σ̄_i)``, ``J_i = J(q̄_i)``, ``x_d'`` the target's
 derivative, and the states ``q_i(z)``, ``σ_i(z)`` of the prediction model, the residual of

@@ -9,6 +9,11 @@ is the velocity the task asks for at full speed; the rows ``J_i qd_i - s_i w_i``
 joints for it at the speed ``s_i``. They are linear in the decision because ``w_i`` is data.
 In ``z_i = [qd_i, s_i]`` the rows are ``G_i z_i`` with ``G_i = [J_i, -w_i]`` (8 × (n+1)).
 Without time scaling variables the rows are ``J_i qd_i - w_i``.
+
+``tangent=True`` keeps only the six rows in the tangent space of the unit dual quaternions
+at ``x̂_i`` (``E_i G_i``, ``E_i`` of :func:`~dqcontrol.controllers.terms.path_error.
+tangent_projectors`): the two normal rows cannot be produced by any joint motion, and a
+level that holds them at their optimum would pin ``s_i`` (docs/theory.md §7.6).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import numpy as np
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.problem import Residual, Term
 from dqcontrol.controllers.qp_cost import add_task_grams, task_matrices
+from dqcontrol.controllers.terms.path_error import tangent_projectors
 
 __all__ = ["TrackingTerm"]
 
@@ -35,21 +41,25 @@ class TrackingTerm(Term):
 
     name = "tracking"
 
-    def __init__(self, gain_per_s: float, weight: float = 1.0) -> None:
+    def __init__(self, gain_per_s: float, weight: float = 1.0, *, tangent: bool = False) -> None:
         self.gain_per_s = float(gain_per_s)
         self.weight = float(weight)
+        self.tangent = bool(tangent)
 
     def residual(self, ctx: StepContext) -> Residual:
         g = task_matrices(
             ctx.poses, ctx.jacobians, ctx.targets, ctx.target_derivatives, self.gain_per_s
         )
+        if self.tangent:
+            g = np.einsum("pak,pkm->pam", tangent_projectors(ctx.poses), g)
+        rows = g.shape[1]
         if ctx.layout.with_scaling:
-            return Residual(self.name, self.weight, np.zeros(g.shape[0] * 8), blocks=g)
+            return Residual(self.name, self.weight, np.zeros(g.shape[0] * rows), blocks=g)
         n = ctx.layout.num_joints
         return Residual(self.name, self.weight, g[:, :, n].ravel() * -1.0, blocks=g[:, :, :n])
 
     def add_gram(self, ctx: StepContext, hessian: np.ndarray) -> bool:
-        if not ctx.layout.with_scaling:
+        if self.tangent or not ctx.layout.with_scaling:
             return False
         add_task_grams(
             ctx.poses, ctx.jacobians, ctx.targets, ctx.target_derivatives, self.gain_per_s,
