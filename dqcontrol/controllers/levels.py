@@ -116,8 +116,15 @@ def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
     )
 
 
+#: Share of a level's tolerance given to the backend as the band of the held rows: the rest
+#: absorbs the backend's own feasibility error (DAQP measures it in its scaled variables), so
+#: that the stated tolerance holds in the rows' units.
+HELD_BAND_SHARE = 0.5
+
+
 def held_rows(problem: Problem, k: int, z: np.ndarray) -> tuple | None:
-    """``(A, lower, upper)`` holding level ``k``'s held residuals within its tolerance."""
+    """``(A, lower, upper)`` holding level ``k``'s held residuals within its tolerance
+    (the band given to the backend is :data:`HELD_BAND_SHARE` of it)."""
     layout = problem.layout
     level = problem.levels[k]
     mats = [r.dense(layout) for r in level.residuals if r.held]
@@ -125,7 +132,8 @@ def held_rows(problem: Problem, k: int, z: np.ndarray) -> tuple | None:
         return None
     a = np.vstack(mats)
     value = a @ z
-    return a, value - level.tolerance, value + level.tolerance
+    band = HELD_BAND_SHARE * level.tolerance
+    return a, value - band, value + band
 
 
 def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:

@@ -288,6 +288,9 @@ class PathFollowingController(Controller):
 
     def _limits(self) -> tuple[Limit, ...]:
         layout = self.layout
+        self._trust = TrustRegionLimit(
+            layout, self.trust_radius_rad, self.trust_radius_phase_s, self.period_s
+        )
         durations = layout.durations_s
         coupling = 0.5 * (durations[1:] + durations[:-1])
         torque: tuple[Limit, ...] = ()
@@ -308,11 +311,11 @@ class PathFollowingController(Controller):
             AppliedCommandBox(layout, self.q_min, self.q_max, self.qd_max, self.period_s),
             ScalingRange(layout, 0.0, self.s_max),
             AccelerationLimit(layout, self.period_s, coupling, self.acceleration_reserve),
-            PredictedPositionLimit(layout, self.q_min, self.q_max, self.qd_max),
-            PhaseEndLimit(layout),
-            TrustRegionLimit(
-                layout, self.trust_radius_rad, self.trust_radius_phase_s, self.period_s
+            PredictedPositionLimit(
+                layout, self.q_min, self.q_max, self.qd_max, reach_rad=self._trust.radii_rad
             ),
+            PhaseEndLimit(layout),
+            self._trust,
         )
 
     # ------------------------------------------------------------------ memory

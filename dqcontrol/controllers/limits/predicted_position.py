@@ -10,6 +10,10 @@ from ``v`` at ``a`` covers ``v² / (2 a) ≤ |v| qd_max / (2 a)``, so
 
 is sufficient (linear and conservative), and keeps the next problem's braking plan
 feasible.
+
+With ``reach_rad`` (how far each state can move from its linearisation point, e.g. a trust
+region's radius), only the rows a state can reach are given; the limit is inactive (no
+rows) when every state is further than that from its bounds.
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ class PredictedPositionLimit(Limit):
         q_min, q_max: position bounds [rad] (already shrunk by any margin).
         qd_max: velocity bound [rad/s] (for the braking coefficient).
         terminal: add the terminal braking rows.
+        reach_rad: per state, how far it can move from its linearisation point [rad]
+            (``None``: unknown, every row is given).
     """
 
     name = "predicted_position"
@@ -42,8 +48,10 @@ class PredictedPositionLimit(Limit):
         qd_max: np.ndarray,
         *,
         terminal: bool = True,
+        reach_rad: np.ndarray | None = None,
     ) -> None:
         self.layout = layout
+        self.reach_rad = None if reach_rad is None else np.asarray(reach_rad, dtype=float)
         self.q_min = np.asarray(q_min, dtype=float)
         self.q_max = np.asarray(q_max, dtype=float)
         self.qd_max = np.asarray(qd_max, dtype=float)
@@ -64,30 +72,32 @@ class PredictedPositionLimit(Limit):
             self._weights, self._c = weights, c
         return self._c
 
-    def rows(self, ctx: StepContext) -> tuple:
+    def rows(self, ctx: StepContext) -> tuple | None:
         pred = ctx.prediction
         c = self._matrix(pred.weights)
         base = pred.q_base.ravel()
-        p = self.layout.num_blocks
-        out = [
-            Inequality(
-                self.name,
-                c,
-                np.tile(self.q_min, p) - base,
-                np.tile(self.q_max, p) - base,
-            )
-        ]
+        p, n = self.layout.num_blocks, self.layout.num_joints
+        lower = np.tile(self.q_min, p) - base
+        upper = np.tile(self.q_max, p) - base
+        keep = self._reachable(pred.q_lin, 0.0)
+        out = []
+        if keep is None or keep.any():
+            sel = slice(None) if keep is None else keep.ravel()
+            out.append(Inequality(self.name, c[sel], lower[sel], upper[sel]))
         if self.terminal:
-            n = self.layout.num_joints
             coeff = self.qd_max / (2.0 * ctx.a_max[-1])
-            last = c[-n:].copy()
-            last[np.arange(n), self.layout.qd_index()[-1]] += coeff
-            out.append(
-                Inequality(
-                    "terminal_braking",
-                    last,
-                    self.q_min - pred.q_base[-1],
-                    self.q_max - pred.q_base[-1],
-                )
-            )
-        return tuple(out)
+            near = self._reachable(pred.q_lin[-1:], coeff * self.qd_max)
+            if near is None or near.any():
+                sel = slice(None) if near is None else near.ravel()
+                last = c[-n:].copy()
+                last[np.arange(n), self.layout.qd_index()[-1]] += coeff
+                lo, up = self.q_min - pred.q_base[-1], self.q_max - pred.q_base[-1]
+                out.append(Inequality("terminal_braking", last[sel], lo[sel], up[sel]))
+        return tuple(out) or None
+
+    def _reachable(self, q_lin: np.ndarray, extra: np.ndarray | float) -> np.ndarray | None:
+        """Which (state, joint) rows a state can reach (``None``: all, reach unknown)."""
+        if self.reach_rad is None:
+            return None
+        reach = self.reach_rad[-q_lin.shape[0] :, None] + extra
+        return (q_lin + reach >= self.q_max) | (q_lin - reach <= self.q_min)

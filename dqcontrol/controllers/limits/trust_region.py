@@ -44,6 +44,11 @@ class TrustRegionLimit(Limit):
         self.radius_phase_s = float(radius_phase_s)
         self._weights: np.ndarray | None = None
 
+    @property
+    def radii_rad(self) -> np.ndarray:
+        """``ρ_q (1 + t_i/T)`` per state [rad] (``inf`` without joint rows)."""
+        return self.radius_rad * self._growth
+
     def _matrices(self, weights: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self._weights is not weights:
             layout = self.layout
