@@ -204,6 +204,9 @@ def test_rows_options_and_bounds():
     assert p10.controller_options(settings)["acceleration_limit"] == 10.0
     options = pf.controller_options(settings)
     assert options["horizon_s"] == 1.0 and "stall_damping" not in options
+    assert options["servo_time_constant_s"] == 0.005  # MuJoCo's servos, in its prediction
+    kinematic = pf.controller_options(t1.Table1Settings(simulator="kinematic"))
+    assert "servo_time_constant_s" not in kinematic
     assert options["acceleration_limit"] == dict(t1.PATH_FOLLOWING_OPTIONS)["acceleration_limit"]
     np.testing.assert_array_equal(options["velocity_limits"], t1.THESIS_VELOCITY_LIMITS)
     thesis_bound = p10.bound_constraints(settings)

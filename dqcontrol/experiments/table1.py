@@ -100,13 +100,13 @@ QUICK_PERIODS = {"circle": (1.0,), "sinusoid": (2.0,)}
 #: The "short periods" at which the thesis claims that p = 10 beats Local.
 SHORT_PERIODS = {"circle": (4.0, 2.0, 1.0), "sinusoid": (8.0, 4.0, 2.0)}
 #: Keyword arguments of the path-following rows besides the thesis's velocity bounds,
-#: ``T``, ``τ_p`` and p = 10: a constant acceleration bound of 5 rad/s². The command may
-#: change by ``a_max T`` from one period to the next, and MuJoCo's velocity servos answer
-#: such a step with an acceleration of about ``a_max T / τ_v`` (ten times ``a_max`` at
-#: ``T = 50 ms``, ``τ_v = 5 ms``), which neither the plan's acceleration nor its torque rows
-#: see: with the controller's dynamics-aware default or the thesis's 10 rad/s² the servos
-#: of joints 2 and 3 reach their torque limits on the short periods, with 5 rad/s² they stay
-#: below them in every case (docs/table1_analysis.md).
+#: ``T``, ``τ_p`` and p = 10: a constant acceleration bound of 5 rad/s². Behind a velocity
+#: servo of time constant ``τ_v`` a command step ``Δ`` asks for ``Δ/τ_v`` at once, so the
+#: controller's dynamics-aware default is scaled by ``τ_v/T`` there: at ``τ_v = 5 ms`` and
+#: ``T = 50 ms``, its 50 rad/s² cap becomes these 5 rad/s², the figure at which MuJoCo's
+#: servos stay below their torque limits in every case (docs/table1_analysis.md). A
+#: constant makes the time-optimal bound's limit the same as the controller's, and the
+#: kinematic loop's rows the same limit as MuJoCo's.
 PATH_FOLLOWING_OPTIONS: tuple[tuple[str, object], ...] = (("acceleration_limit", 5.0),)
 #: Path samples of the time-optimal bound (0: not computed).
 BOUND_SAMPLES = 2001
@@ -178,6 +178,9 @@ class Table1Settings:
         path_following_options: extra keyword arguments for the path-following rows
             (default :data:`PATH_FOLLOWING_OPTIONS`); without an ``acceleration_limit`` the
             controller's own default applies.
+        servo_model: in MuJoCo, give the path-following rows the simulation's velocity-servo
+            time constant (``servo_time_constant_s``, unless the options give one), so that
+            their prediction includes the servos' lag; the kinematic loop has none.
         bound_samples: path samples of the time-optimal bound (0: not computed, NaN).
         between_samples: measure the path deviation between the control samples.
     """
@@ -190,6 +193,7 @@ class Table1Settings:
     q0: tuple[float, ...] | None = None
     controller_options: tuple[tuple[str, object], ...] = (("stall_damping", 0.0),)
     path_following_options: tuple[tuple[str, object], ...] = PATH_FOLLOWING_OPTIONS
+    servo_model: bool = True
     bound_samples: int = BOUND_SAMPLES
     between_samples: bool = True
 
@@ -296,6 +300,8 @@ class Table1Case:
             kwargs["acceleration_limit"] = float(settings.acceleration_limit)
         else:
             kwargs = {"velocity_limits": velocity, **dict(settings.path_following_options)}
+            if settings.servo_model and settings.simulator == "mujoco":
+                kwargs.setdefault("servo_time_constant_s", _mujoco_servo_time_constant_s())
         if self.controller != "local":
             kwargs["horizon_s"] = settings.horizon_s
         return kwargs
@@ -341,6 +347,16 @@ class Table1Case:
 
             out["torque_limits"] = float(fraction) * lbr4p().limits.effort_max
         return out
+
+
+def _mujoco_servo_time_constant_s() -> float:
+    """``τ_v`` [s] of :class:`~dqcontrol.sim.MujocoSimulation`'s velocity servos (its
+    default, which the runs use)."""
+    import inspect
+
+    from dqcontrol.sim.mujoco_sim import MujocoSimulation
+
+    return float(inspect.signature(MujocoSimulation).parameters["servo_time_constant_s"].default)
 
 
 def table1_cases(
@@ -764,6 +780,12 @@ def _path_following_line(settings: Table1Settings) -> str:
         "- path-following rows (registry name `pf`): p = 10 intervals over τ_p = "
         f"{settings.horizon_s:g} s, the same velocity bounds, {acc}"
         + (f", options {options}" if options else "")
+        + (
+            f", the servos' time constant τ_v = {1e3 * _mujoco_servo_time_constant_s():g} ms "
+            "in its prediction"
+            if settings.servo_model and settings.simulator == "mujoco"
+            else ""
+        )
         + "; path first, progress second, posture third (docs/theory.md §8)"
     )
 
