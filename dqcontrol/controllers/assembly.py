@@ -162,7 +162,9 @@ class BlockAssembly:
             tightens.append((limit.tighten, limit.relaxable))
             if slot is not None:
                 row_bounds.append((limit.row_bounds, slot[0], slot[1], limit.relaxable))
-        self._tightens, self._row_bounds = tuple(tightens), tuple(row_bounds)
+        self._all_tightens = tuple(t for t, _ in tightens)
+        self._relaxed_tightens = tuple(t for t, relaxable in tightens if not relaxable)
+        self._row_bounds = tuple(row_bounds)
         self._generic = tuple(generic)
 
     def setup(self, ctx: StepContext) -> bool:
@@ -203,9 +205,8 @@ class BlockAssembly:
                 lower[slot[0] : slot[1]], upper[slot[0] : slot[1]] = -np.inf, np.inf
             elif not self._same_rows(items, slot, lower, upper, ctx.layout.num_vars):
                 return None
-        for tighten, relaxable in self._tightens:
-            if not (relaxed and relaxable):
-                tighten(ctx, lower, upper, conflict)
+        for tighten in self._relaxed_tightens if relaxed else self._all_tightens:
+            tighten(ctx, lower, upper, conflict)
         for row_bounds, a, b, relaxable in self._row_bounds:
             if relaxed and relaxable:
                 lower[a:b], upper[a:b] = -np.inf, np.inf

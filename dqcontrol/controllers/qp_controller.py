@@ -22,7 +22,7 @@ It never raises from inside a step because a QP failed (docs/theory.md §5).
 
 from __future__ import annotations
 
-import time
+from time import perf_counter
 
 import numpy as np
 
@@ -124,6 +124,7 @@ class QPController(Controller):
         self._warm_starts = bool(getattr(self.qp, "uses_warm_start", False))
         prediction.warm = self._warm_starts
         self._one_block = self.layout.num_blocks == 1
+        self._constant_acceleration = self._acceleration_is_constant()
         self._scaled_s = self._scaled()
         self._fast = self.robot.fast
         self._conflict = np.zeros(self.layout.num_vars, dtype=bool)
@@ -151,6 +152,10 @@ class QPController(Controller):
         ``acceleration_limit`` here (the same array at every step); subclasses may make it
         depend on the state."""
         return self._a_batch
+
+    def _acceleration_is_constant(self) -> bool:
+        """Whether :meth:`_acceleration` gives the same array at every step."""
+        return type(self)._acceleration is QPController._acceleration
 
     # ------------------------------------------------------------------ one step
     def _context(self, q: np.ndarray) -> StepContext:
@@ -182,34 +187,36 @@ class QPController(Controller):
 
     def _measured_context(self, q: np.ndarray) -> StepContext:
         """One block: no prediction, the state is the measured one. The context's arrays
-        stay the same objects from step to step, refilled by one compiled call; the fresh
-        pose and target pair are kept for the result."""
+        stay the same objects from step to step (views of one buffer), refilled by one
+        compiled call; the fresh pose and target pair are kept for the result."""
         sigma = self.sigma
         x, jac = self._fast.pose_and_jacobian(q)
         pair = self.trajectory.target_pair(sigma)
         ctx = self._ctx
         if ctx is None:
-            n = self.n
-            pred = Prediction(
-                np.zeros((1, n)), np.zeros(1), None, None, np.zeros((1, 1)), None, None
-            )
-            pred = pred._replace(q_base=pred.q_lin, sigma_base=pred.sigma_lin)
-            ctx = self._ctx = StepContext(
-                self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev,
-                sigma, pred, np.zeros((1, 8)), np.zeros((1, 8, n)), np.zeros((1, 8)),
-                np.zeros((1, 8)), self._acceleration(pred.q_lin),
-            )  # fmt: skip
-        measured_state(
-            x, jac, pair, q, sigma, ctx.poses, ctx.jacobians, ctx.targets,
-            ctx.target_derivatives, ctx.prediction.q_lin, ctx.prediction.sigma_lin,
-        )  # fmt: skip
+            ctx = self._ctx = self._one_block_context(q, sigma)
+        measured_state(x, jac, pair, q, sigma, self._state)
         ctx.period_s = self.period_s
         ctx.q = q
         ctx.qd_prev = self.qd_prev
         ctx.sigma = sigma
-        ctx.a_max = self._acceleration(ctx.prediction.q_lin)
+        if not self._constant_acceleration:
+            ctx.a_max = self._acceleration(ctx.prediction.q_lin)
         self._pose_target = (x, pair[0])
         return ctx
+
+    def _one_block_context(self, q: np.ndarray, sigma: float) -> StepContext:
+        n = self.n
+        state = self._state = np.zeros(8 + 8 * n + 16 + n + 1)
+        o = 8 + 8 * n
+        poses, jacs = state[:8].reshape(1, 8), state[8:o].reshape(1, 8, n)
+        xd, dxd = state[o : o + 8].reshape(1, 8), state[o + 8 : o + 16].reshape(1, 8)
+        q_lin, sigma_lin = state[o + 16 : o + 16 + n].reshape(1, n), state[o + 16 + n :]
+        pred = Prediction(q_lin, sigma_lin, q_lin, sigma_lin, np.zeros((1, 1)), None, None)
+        return StepContext(
+            self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev, sigma,
+            pred, poses, jacs, xd, dxd, self._acceleration(q_lin),
+        )  # fmt: skip
 
     def _warm(self, ctx: StepContext) -> np.ndarray | None:
         """The previous plan shifted, as a decision vector (for a backend that takes one)."""
@@ -226,7 +233,7 @@ class QPController(Controller):
     def _solve_blocks(self, ctx: StepContext) -> tuple | None:
         """``(solution, lower, upper, conflict, relaxed)`` by the block path, or ``None``."""
         assembly = self._assembly
-        qp = assembly.build(ctx, warm=self._warm(ctx) if self._warm_starts else None)
+        qp = assembly.build(ctx, False, self._warm(ctx) if self._warm_starts else None)
         if qp is None:
             return None
         sol = self.qp.solve_blocks(qp)
@@ -260,7 +267,7 @@ class QPController(Controller):
         return sol, problem.lower, problem.upper, bool(problem.conflict[: self.n].any()), relaxed
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
-        start = time.perf_counter()
+        start = perf_counter()
         ctx = self._measured_context(q) if self._one_block else self._context(q)
         for prepare in self._prepare:
             prepare(ctx)
@@ -295,7 +302,7 @@ class QPController(Controller):
         conflict = self._conflict_joints() if clash else ()
         diag = self._new_diag(
             status=sol.status, iterations=sol.iterations, solve_time_s=sol.solve_time_s,
-            step_time_s=time.perf_counter() - start, fallback=z is None, relaxed=relaxed,
+            step_time_s=perf_counter() - start, fallback=z is None, relaxed=relaxed,
             conflict_joints=conflict, message=message,
         )  # fmt: skip
         sigma = self.sigma

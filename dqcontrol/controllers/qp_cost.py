@@ -61,39 +61,32 @@ def align_signs(xs: np.ndarray, jacs: np.ndarray, xd: np.ndarray) -> None:
 
 @compiled
 def measured_state(
-    x: np.ndarray,
-    jac: np.ndarray,
-    pair: np.ndarray,
-    q: np.ndarray,
-    sigma: float,
-    poses: np.ndarray,
-    jacs: np.ndarray,
-    xd: np.ndarray,
-    dxd: np.ndarray,
-    q_lin: np.ndarray,
-    sigma_lin: np.ndarray,
+    x: np.ndarray, jac: np.ndarray, pair: np.ndarray, q: np.ndarray, sigma: float, out: np.ndarray
 ) -> None:
     """One block at the measured state: ``x`` and ``jac`` negated in place where
-    ``x · x_d < 0`` (as :func:`align_signs`), then copied with the target pair
-    ``[x_d; dx_d/dσ]``, ``q`` and ``σ`` into the one-row arrays ``poses`` (1, 8),
-    ``jacs`` (1, 8, n), ``xd``, ``dxd`` (1, 8), ``q_lin`` (1, n), ``sigma_lin`` (1,)."""
+    ``x · x_d < 0`` (as :func:`align_signs`), then copied into ``out`` with the target pair
+    ``[x_d; dx_d/dσ]``, ``q`` and ``σ``: ``out = [x (8), jac (8 n, row-major), x_d (8),
+    dx_d/dσ (8), q (n), σ]`` (the buffer behind a one-block context's arrays)."""
+    n = jac.shape[1]
     align = 0.0
     for k in range(8):
         align += x[k] * pair[0, k]
     if align < 0.0:
         for k in range(8):
             x[k] = -x[k]
-            for j in range(jac.shape[1]):
+            for j in range(n):
                 jac[k, j] = -jac[k, j]
+    o = 8 + 8 * n
     for k in range(8):
-        poses[0, k] = x[k]
-        xd[0, k] = pair[0, k]
-        dxd[0, k] = pair[1, k]
-        for j in range(jac.shape[1]):
-            jacs[0, k, j] = jac[k, j]
-    for j in range(q.shape[0]):
-        q_lin[0, j] = q[j]
-    sigma_lin[0] = sigma
+        out[k] = x[k]
+        out[o + k] = pair[0, k]
+        out[o + 8 + k] = pair[1, k]
+        for j in range(n):
+            out[8 + k * n + j] = jac[k, j]
+    o += 16
+    for j in range(n):
+        out[o + j] = q[j]
+    out[o + n] = sigma
 
 
 @compiled

@@ -21,9 +21,9 @@ again whenever that structure changes:
 from __future__ import annotations
 
 import math
-import time
 from ctypes import c_int
 from functools import cache
+from time import perf_counter
 
 import numpy as np
 import scipy.sparse as sp
@@ -198,12 +198,12 @@ class DaqpQP:
         warm_x: np.ndarray | None = None,
     ) -> QPSolution:
         """Update the values and solve (warm start: the previous active set)."""
-        start = time.perf_counter()
+        start = perf_counter()
         if not (lower <= upper).all():  # also catches NaN
             return invalid_bounds(lower, upper, start)
         scatter_symmetric(self._h, self._rows, self._cols, p_values)  # compiled
         x, ok, status, iterations = self._solve_h(c, lower, upper)
-        return QPSolution(x, None, ok, status, iterations, time.perf_counter() - start)
+        return QPSolution(x, None, ok, status, iterations, perf_counter() - start)
 
     def _solve_h(
         self, c: np.ndarray, lower: np.ndarray, upper: np.ndarray
@@ -226,7 +226,7 @@ class DaqpQP:
         """Solve a :class:`~dqcontrol.controllers.problem.BlockQP`, the workspace set up for
         its structure (one block without general rows: the dense form; otherwise the
         least-distance one). Never raises for a failed solve: the solution says so."""
-        start = time.perf_counter()
+        start = perf_counter()
         hessian = qp.hessian
         if qp.structure != self._structure or hessian.shape != self._shape:
             self._configure_blocks(qp)
@@ -245,16 +245,16 @@ class DaqpQP:
                 try:
                     if model.update(H=hessian[0], bupper=upper, blower=lower) < 0:
                         self._model = None
-                        return Solution(False, _REFUSED, 0, time.perf_counter() - start)
+                        return Solution(False, _REFUSED, 0, perf_counter() - start)
                     x, _fval, flag, info = model.solve()
                 except Exception as exc:  # noqa: BLE001 - never stop the control loop
                     self._model = None
-                    return Solution(False, f"error: {exc}", 0, time.perf_counter() - start)
+                    return Solution(False, f"error: {exc}", 0, perf_counter() - start)
                 if (flag == 1 or flag == 2) and x is not None and math.isfinite(x.dot(x)):
                     iterations = info.get("iterations", 0) if isinstance(info, dict) else 0
                     return _new_solution(
                         Solution,
-                        (True, "solved", int(iterations), time.perf_counter() - start, x, None),
+                        (True, "solved", int(iterations), perf_counter() - start, x, None),
                     )
                 x, ok, status, iterations = _outcome(x, flag, info)
                 if not ok:
@@ -262,14 +262,14 @@ class DaqpQP:
             else:
                 x, ok, status, iterations = self._solve(hessian[0], qp.c, lower, upper)
             return _new_solution(
-                Solution, (ok, status, iterations, time.perf_counter() - start, x, None)
+                Solution, (ok, status, iterations, perf_counter() - start, x, None)
             )
         if not (lower <= upper).all():  # also catches NaN
             bad = invalid_bounds(lower, upper, start)
             return Solution(False, bad.status, 0, bad.solve_time_s)
         scatter_blocks(self._h, hessian)  # compiled: the diagonal blocks of H
         x, ok, status, iterations = self._solve_h(qp.c, lower, upper)
-        return Solution(ok, status, iterations, time.perf_counter() - start, x)
+        return Solution(ok, status, iterations, perf_counter() - start, x)
 
     @property
     def form(self) -> str:
@@ -303,28 +303,28 @@ class DaqpQP:
         ``invalid_bounds``). Returns ``(x, ok, status, iterations, solve_time_s)``, ``x``
         ``None`` unless ``ok``.
         """
-        start = time.perf_counter()
+        start = perf_counter()
         model = self._model
         if model is None or c is not self._f_given:
             x, ok, status, iterations = self._solve(h, c, lower, upper)
-            return x, ok, status, iterations, time.perf_counter() - start
+            return x, ok, status, iterations, perf_counter() - start
         # the usual step, as _solve() with the same f: written out here (this path runs at
         # 1 kHz and every Python call counts)
         try:
             if model.update(H=h, bupper=upper, blower=lower) < 0:
                 self._model = None
-                return None, False, _REFUSED, 0, time.perf_counter() - start
+                return None, False, _REFUSED, 0, perf_counter() - start
             x, _fval, flag, info = model.solve()
         except Exception as exc:  # noqa: BLE001 - never stop the control loop
             self._model = None
-            return None, False, f"error: {exc}", 0, time.perf_counter() - start
+            return None, False, f"error: {exc}", 0, perf_counter() - start
         if (flag == 1 or flag == 2) and x is not None and math.isfinite(x.dot(x)):
             iterations = info.get("iterations", 0) if isinstance(info, dict) else 0
-            return x, True, "solved", int(iterations), time.perf_counter() - start
+            return x, True, "solved", int(iterations), perf_counter() - start
         x, ok, status, iterations = _outcome(x, flag, info)
         if not ok:
             self._model = None
-        return x, ok, status, iterations, time.perf_counter() - start
+        return x, ok, status, iterations, perf_counter() - start
 
     def _solve(
         self,

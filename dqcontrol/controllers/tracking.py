@@ -328,6 +328,9 @@ class TrackingController(QPController):
             q_lin, 1.0, self.acceleration_floor, self.acceleration_cap
         )
 
+    def _acceleration_is_constant(self) -> bool:
+        return self.a_const is not None
+
     def _scaled(self) -> bool:
         return self.scaling
 
