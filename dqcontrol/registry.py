@@ -53,7 +53,14 @@ __all__ = [
 
 #: Settings a tool may give every controller it builds; each spec lists those it takes
 #: (:attr:`ControllerSpec.takes`), the others are left to the controller's default.
-SHARED_OPTIONS = ("velocity_limits", "acceleration_limit", "gain_per_s", "horizon_s", "solver")
+SHARED_OPTIONS = (
+    "velocity_limits",
+    "acceleration_limit",
+    "gain_per_s",
+    "horizon_s",
+    "solver",
+    "servo_time_constant_s",
+)
 _TRACKING = ("velocity_limits", "acceleration_limit", "gain_per_s", "solver")
 
 
@@ -139,7 +146,13 @@ def _path_following(p: int) -> ControllerSpec:
         (("num_intervals", p),),
         label="path-following" if p == 10 else f"path-following p={p}",
         description=f"path first, progress second (consistent prediction), {p} intervals",
-        takes=("velocity_limits", "acceleration_limit", "horizon_s", "solver"),
+        takes=(
+            "velocity_limits",
+            "acceleration_limit",
+            "horizon_s",
+            "solver",
+            "servo_time_constant_s",
+        ),  # fmt: skip
     )
 
 

@@ -330,6 +330,10 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
         "gain_per_s": args.gain,
         "horizon_s": args.horizon,
     }
+    if args.simulator == "mujoco":  # a controller that models the servos gets their lag
+        from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
+
+        shared["servo_time_constant_s"] = SERVO_TIME_CONSTANT_S
     return build_controller(name, robot, trajectory, args.period, shared=shared)
 
 

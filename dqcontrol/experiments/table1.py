@@ -352,11 +352,9 @@ class Table1Case:
 def _mujoco_servo_time_constant_s() -> float:
     """``τ_v`` [s] of :class:`~dqcontrol.sim.MujocoSimulation`'s velocity servos (its
     default, which the runs use)."""
-    import inspect
+    from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
 
-    from dqcontrol.sim.mujoco_sim import MujocoSimulation
-
-    return float(inspect.signature(MujocoSimulation).parameters["servo_time_constant_s"].default)
+    return SERVO_TIME_CONSTANT_S
 
 
 def table1_cases(

@@ -93,6 +93,9 @@ __all__ = [
     "ServoGains",
 ]
 
+#: Default time constant ``τ_v`` of the velocity servos [s] (module docstring).
+SERVO_TIME_CONSTANT_S = 0.005
+
 #: Largest accepted physics step [s].
 MAX_PHYSICS_DT_S = 0.002
 #: Default armature per N·m of effort limit [kg·m² / (N·m)] (module docstring).
@@ -200,7 +203,7 @@ class MujocoSimulation:
         physics_dt_s: float = 0.001,
         gravity: bool = True,
         motor: str = "velocity",
-        servo_time_constant_s: float = 0.005,
+        servo_time_constant_s: float = SERVO_TIME_CONSTANT_S,
         integral_time_constant_s: float = 0.05,
         gravity_feedforward: bool = True,
         armature: float | np.ndarray | None = None,
