@@ -174,7 +174,7 @@ def step_times(
     if reference:
         warm = step_times(controller, q0, min(steps, 100), 1, reference=False)
         count = _reference_count(warm["median_us"] * 1e-6)
-    times, solves, iters, run_medians, ref_times = [], [], [], [], []
+    times, solves, iters, run_medians, ref_times, rounds = [], [], [], [], [], []
     runs, finals = [], []
     for _ in range(repeats):
         q = np.array(q0, dtype=float)
@@ -190,6 +190,7 @@ def step_times(
                 ref_times.append(time.perf_counter() - t0)
             solves.append(res.diagnostics.solve_time_s)
             iters.append(res.diagnostics.iterations)
+            rounds.append(res.diagnostics.linearisations)
             q = q + controller.period_s * res.qd_command
             if controller.done:
                 controller.reset(q)
@@ -204,6 +205,8 @@ def step_times(
         "p99_over_median": float(np.percentile(t, 99) / np.median(t)),
         "solver_median_us": float(np.median(solves) * 1e6),
         "iterations_median": float(np.median(iters)),
+        "linearisations_mean": float(np.mean(rounds)),
+        "linearisations_max": int(np.max(rounds)),
         "run_medians_us": run_medians,
         "steps": steps * repeats,
     }
@@ -295,6 +298,36 @@ def bench_scaling(
         "fit_p": _power_fit(by_p),
         "fit_joints": _power_fit(by_n),
     }
+
+
+def bench_path_following(
+    steps: int = 300,
+    repeats: int = 1,
+    ps: tuple[int, ...] = (6, 10, 20),
+    joints: tuple[int, ...] = (7, 14),
+    period_s: float = PERIOD_S,
+) -> dict:
+    """The path-following controller at ``period_s``: median/p99 step and solve, DAQP
+    iterations and linearise-and-solve rounds per step, against p on the LBR4p and at
+    p = 10 against the joint count (:func:`long_chain_urdf` chains)."""
+    robot = load_lbr4p()
+    keys = (
+        "median_us", "p99_us", "p99_over_median", "solver_median_us", "iterations_median",
+        "linearisations_mean", "linearisations_max",
+    )  # fmt: skip
+    by_p = {}
+    for p in ps:
+        ctrl = _make(f"pf{p}", robot, Circle(2.0), period_s, None)
+        res = step_times(ctrl, LBR4P_Q0, steps, repeats, reference=False)
+        by_p[p] = {k: res[k] for k in keys}
+    by_n = {}
+    for n in joints:
+        rob = robot if n == 7 else RobotModel.from_urdf(long_chain_urdf(n), "flange")
+        q0 = LBR4P_Q0 if n == 7 else np.resize(LBR4P_Q0 * 0.5, n)
+        ctrl = _make("pf10", rob, Circle(2.0), period_s, None)
+        res = step_times(ctrl, q0, max(steps // 3, 20), repeats, reference=False)
+        by_n[n] = {k: res[k] for k in keys}
+    return {"by_p": by_p, "by_joints_p10": by_n, "fit_p": _power_fit(by_p)}
 
 
 def _power_fit(table: dict) -> dict:
@@ -585,8 +618,10 @@ def run_all(quick: bool = False) -> dict:
     out["mujoco"] = bench_mujoco(duration_s=0.5 if quick else 2.0, repeats=1 if quick else 3)
     if quick:
         out["scaling"] = bench_scaling(steps=60, repeats=1, ps=(2, 10), joints=(7, 14))
+        out["path_following"] = bench_path_following(steps=20, ps=(6, 10), joints=(7,))
     else:
         out["scaling"] = bench_scaling()
+        out["path_following"] = bench_path_following()
     out["targets"] = _targets(out)
     return out
 
@@ -709,7 +744,31 @@ def format_report(res: dict) -> str:
         f"  fit t ∝ n^k: step k = {sc['fit_joints']['median_us']:.2f}, "
         f"solver k = {sc['fit_joints']['solver_median_us']:.2f}"
     )
+    lines += _path_following_lines(res.get("path_following"))
     return "\n".join(lines)
+
+
+def _path_following_lines(pf: dict | None) -> list[str]:
+    """The path-following section of the report."""
+    if not pf:
+        return []
+    lines = ["", "path-following step (LBR4p, circle 2 s) [µs]: median / p99 (solver), rounds"]
+    for p, v in pf["by_p"].items():
+        lines.append(
+            f"  p={p}: {v['median_us']:.0f} / {v['p99_us']:.0f} ({v['solver_median_us']:.0f}), "
+            f"step/solve {v['median_us'] / v['solver_median_us']:.2f}, "
+            f"{v['linearisations_mean']:.2f} rounds (max {v['linearisations_max']}), "
+            f"{v['iterations_median']:.0f} DAQP iterations"
+        )
+    lines.append("path-following p = 10 against the number of joints [µs]: median (solver)")
+    lines.append(
+        "  "
+        + ", ".join(
+            f"n={n}: {v['median_us']:.0f} ({v['solver_median_us']:.0f})"
+            for n, v in pf["by_joints_p10"].items()
+        )
+    )
+    return lines
 
 
 def main(out: str | os.PathLike | None = "results/bench.json", quick: bool = False) -> dict:
