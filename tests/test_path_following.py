@@ -205,12 +205,6 @@ def test_panda_on_a_custom_path(panda):
     assert m.position_violations == m.velocity_violations == m.acceleration_violations == 0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known defect: at the workspace boundary (a singular, stretched arm) the arm keeps "
-    "creeping after s reaches 0 (|qd| 0.01-0.05 rad/s) and the tool drifts 0.4-0.6 mm off the "
-    "path (docs/theory.md §8.7)",
-)
 def test_unreachable_path_stops_on_it_at_rest(lbr4p):
     # a straight line that leaves the workspace (3 m away)
     traj = WaypointTrajectory([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]], times_s=[0.0, 6.0])

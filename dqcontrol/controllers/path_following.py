@@ -279,6 +279,7 @@ class PathFollowingController(Controller):
                 ProgressTerm(layout, self.s_max),
                 ScalingSmoothnessTerm(layout),
                 DampingTerm(layout, mu),
+                self.singularity,
             ),
             progress_tol,
             "progress",
