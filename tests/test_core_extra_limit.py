@@ -1,6 +1,6 @@
 """A limit defined only in a file of the test suite (``tests/joint_below_limit.py``) works in
-every QP controller of the thesis without editing the package (docs/theory.md §7.7), and the
-documentation's worked example is that limit."""
+every QP controller (the thesis's and the path-following one) without editing the package
+(docs/theory.md §7.7), and the documentation's worked example is that limit."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ from dqcontrol.controllers import (
     PredictiveController,
     PredictiveNoScalingController,
 )
+from dqcontrol.controllers.path_following import PathFollowingController
 from dqcontrol.controllers.problem import Bounds, Limit
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.sim import run_kinematic
@@ -29,6 +30,7 @@ CONTROLLERS = {
     "local": (LocalController, {}),
     "p6": (PredictiveController, {"num_instants": 6}),
     "noscale_p6": (PredictiveNoScalingController, {"num_instants": 6}),
+    "path_following": (PathFollowingController, {"num_intervals": 6}),
 }
 
 
@@ -36,9 +38,11 @@ def make(name, priority, extra_limits=()):
     from dqcontrol import load_lbr4p
 
     cls, kw = CONTROLLERS[name]
+    if cls is not PathFollowingController:  # its levels are strict by construction
+        kw = {**kw, "priority": priority}
     return cls(
         load_lbr4p(), Circle(2.0), T, velocity_limits=THESIS_VEL, acceleration_limit=10.0,
-        priority=priority, extra_limits=extra_limits, **kw,
+        extra_limits=extra_limits, **kw,
     )  # fmt: skip
 
 

@@ -49,7 +49,7 @@ from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
     interval_breakpoints,
 )
-from dqcontrol.controllers.problem import Level, Limit, Problem
+from dqcontrol.controllers.problem import Level, Limit, Problem, Term
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.path_error import PathErrorTerm, tangent_projectors
 from dqcontrol.controllers.terms.posture import PostureTerm
@@ -127,6 +127,8 @@ class PathFollowingController(Controller):
             step ``Δ`` then asks the servo for ``Δ/τ_v`` at once, so the dynamics-aware
             acceleration limit is scaled by ``min(1, τ_v/T)`` (a constant one is taken as
             given).
+        extra_terms: more terms, added to the lowest (posture) level.
+        extra_limits: more limits (any :class:`~dqcontrol.controllers.problem.Limit`).
         solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
     """
 
@@ -161,6 +163,8 @@ class PathFollowingController(Controller):
         trust_radius_rad: float = 0.05,
         trust_radius_phase_s: float = 0.02,
         measurement_delay_periods: int = 0,
+        extra_terms: tuple[Term, ...] = (),
+        extra_limits: tuple[Limit, ...] = (),
         solver: Literal["daqp", "osqp"] | None = None,
         solver_settings: dict | None = None,
     ) -> None:
@@ -226,8 +230,8 @@ class PathFollowingController(Controller):
         layout = self.layout = self.prediction_model.layout
         self.posture = PostureTerm(layout, posture_gain_per_s)
         self._posture_reference = posture_reference
-        self.levels = self._levels(path_tolerance, progress_tolerance)
-        self.limits = self._limits()
+        self.levels = self._levels(path_tolerance, progress_tolerance, tuple(extra_terms))
+        self.limits = self._limits() + tuple(extra_limits)
         self.relaxed_limits = tuple(
             lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
         )
@@ -259,7 +263,9 @@ class PathFollowingController(Controller):
                 "acceleration_limit", acceleration_limit, self.n, "rad/s² (or 'dynamics')"
             )
 
-    def _levels(self, path_tol: float, progress_tol: float) -> tuple[Level, ...]:
+    def _levels(
+        self, path_tol: float, progress_tol: float, extra: tuple[Term, ...]
+    ) -> tuple[Level, ...]:
         layout, mu = self.layout, self.damping
         first = float(layout.durations_s[0])
         self.singularity = SingularityDampingTerm(
@@ -284,7 +290,7 @@ class PathFollowingController(Controller):
             progress_tol,
             "progress",
         )
-        posture = Level((self.posture, DampingTerm(layout, mu)), 1e-6, "posture")
+        posture = Level((self.posture, DampingTerm(layout, mu), *extra), 1e-6, "posture")
         return path, progress, posture
 
     def _limits(self) -> tuple[Limit, ...]:
