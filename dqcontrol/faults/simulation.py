@@ -24,13 +24,13 @@ interface, so that the same wrapper and the same loop serve both simulators. Mod
 from __future__ import annotations
 
 import math
-from collections import deque
 from types import SimpleNamespace
 
 import numpy as np
 
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
+from dqcontrol.sim.driver import MeasurementFaults, true_copy
 from dqcontrol.sim.mujoco_sim import Measurement
 
 __all__ = ["FaultySimulation", "KinematicSimulation"]
@@ -127,6 +127,10 @@ class KinematicSimulation:
 class FaultySimulation:
     """A simulation whose measurements are noisy and/or delayed.
 
+    The simulation-interface twin of :class:`~dqcontrol.sim.driver.FaultyDriver`: the same
+    faults (:class:`~dqcontrol.sim.driver.MeasurementFaults`) around an object with
+    ``reset``/``step``/``measure``, for the loops that take a simulation.
+
     Args:
         inner: the simulation to wrap (:class:`~dqcontrol.sim.MujocoSimulation`,
             :class:`KinematicSimulation`, or anything with the same members).
@@ -160,24 +164,14 @@ class FaultySimulation:
                     f"{type(inner).__name__} has no '{member}'"
                 )
         self.inner = inner
-        self.q_noise_rad = _non_negative("q_noise_rad", q_noise_rad, "rad")
-        self.qd_noise_rad_s = _non_negative("qd_noise_rad_s", qd_noise_rad_s, "rad/s")
-        if isinstance(delay_periods, bool) or not isinstance(delay_periods, int | np.integer):
-            raise ParameterError(
-                f"delay_periods must be an integer ≥ 0 [control periods], got {delay_periods!r}"
-            )
-        if delay_periods < 0:
-            raise ParameterError(
-                f"delay_periods must be an integer ≥ 0 [control periods], got {delay_periods!r}"
-            )
-        self.delay_periods = int(delay_periods)
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
-            raise ParameterError(f"seed must be an integer, got {seed!r}")
-        self.seed = int(seed)
-        self._rng = np.random.default_rng(self.seed)
-        self._fifo: deque[Measurement] = deque()
+        self.faults = MeasurementFaults(q_noise_rad, qd_noise_rad_s, delay_periods, seed)
         self._last: Measurement | None = None
         self.true_measurements: list[Measurement] = []
+
+    q_noise_rad = property(lambda self: self.faults.q_noise_rad)
+    qd_noise_rad_s = property(lambda self: self.faults.qd_noise_rad_s)
+    delay_periods = property(lambda self: self.faults.delay_periods)
+    seed = property(lambda self: self.faults.seed)
 
     # ------------------------------------------------------------------ delegated members
     @property
@@ -196,7 +190,7 @@ class FaultySimulation:
 
     def __getattr__(self, name: str):
         # anything else (ee_pose, robot, time_s ...) comes from the wrapped simulation
-        if name == "inner":  # not set yet (during unpickling)
+        if name in ("inner", "faults"):  # not set yet (during unpickling)
             raise AttributeError(name)
         return getattr(self.inner, name)
 
@@ -211,48 +205,27 @@ class FaultySimulation:
         """True joint velocities [rad/s], ``(K + 1, n)``."""
         return np.array([m.qd for m in self.true_measurements])
 
-    def _observe(self, old: Measurement, now: Measurement) -> Measurement:
-        """What the controller receives now: the joint state of ``old`` (delayed), with noise,
-        stamped with the current time and torques (the loop's clock is not delayed)."""
-        q, qd = np.array(old.q, dtype=float), np.array(old.qd, dtype=float)
-        if self.q_noise_rad > 0.0:
-            q = q + self._rng.normal(0.0, self.q_noise_rad, q.shape)
-        if self.qd_noise_rad_s > 0.0:
-            qd = qd + self._rng.normal(0.0, self.qd_noise_rad_s, qd.shape)
-        return Measurement(t_s=now.t_s, q=q, qd=qd, torque=now.torque, torque_peak=now.torque_peak)
-
     def _record(self, m: Measurement) -> Measurement:
-        true = Measurement(
-            t_s=float(m.t_s),
-            q=np.array(m.q, dtype=float),
-            qd=np.array(m.qd, dtype=float),
-            torque=np.array(m.torque, dtype=float),
-            torque_peak=np.array(m.torque_peak, dtype=float),
-        )
+        true = true_copy(m)
         self.true_measurements.append(true)
         return true
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray | None = None) -> Measurement:
         """Reset the wrapped simulation, the noise sequence and the delay line."""
-        self._rng = np.random.default_rng(self.seed)
         self.true_measurements = []
-        m = self._record(self.inner.reset(q0, qd0))
-        self._fifo = deque([m] * (self.delay_periods + 1), maxlen=self.delay_periods + 1)
-        self._last = self._observe(self._fifo[0], m)
+        self._last = self.faults.restart(self._record(self.inner.reset(q0, qd0)))
         return self._last
 
     def step(self, qd_command: np.ndarray, duration_s: float) -> Measurement:
         """Step the wrapped simulation; return the delayed, noisy measurement."""
-        m = self._record(self.inner.step(qd_command, duration_s))
-        self._fifo.append(m)  # maxlen: drops the oldest
-        self._last = self._observe(self._fifo[0], m)
+        self._last = self.faults.push(self._record(self.inner.step(qd_command, duration_s)))
         return self._last
 
     def measure(self) -> Measurement:
         """The measurement the controller received last (delayed, noisy)."""
         if self._last is None:  # before the first reset: the current state, noisy
             now = self.inner.measure()
-            return self._observe(now, now)
+            return self.faults.observe(now, now)
         return self._last
 
     def __repr__(self) -> str:

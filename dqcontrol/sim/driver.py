@@ -1,0 +1,488 @@
+"""Joint drivers: what the control loop reads joint states from and sends velocity commands to.
+
+A :class:`JointDriver` is the boundary between the controller and an arm, simulated or real.
+It names its joints (in its own order: the loop maps them to the model's by name), returns
+timestamped measurements and takes joint-velocity commands:
+
+- :meth:`JointDriver.read` — the latest :class:`~dqcontrol.sim.Measurement` (time [s], ``q``
+  [rad], ``qd`` [rad/s], and the joint torques [N·m] where the driver knows them, NaN
+  otherwise);
+- :meth:`JointDriver.write` — the velocity command [rad/s] to hold until the next one;
+- :meth:`JointDriver.hold` — hold the present position (zero velocity).
+
+A *simulated* driver also has ``period_s`` and ``reset(q0)``: each ``write`` or ``hold`` then
+advances the simulation by one period (stepped, simulated time), so a run is deterministic
+and as fast as the computer allows. A driver of a real arm keeps its own clock; the loop then
+runs in wall-clock time (:func:`~dqcontrol.sim.run_loop` ``realtime=True``).
+
+Drivers here:
+
+- :class:`KinematicDriver` — ideal velocity tracking, ``q_{k+1} = q_k + T u_k``;
+- :class:`SimulationDriver` — any simulation object with ``reset``/``step``/``measure``
+  (:class:`~dqcontrol.sim.MujocoSimulation`, the fault campaign's wrappers);
+  :class:`MujocoDriver` builds the MuJoCo simulation itself (an unknown payload and
+  reduced torque limits are its ``payload_kg`` and ``effort_scale``);
+- :class:`VelocityFromPosition` — a velocity driver over a position-only interface
+  (:class:`PositionInterface`): it integrates the velocity command into a position target;
+- :class:`FaultyDriver` — measurement faults around any driver: seeded Gaussian noise and a
+  delay of whole periods (:class:`MeasurementFaults`), with a record of the true states.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from dqcontrol.errors import ConfigurationError, ParameterError
+from dqcontrol.model.robot import RobotModel
+from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation
+
+__all__ = [
+    "FaultyDriver",
+    "JointDriver",
+    "JointMismatchError",
+    "KinematicDriver",
+    "MeasurementFaults",
+    "MujocoDriver",
+    "PositionInterface",
+    "SimulatedDriver",
+    "SimulationDriver",
+    "VelocityFromPosition",
+    "joint_map",
+]
+
+
+class JointMismatchError(ConfigurationError):
+    """The driver's joints are not the model's (names, duplicates or count)."""
+
+
+@runtime_checkable
+class JointDriver(Protocol):
+    """An arm's joints behind a velocity interface (module docstring)."""
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The driver's joint names, in the order of its arrays."""
+        ...
+
+    def read(self) -> Measurement:
+        """The latest measurement (driver's joint order)."""
+        ...
+
+    def write(self, qd_command: np.ndarray) -> None:
+        """Send the joint-velocity command [rad/s] (driver's joint order)."""
+        ...
+
+    def hold(self) -> None:
+        """Hold the present position (zero velocity)."""
+        ...
+
+
+@runtime_checkable
+class SimulatedDriver(JointDriver, Protocol):
+    """A driver in simulated time: ``write``/``hold`` advance it by ``period_s``."""
+
+    period_s: float
+
+    def reset(self, q0: np.ndarray) -> Measurement:
+        """Put the arm at rest at ``q0`` [rad] (driver's joint order), time 0."""
+        ...
+
+
+@runtime_checkable
+class PositionInterface(Protocol):
+    """An arm that takes joint-position targets only (e.g. a position-controlled servo bus)."""
+
+    @property
+    def joint_names(self) -> tuple[str, ...]: ...
+
+    def read(self) -> Measurement: ...
+
+    def write_position(self, q_target: np.ndarray) -> None:
+        """Send joint-position targets [rad] (interface's joint order)."""
+        ...
+
+
+def joint_map(driver_names, model_names) -> np.ndarray | None:
+    """Indices ``perm`` with ``q_model = q_driver[perm]``, or ``None`` when the orders agree.
+
+    Raises:
+        JointMismatchError: duplicate driver joints, fewer or more joints than the model, or
+            names the model does not have; the message lists them.
+    """
+    drv, mod = [str(n) for n in driver_names], [str(n) for n in model_names]
+    dupes = sorted({n for n in drv if drv.count(n) > 1})
+    if dupes:
+        raise JointMismatchError(f"the driver names joints {dupes} more than once: {drv}")
+    missing = [n for n in mod if n not in drv]
+    unknown = [n for n in drv if n not in mod]
+    if len(drv) < len(mod):
+        raise JointMismatchError(
+            f"the driver has {len(drv)} joints, the model {len(mod)}: missing {missing} "
+            f"(driver: {drv}; model: {mod})"
+        )
+    if missing or unknown:
+        raise JointMismatchError(
+            f"joint-name mismatch: the driver has {unknown} that the model has not, and lacks "
+            f"{missing} (driver: {drv}; model: {mod})"
+        )
+    if drv == mod:
+        return None
+    return np.array([drv.index(n) for n in mod])
+
+
+def _period(value: float) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"period_s must be a number [s], got {value!r}") from None
+    if not math.isfinite(v) or v <= 0.0:
+        raise ParameterError(f"period_s must be finite and > 0 [s], got {value!r}")
+    return v
+
+
+class KinematicDriver:
+    """Ideal velocity tracking in simulated time: ``q ← q + T u``, ``qd ← u``, ``t = k T``.
+
+    Args:
+        robot: the robot (its joint names, count and configuration checks).
+        period_s: ``T`` [s], the time one ``write`` or ``hold`` advances.
+
+    Torques are NaN (no dynamics).
+    """
+
+    def __init__(self, robot: RobotModel, period_s: float) -> None:
+        if not isinstance(robot, RobotModel):
+            raise ParameterError(f"robot must be a RobotModel, got {type(robot).__name__}")
+        self.robot = robot
+        self.period_s = _period(period_s)
+        self.joint_names = tuple(robot.joint_names)
+        n = robot.nq
+        self._q = np.zeros(n)
+        self._qd = np.zeros(n)
+        self._k = 0
+        self._nan = np.full(n, np.nan)
+
+    #: What the loop writes to the log's ``meta``.
+    meta = property(lambda self: {"simulator": "kinematic"})
+
+    def reset(self, q0: np.ndarray) -> Measurement:
+        """At rest at ``q0`` [rad], time 0."""
+        self._q = self.robot.check_q(q0, "q0").copy()
+        self._qd = np.zeros(self.robot.nq)
+        self._k = 0
+        return self.read()
+
+    def read(self) -> Measurement:
+        """The state after the last period (velocity: the command held)."""
+        return Measurement(self._k * self.period_s, self._q, self._qd, self._nan, self._nan)
+
+    def write(self, qd_command: np.ndarray) -> None:
+        """Hold ``qd_command`` [rad/s] for one period (exact integration)."""
+        u = np.asarray(qd_command, dtype=float)
+        self._q = self._q + self.period_s * u
+        self._qd = u.copy()
+        self._k += 1
+
+    def hold(self) -> None:
+        """Stand still for one period."""
+        self.write(np.zeros(self.robot.nq))
+
+    def __repr__(self) -> str:
+        return f"KinematicDriver(n={self.robot.nq}, T={self.period_s} s)"
+
+
+class SimulationDriver:
+    """A simulation object behind the driver protocol, in simulated time.
+
+    Args:
+        simulation: an object with ``robot``, ``reset(q0)``, ``step(qd, duration_s)``,
+            ``measure()``, ``steps_for(duration_s)`` and ``model.opt.timestep``
+            (:class:`~dqcontrol.sim.MujocoSimulation` or a wrapper of it).
+        period_s: the control period [s], a whole number of the simulation's steps.
+
+    Raises:
+        ParameterError: ``period_s`` is not a whole number of physics steps.
+    """
+
+    def __init__(self, simulation, period_s: float) -> None:
+        for member in ("reset", "step", "measure", "steps_for", "robot"):
+            if not hasattr(simulation, member):
+                raise ParameterError(
+                    f"simulation must have reset/step/measure/steps_for/robot; "
+                    f"{type(simulation).__name__} has no '{member}'"
+                )
+        self.simulation = simulation
+        self.period_s = _period(period_s)
+        simulation.steps_for(self.period_s)  # validates: a whole number of physics steps
+        self.joint_names = tuple(simulation.robot.joint_names)
+        self._last: Measurement | None = None
+
+    @property
+    def meta(self) -> dict:
+        """``simulator`` and ``physics_dt_s`` for the run log."""
+        return {"simulator": "mujoco", "physics_dt_s": float(self.simulation.model.opt.timestep)}
+
+    def reset(self, q0: np.ndarray) -> Measurement:
+        """Reset the simulation at rest at ``q0`` [rad]."""
+        self._last = self.simulation.reset(q0)
+        return self._last
+
+    def read(self) -> Measurement:
+        """The measurement after the last period."""
+        if self._last is None:
+            self._last = self.simulation.measure()
+        return self._last
+
+    def write(self, qd_command: np.ndarray) -> None:
+        """Hold ``qd_command`` [rad/s] for one period."""
+        self._last = self.simulation.step(qd_command, self.period_s)
+
+    def hold(self) -> None:
+        """Command zero velocity for one period."""
+        self.write(np.zeros(len(self.joint_names)))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.simulation!r}, T={self.period_s} s)"
+
+
+class MujocoDriver(SimulationDriver):
+    """The robot in MuJoCo (:class:`~dqcontrol.sim.MujocoSimulation`) as a driver.
+
+    Args:
+        robot: the controller's robot model.
+        period_s: the control period [s].
+        sim_options: :class:`~dqcontrol.sim.MujocoSimulation`'s keywords (``motor``,
+            ``payload_kg``, ``effort_scale``, ``physics_dt_s`` ...).
+    """
+
+    def __init__(self, robot: RobotModel, period_s: float, **sim_options) -> None:
+        super().__init__(MujocoSimulation(robot, **sim_options), period_s)
+
+    @property
+    def meta(self) -> dict:
+        """``simulator``, ``physics_dt_s`` and the joint drive (``motor``) for the run log."""
+        return {**super().meta, "motor": getattr(self.simulation, "motor", "velocity")}
+
+
+class VelocityFromPosition:
+    """A velocity driver over a position-only interface: it sends ``q_target += T u``.
+
+    The target starts at the first measured position (or at ``reset``'s ``q0``) and
+    integrates the velocity commands; :meth:`hold` resends the present target.
+
+    Args:
+        inner: the position interface (:class:`PositionInterface`).
+        period_s: ``T`` [s], the time one command is held.
+    """
+
+    def __init__(self, inner: PositionInterface, period_s: float) -> None:
+        for member in ("joint_names", "read", "write_position"):
+            if not hasattr(inner, member):
+                raise ParameterError(
+                    f"inner must have joint_names/read/write_position; "
+                    f"{type(inner).__name__} has no '{member}'"
+                )
+        self.inner = inner
+        self.period_s = _period(period_s)
+        self.joint_names = tuple(inner.joint_names)
+        self._target: np.ndarray | None = None
+
+    @property
+    def meta(self) -> dict:
+        return {**getattr(self.inner, "meta", {}), "interface": "position"}
+
+    @property
+    def target(self) -> np.ndarray | None:
+        """The position target [rad] sent last (``None`` before the first read)."""
+        return None if self._target is None else self._target.copy()
+
+    def reset(self, q0: np.ndarray) -> Measurement:
+        """Reset the inner interface (it must have ``reset``) and the target at ``q0``."""
+        meas = self.inner.reset(q0)
+        self._target = np.array(meas.q, dtype=float)
+        return meas
+
+    def read(self) -> Measurement:
+        meas = self.inner.read()
+        if self._target is None:
+            self._target = np.array(meas.q, dtype=float)
+        return meas
+
+    def write(self, qd_command: np.ndarray) -> None:
+        if self._target is None:
+            self.read()
+        self._target = self._target + self.period_s * np.asarray(qd_command, dtype=float)
+        self.inner.write_position(self._target)
+
+    def hold(self) -> None:
+        if self._target is None:
+            self.read()
+        self.inner.write_position(self._target)
+
+    def __repr__(self) -> str:
+        return f"VelocityFromPosition({self.inner!r}, T={self.period_s} s)"
+
+
+# ------------------------------------------------------------------------ measurement faults
+def _non_negative(name: str, value: float, unit: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number [{unit}], got {value!r}") from None
+    if not math.isfinite(v) or v < 0.0:
+        raise ParameterError(f"{name} must be finite and ≥ 0 [{unit}], got {value!r}")
+    return v
+
+
+class MeasurementFaults:
+    """Seeded Gaussian noise and a delay line of whole periods on joint measurements.
+
+    Args:
+        q_noise_rad: standard deviation of the noise on each joint position [rad], ≥ 0.
+        qd_noise_rad_s: standard deviation of the noise on each joint velocity [rad/s], ≥ 0.
+        delay_periods: what is observed is the measurement of this many periods ago
+            (the initial one until then), stamped with the present time and torques.
+        seed: seed of the noise; :meth:`restart` restarts the same sequence.
+    """
+
+    def __init__(
+        self,
+        q_noise_rad: float = 0.0,
+        qd_noise_rad_s: float = 0.0,
+        delay_periods: int = 0,
+        seed: int = 0,
+    ) -> None:
+        self.q_noise_rad = _non_negative("q_noise_rad", q_noise_rad, "rad")
+        self.qd_noise_rad_s = _non_negative("qd_noise_rad_s", qd_noise_rad_s, "rad/s")
+        if (
+            isinstance(delay_periods, bool)
+            or not isinstance(delay_periods, int | np.integer)
+            or delay_periods < 0
+        ):
+            raise ParameterError(
+                f"delay_periods must be an integer ≥ 0 [control periods], got {delay_periods!r}"
+            )
+        self.delay_periods = int(delay_periods)
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+            raise ParameterError(f"seed must be an integer, got {seed!r}")
+        self.seed = int(seed)
+        self._rng = np.random.default_rng(self.seed)
+        self._fifo: deque[Measurement] = deque()
+
+    def observe(self, old: Measurement, now: Measurement) -> Measurement:
+        """The joint state of ``old`` with noise, stamped with ``now``'s time and torques."""
+        q, qd = np.array(old.q, dtype=float), np.array(old.qd, dtype=float)
+        if self.q_noise_rad > 0.0:
+            q = q + self._rng.normal(0.0, self.q_noise_rad, q.shape)
+        if self.qd_noise_rad_s > 0.0:
+            qd = qd + self._rng.normal(0.0, self.qd_noise_rad_s, qd.shape)
+        return Measurement(t_s=now.t_s, q=q, qd=qd, torque=now.torque, torque_peak=now.torque_peak)
+
+    def restart(self, first: Measurement) -> Measurement:
+        """Restart the noise sequence and fill the delay line with ``first``; observe it."""
+        self._rng = np.random.default_rng(self.seed)
+        self._fifo = deque([first] * (self.delay_periods + 1), maxlen=self.delay_periods + 1)
+        return self.observe(self._fifo[0], first)
+
+    def push(self, now: Measurement) -> Measurement:
+        """The observation after a period whose true measurement is ``now``."""
+        self._fifo.append(now)  # maxlen: drops the oldest
+        return self.observe(self._fifo[0], now)
+
+
+def true_copy(m: Measurement) -> Measurement:
+    """A measurement with its own float arrays (a record that later steps cannot change)."""
+    return Measurement(
+        t_s=float(m.t_s),
+        q=np.array(m.q, dtype=float),
+        qd=np.array(m.qd, dtype=float),
+        torque=np.array(m.torque, dtype=float),
+        torque_peak=np.array(m.torque_peak, dtype=float),
+    )
+
+
+class FaultyDriver:
+    """A driver whose measurements are noisy and/or delayed (:class:`MeasurementFaults`).
+
+    The commands reach the inner driver unchanged; :attr:`true_measurements` keeps the
+    noise-free, undelayed measurement after ``reset`` and after every period.
+
+    Args:
+        inner: the driver to wrap (simulated: with ``reset`` and ``period_s``).
+        q_noise_rad, qd_noise_rad_s, delay_periods, seed: as :class:`MeasurementFaults`.
+    """
+
+    def __init__(
+        self,
+        inner: JointDriver,
+        *,
+        q_noise_rad: float = 0.0,
+        qd_noise_rad_s: float = 0.0,
+        delay_periods: int = 0,
+        seed: int = 0,
+    ) -> None:
+        if not isinstance(inner, JointDriver):
+            raise ParameterError(
+                f"inner must be a JointDriver (joint_names/read/write/hold), got "
+                f"{type(inner).__name__}"
+            )
+        self.inner = inner
+        self.faults = MeasurementFaults(q_noise_rad, qd_noise_rad_s, delay_periods, seed)
+        self.joint_names = tuple(inner.joint_names)
+        self.period_s = getattr(inner, "period_s", None)
+        self.true_measurements: list[Measurement] = []
+        self._last: Measurement | None = None
+
+    @property
+    def meta(self) -> dict:
+        f = self.faults
+        return {
+            **getattr(self.inner, "meta", {}),
+            "q_noise_rad": f.q_noise_rad,
+            "qd_noise_rad_s": f.qd_noise_rad_s,
+            "delay_periods": f.delay_periods,
+            "seed": f.seed,
+        }
+
+    @property
+    def true_q(self) -> np.ndarray:
+        """True joint positions [rad] after reset and after every period, ``(K + 1, n)``."""
+        return np.array([m.q for m in self.true_measurements])
+
+    def reset(self, q0: np.ndarray) -> Measurement:
+        """Reset the inner driver, the noise sequence and the delay line."""
+        first = true_copy(self.inner.reset(q0))
+        self.true_measurements = [first]
+        self._last = self.faults.restart(first)
+        return self._last
+
+    def _advance(self) -> None:
+        now = true_copy(self.inner.read())
+        self.true_measurements.append(now)
+        self._last = self.faults.push(now)
+
+    def read(self) -> Measurement:
+        if self._last is None:
+            first = true_copy(self.inner.read())
+            self.true_measurements = [first]
+            self._last = self.faults.restart(first)
+        return self._last
+
+    def write(self, qd_command: np.ndarray) -> None:
+        self.inner.write(qd_command)
+        self._advance()
+
+    def hold(self) -> None:
+        self.inner.hold()
+        self._advance()
+
+    def __repr__(self) -> str:
+        f = self.faults
+        return (
+            f"FaultyDriver({self.inner!r}, q_noise_rad={f.q_noise_rad}, "
+            f"qd_noise_rad_s={f.qd_noise_rad_s}, delay_periods={f.delay_periods}, seed={f.seed})"
+        )
