@@ -354,19 +354,16 @@ def progress_bar(label: str, total: float, enabled: bool):
     )
 
 
-def watch_progress(controller, bar) -> None:
-    """Advance ``bar`` to the controller's phase after every step (wraps ``step``)."""
-    step = controller.step
+def progress_callback(bar):
+    """The loops' ``on_progress(σ_next, T_tot)`` callback that advances ``bar`` to σ [s]."""
     total = bar.total or 0.0
 
-    def step_and_report(q, qd=None):
-        result = step(q, qd)
-        target = min(float(result.sigma_next), total)
+    def report(sigma_next: float, _duration: float) -> None:
+        target = min(float(sigma_next), total)
         if target > bar.n:
             bar.update(target - bar.n)
-        return result
 
-    controller.step = step_and_report
+    return report
 
 
 _COLUMNS = (
@@ -517,13 +514,15 @@ def _main(args: argparse.Namespace) -> int:
                 "command": "dqcontrol run",
             }
             bar = progress_bar(f"{label:>12}", args.duration, progress)
-            watch_progress(controller, bar)
+            on_progress = progress_callback(bar)
             try:
                 if args.simulator == "mujoco":
                     on_sample = viewer.follow(controller, speed=args.speed) if viewer else None
-                    result = run_mujoco(controller, q0, meta=meta, on_sample=on_sample)
+                    result = run_mujoco(
+                        controller, q0, meta=meta, on_sample=on_sample, on_progress=on_progress
+                    )
                 else:
-                    result = run_kinematic(controller, q0, meta=meta)
+                    result = run_kinematic(controller, q0, meta=meta, on_progress=on_progress)
                     if viewer is not None:
                         viewer.play(
                             result.log,

@@ -8,8 +8,9 @@ Table 1 (:mod:`dqcontrol.experiments.table1`) and the fault campaign
 - :func:`build_trajectory` — a trajectory from its metadata
   (:func:`~dqcontrol.trajectories.trajectory_from_metadata`);
 - :func:`~dqcontrol.registry.build_controller` — a controller by name (re-exported);
-- :func:`simulate` — the closed loop (kinematic or MuJoCo, or any simulation object such as
-  the campaign's :class:`~dqcontrol.faults.simulation.FaultySimulation`), with the metrics
+- :func:`simulate` — the closed loop (:func:`~dqcontrol.sim.run_loop` with the kinematic or
+  the MuJoCo driver, or any simulation object such as the campaign's
+  :class:`~dqcontrol.faults.simulation.FaultySimulation`), with the metrics
   of docs/theory.md §7 and, on request, the path deviation *between* the control samples:
   along MuJoCo's physics steps, or along the straight joint-space motion of the kinematic
   loop;
@@ -34,8 +35,8 @@ from dqcontrol.dq.algebra import translation
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.registry import build_controller
-from dqcontrol.sim.kinematic import RunResult, run_kinematic
-from dqcontrol.sim.mujoco_loop import run_mujoco
+from dqcontrol.sim.driver import KinematicDriver, SimulationDriver
+from dqcontrol.sim.loop import RunResult, run_loop
 from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation
 from dqcontrol.trajectories import Trajectory, trajectory_from_metadata
 
@@ -79,7 +80,7 @@ class CaseRun:
     """A finished case.
 
     Attributes:
-        result: the loop's :class:`~dqcontrol.sim.kinematic.RunResult` (log and metrics).
+        result: the loop's :class:`~dqcontrol.sim.RunResult` (log and metrics).
         controller: the controller, after the run (its trajectory is the anchored one).
         between_deviation_max_m: largest path deviation [m] over the states between
             consecutive control samples of the task (those the metrics count, the samples
@@ -147,11 +148,11 @@ def simulate(
     """Run ``controller`` from ``q0`` [rad] until the task is done or ``max_time_s``.
 
     Args:
-        simulator: ``"mujoco"`` (:func:`~dqcontrol.sim.run_mujoco` with the default
-            :class:`~dqcontrol.sim.MujocoSimulation`) or ``"kinematic"``
-            (:func:`~dqcontrol.sim.run_kinematic`).
+        simulator: ``"mujoco"`` (the default :class:`~dqcontrol.sim.MujocoSimulation`) or
+            ``"kinematic"`` (:class:`~dqcontrol.sim.KinematicDriver`).
         simulation: a simulation object to run instead (any object with MuJoCo's
-            ``reset/step/measure/steps_for/model`` members), through the MuJoCo loop.
+            ``reset/step/measure/steps_for/model`` members,
+            :class:`~dqcontrol.sim.SimulationDriver`).
         max_time_s, meta: as for the loops.
         between_samples: also measure the path deviation between the control samples
             (:attr:`CaseRun.between_deviation_m`): after every physics step in MuJoCo, at
@@ -162,15 +163,18 @@ def simulate(
         raise ParameterError(f"simulator must be one of {SIMULATORS}, got {simulator!r}")
     start = time.perf_counter()
     recorder = None
+    period = controller.period_s
     if simulation is not None:
-        result = run_mujoco(controller, q0, simulation=simulation, max_time_s=max_time_s, meta=meta)
+        driver = SimulationDriver(simulation, period)
     elif simulator == "kinematic":
-        result = run_kinematic(controller, q0, max_time_s=max_time_s, meta=meta)
+        driver = KinematicDriver(controller.robot, period)
     else:
         sim = MujocoSimulation(controller.robot)
         if between_samples:
             recorder = sim = _PhysicsStepRecorder(sim)
-        result = run_mujoco(controller, q0, simulation=sim, max_time_s=max_time_s, meta=meta)
+        driver = SimulationDriver(sim, period)
+    # no brake after the run: a case is judged in the state its last command led to
+    result = run_loop(controller, driver, q0=q0, max_time_s=max_time_s, meta=meta, brake=False)
     between = math.nan
     if between_samples and simulation is None:
         between = _largest_deviation(controller, _between_states(controller, result, recorder))

@@ -302,6 +302,10 @@ class VelocityFromPosition:
 
     def reset(self, q0: np.ndarray) -> Measurement:
         """Reset the inner interface (it must have ``reset``) and the target at ``q0``."""
+        if not hasattr(self.inner, "reset"):
+            raise ParameterError(
+                f"{type(self.inner).__name__} cannot be reset (a real arm starts where it is)"
+            )
         meas = self.inner.reset(q0)
         self._target = np.array(meas.q, dtype=float)
         return meas

@@ -1,0 +1,321 @@
+"""The control loop against joint drivers: equal to the reference loops, joint mapping,
+warm-up, watchdog (stale, deadline, end, Ctrl-C), braking and the run log."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from dqcontrol.controllers import LocalController, ProportionalController
+from dqcontrol.errors import ParameterError
+from dqcontrol.model.library import LBR4P_Q0
+from dqcontrol.runs.log import LogRecorder
+from dqcontrol.runs.storage import load_run, save_run
+from dqcontrol.sim import (
+    JointMismatchError,
+    KinematicDriver,
+    MujocoSimulation,
+    SimulationDriver,
+    VelocityFromPosition,
+    run_kinematic,
+    run_loop,
+    run_mujoco,
+)
+from dqcontrol.sim.mujoco_sim import Measurement
+from dqcontrol.trajectories import Circle, Sinusoid
+
+TIMING = ("solve_time_s", "step_time_s")
+
+
+def _reference_kinematic(controller, q0):
+    """The kinematic loop written out: q_{k+1} = q_k + T u_k, qd measured = u_{k-1}."""
+    q = controller.robot.check_q(q0).copy()
+    controller.reset(q)
+    period = controller.period_s
+    rec = LogRecorder(controller.robot.nq)
+    qd = np.zeros(controller.robot.nq)
+    for k in range(int(np.ceil((10.0 * controller.trajectory.duration + 1.0) / period - 1e-9))):
+        result = controller.step(q, qd)
+        rec.record(k * period, q, qd, result)
+        qd = result.qd_command
+        q = q + period * result.qd_command
+        if controller.done:
+            break
+    return rec.finish()
+
+
+def _reference_mujoco(controller, q0):
+    """The MuJoCo loop written out: measure, step, hold one period, record with torques."""
+    sim = MujocoSimulation(controller.robot)
+    meas = sim.reset(q0)
+    controller.reset(meas.q)
+    rec = LogRecorder(controller.robot.nq)
+    for _ in range(int(np.ceil((10.0 * controller.trajectory.duration + 1.0) / 0.05 - 1e-9))):
+        result = controller.step(meas.q, meas.qd)
+        before = meas
+        meas = sim.step(result.qd_command, controller.period_s)
+        rec.record(before.t_s, before.q, before.qd, result, meas.torque, meas.torque_peak)
+        if controller.done:
+            break
+    return rec.finish()
+
+
+def _assert_same_log(a, b):
+    assert len(a) == len(b)
+    for name, x in a.arrays().items():
+        if name not in TIMING:
+            np.testing.assert_array_equal(x, b.arrays()[name], err_msg=name)
+
+
+@pytest.mark.parametrize("traj", [Circle(1.0), Sinusoid(2.0)], ids=["circle1", "sinusoid2"])
+def test_kinematic_loop_is_bit_identical_to_the_reference(lbr4p, traj):
+    ref = _reference_kinematic(LocalController(lbr4p, traj, 0.05), LBR4P_Q0)
+    res = run_kinematic(LocalController(lbr4p, traj, 0.05), LBR4P_Q0)
+    _assert_same_log(ref, res.log)
+
+
+def test_mujoco_loop_is_bit_identical_to_the_reference(lbr4p):
+    ref = _reference_mujoco(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
+    res = run_mujoco(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
+    _assert_same_log(ref, res.log)
+    assert res.log.meta["joint_names"] == list(lbr4p.joint_names)
+    assert res.log.meta["simulator"] == "mujoco" and res.log.meta["physics_dt_s"] == 0.001
+
+
+class Recording:
+    """A driver wrapper that presents the joints in another order and records every call."""
+
+    def __init__(self, inner, order=None, names=None) -> None:
+        self.inner = inner
+        n = len(inner.joint_names)
+        self.order = np.arange(n) if order is None else np.asarray(order)
+        self.joint_names = (
+            tuple(inner.joint_names[i] for i in self.order) if names is None else tuple(names)
+        )
+        self.period_s = inner.period_s
+        self.calls: list[tuple[str, np.ndarray | None]] = []
+        self.meta = inner.meta
+        self.freeze_after: int | None = None  # writes after which time stops advancing
+        self._frozen: Measurement | None = None
+
+    def _in(self, u):  # ours -> inner's order
+        out = np.empty_like(u)
+        out[self.order] = u
+        return out
+
+    def reset(self, q0):
+        m = self.inner.reset(self._in(np.asarray(q0, dtype=float)))
+        return self._out(m)
+
+    def _out(self, m):
+        return Measurement(m.t_s, m.q[self.order], m.qd[self.order], m.torque, m.torque_peak)
+
+    def read(self):
+        if self._frozen is not None:
+            return self._frozen
+        m = self._out(self.inner.read())
+        writes = sum(1 for c, _ in self.calls if c == "write")
+        if self.freeze_after is not None and writes >= self.freeze_after:
+            self._frozen = m
+        return m
+
+    def write(self, u):
+        self.calls.append(("write", np.array(u)))
+        self.inner.write(self._in(np.asarray(u)))
+
+    def hold(self):
+        self.calls.append(("hold", None))
+        self.inner.hold()
+
+
+def test_the_driver_joint_order_is_mapped_by_name(lbr4p):
+    plain = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
+    order = [3, 6, 0, 5, 1, 4, 2]
+    drv = Recording(KinematicDriver(lbr4p, 0.05), order)
+    res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), drv, q0=LBR4P_Q0, brake=False)
+    _assert_same_log(plain.log, res.log)
+    first = drv.calls[0][1]
+    np.testing.assert_array_equal(first, plain.log.qd_command[0][order])
+
+
+@pytest.mark.parametrize(
+    ("names", "fragment"),
+    [
+        (("a1", "a2", "a3", "a4", "a5", "a6", "a7"), "joint-name mismatch"),
+        (None, "more than once"),
+        ("fewer", "has 6 joints, the model 7"),
+    ],
+    ids=["names", "duplicate", "fewer"],
+)
+def test_a_joint_mismatch_stops_before_any_command(lbr4p, names, fragment):
+    inner = KinematicDriver(lbr4p, 0.05)
+    if names is None:
+        names = tuple(lbr4p.joint_names[:6]) + (lbr4p.joint_names[0],)
+    if names == "fewer":
+        names = tuple(lbr4p.joint_names[:6])
+    drv = Recording(inner, names=names)
+    with pytest.raises(JointMismatchError, match=fragment):
+        run_loop(LocalController(lbr4p, Circle(1.0), 0.05), drv, q0=LBR4P_Q0)
+    assert drv.calls == []
+
+
+def test_a_stale_measurement_brakes_within_the_acceleration_limit_and_holds(lbr4p):
+    ctrl = LocalController(lbr4p, Circle(1.0), 0.05, acceleration_limit=10.0)
+    drv = Recording(KinematicDriver(lbr4p, 0.05))
+    drv.freeze_after = 8
+    res = run_loop(ctrl, drv, q0=LBR4P_Q0, stale_periods=3)
+    assert res.interrupted and res.reason == "stale" and "not renewed for 3" in res.note
+    writes = [u for c, u in drv.calls if c == "write"]
+    # samples 0-8 from fresh measurements, 9-10 from one up to 2 periods old; not 3
+    assert len(res.log) == 11 and res.log.t_s[-1] == res.log.t_s[8]
+    brake = writes[len(res.log) :]
+    assert res.log.meta["stop"] == {"reason": "stale", "brake_periods": len(brake)}
+    steps = np.diff(np.vstack([writes[len(res.log) - 1]] + brake), axis=0)
+    assert np.abs(steps).max() <= 10.0 * 0.05 + 1e-12 and not brake[-1].any()
+    assert drv.calls[-1] == ("hold", None)
+
+
+def test_ctrl_c_brakes_and_holds_and_keeps_the_samples(lbr4p):
+    ctrl = ProportionalController(lbr4p, Circle(1.0), 0.05, acceleration_limit=4.0)
+    drv = Recording(KinematicDriver(lbr4p, 0.05))
+
+    def interrupt(k, _driver, _result):
+        if k == 6:
+            raise KeyboardInterrupt
+
+    res = run_loop(ctrl, drv, q0=LBR4P_Q0, on_sample=interrupt)
+    assert res.reason == "user" and len(res.log) == 7
+    assert res.note == "interrupted by the user after 7 samples"
+    writes = np.array([u for c, u in drv.calls if c == "write"])
+    assert np.abs(np.diff(writes[6:], axis=0)).max() <= 4.0 * 0.05 + 1e-12
+    assert not writes[-1].any() and drv.calls[-1] == ("hold", None)
+    assert res.log.meta["stop"]["brake_periods"] == len(writes) - 7
+
+
+def test_the_end_of_the_task_brakes_after_the_log(lbr4p):
+    free = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
+    drv = Recording(KinematicDriver(lbr4p, 0.05))
+    res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), drv, q0=LBR4P_Q0)
+    _assert_same_log(free.log, res.log)
+    assert res.log.meta["stop"]["reason"] == "end" and not res.interrupted
+    assert res.log.meta["stop"]["brake_periods"] >= 1 and drv.calls[-1] == ("hold", None)
+    assert free.log.meta["stop"] == {"reason": "end", "brake_periods": 0}
+
+
+def test_a_missed_deadline_stops_the_wall_clock_loop(lbr4p):
+    def slow(k, _driver, _result):
+        if k == 3:
+            threading.Event().wait(0.03)
+
+    res = run_loop(
+        LocalController(lbr4p, Circle(1.0), 0.01),
+        KinematicDriver(lbr4p, 0.01),
+        q0=LBR4P_Q0,
+        on_sample=slow,
+        realtime=True,
+    )
+    assert res.reason == "deadline" and len(res.log) == 4 and "after its deadline" in res.note
+    assert res.log.meta["stop"]["lateness_max_ms"] > 10.0
+
+
+def test_the_wall_clock_loop_keeps_its_period(lbr4p):
+    import time
+
+    start = time.perf_counter()
+    res = run_loop(
+        LocalController(lbr4p, Circle(0.4), 0.1),
+        KinematicDriver(lbr4p, 0.1),
+        q0=LBR4P_Q0,
+        realtime=True,
+        brake=False,
+    )
+    assert not res.interrupted and res.metrics.completed
+    assert time.perf_counter() - start >= 0.1 * (len(res.log) - 1)
+    assert res.log.meta["stop"]["lateness_max_ms"] < 0.0
+
+
+def test_progress_goes_through_the_callback(lbr4p):
+    seen: list[tuple[float, float]] = []
+    res = run_kinematic(
+        LocalController(lbr4p, Circle(1.0), 0.05),
+        LBR4P_Q0,
+        on_progress=lambda s, total: seen.append((s, total)),
+    )
+    assert len(seen) == len(res.log) and all(t == 1.0 for _, t in seen)
+    sigmas = [s for s, _ in seen]
+    assert sigmas == sorted(sigmas) and sigmas[-1] >= 1.0 - 1e-12
+
+
+def test_the_warm_up_does_not_touch_the_controller(lbr4p):
+    cold = run_loop(
+        LocalController(lbr4p, Sinusoid(2.0), 0.05),
+        KinematicDriver(lbr4p, 0.05),
+        q0=LBR4P_Q0,
+        warm_up=False,
+    )
+    warm = run_loop(
+        LocalController(lbr4p, Sinusoid(2.0), 0.05), KinematicDriver(lbr4p, 0.05), q0=LBR4P_Q0
+    )
+    _assert_same_log(cold.log, warm.log)
+    assert "warm_up" not in warm.log.meta
+    ctrl = LocalController(lbr4p, Circle(1.0), 0.05)
+    ctrl.lock = threading.Lock()  # cannot be copied: the warm-up is skipped, with a note
+    res = run_loop(ctrl, KinematicDriver(lbr4p, 0.05), q0=LBR4P_Q0)
+    assert res.log.meta["warm_up"].startswith("skipped") and res.metrics.completed
+
+
+class PositionArm:
+    """A position-only arm with the LBR4p's joints, reversed, reaching each target at once."""
+
+    def __init__(self, names, q0) -> None:
+        self.joint_names = tuple(names)
+        self.q = np.array(q0, dtype=float)
+        self.k = 0
+
+    def read(self):
+        nan = np.full(len(self.q), np.nan)
+        return Measurement(0.05 * self.k, self.q.copy(), np.zeros(len(self.q)), nan, nan)
+
+    def write_position(self, q_target):
+        self.q = np.array(q_target, dtype=float)
+        self.k += 1
+
+
+def test_a_position_only_arm_runs_from_where_it_is(lbr4p, tmp_path):
+    names = tuple(reversed(lbr4p.joint_names))
+    arm = PositionArm(names, LBR4P_Q0[::-1])
+    res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), VelocityFromPosition(arm, 0.05))
+    ref = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
+    assert res.metrics.completed and len(res.log) == len(ref.log)
+    np.testing.assert_allclose(res.log.q, ref.log.q, atol=1e-12)
+    assert res.log.meta["interface"] == "position"
+    save_run(res, tmp_path, "position")
+    log, record = load_run(tmp_path / "position")
+    assert log.meta["joint_names"] == list(lbr4p.joint_names)
+    assert record["meta"]["stop"]["reason"] == "end"
+
+
+def test_q0_needs_a_driver_that_can_be_reset(lbr4p):
+    arm = VelocityFromPosition(PositionArm(lbr4p.joint_names, LBR4P_Q0), 0.05)
+    with pytest.raises(ParameterError, match="cannot be reset"):
+        run_loop(LocalController(lbr4p, Circle(1.0), 0.05), arm, q0=LBR4P_Q0)
+    with pytest.raises(ParameterError, match="stale_periods"):
+        run_loop(LocalController(lbr4p, Circle(1.0), 0.05), arm, stale_periods=0)
+
+
+def test_a_simulation_error_ends_the_run_without_braking(lbr4p):
+    sim = MujocoSimulation(lbr4p)
+
+    class Failing(SimulationDriver):
+        def write(self, u):
+            if self.simulation.time_s > 0.2:
+                from dqcontrol.errors import DQControlError
+
+                raise DQControlError("the physics blew up")
+            super().write(u)
+
+    res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), Failing(sim, 0.05), q0=LBR4P_Q0)
+    assert res.reason == "simulation" and "the physics blew up" in res.note
+    assert res.log.meta["stop"] == {"reason": "simulation", "brake_periods": 0}
