@@ -289,10 +289,8 @@ def test_no_command_outside_a_bound(lbr4p, seed, speed, near_limit):
         ({"horizon_s": 0.0}, "horizon_s"),
         ({"horizon_s": -1.0}, "horizon_s"),
         ({"horizon_s": 0.04}, "horizon_s"),
-        ({"path_tolerance": 0.0}, "path_tolerance"),
-        ({"progress_tolerance": -1.0}, "progress_tolerance"),
+        ({"tuning": "fast"}, "tuning"),
         ({"s_max": 0.5}, "s_max"),
-        ({"max_linearisations": 0}, "max_linearisations"),
         ({"acceleration_limit": "fast"}, "acceleration_limit"),
         ({"torque_limit_fraction": 1.5}, "torque_limit_fraction"),
     ],
@@ -300,6 +298,23 @@ def test_no_command_outside_a_bound(lbr4p, seed, speed, near_limit):
 def test_bad_parameters_name_themselves(lbr4p, kwargs, name):
     with pytest.raises(ParameterError, match=name):
         _controller(lbr4p, Circle(2.0), **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"path_tolerance": 0.0}, "path_tolerance"),
+        ({"progress_tolerance": -1.0}, "progress_tolerance"),
+        ({"max_linearisations": 0}, "max_linearisations"),
+        ({"acceleration_reserve": 1.5}, "acceleration_reserve"),
+        ({"trust_radius_rad": float("nan")}, "trust_radius_rad"),
+    ],
+)
+def test_bad_tuning_names_itself(kwargs, name):
+    from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
+
+    with pytest.raises(ParameterError, match=name):
+        PathFollowingTuning(**kwargs)
 
 
 def test_last_problem_names_terms_and_limits(lbr4p):

@@ -44,6 +44,7 @@ from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.limits.torque import TorqueLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.limits.velocity import VelocityLimit
+from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
 from dqcontrol.controllers.prediction.base import Prediction
 from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
@@ -75,6 +76,16 @@ STALL_SCALING = 0.01
 STALL_DELAY_S = 0.5
 
 
+def _in_range(name: str, value: float, low: float, high: float, unit: str) -> float:
+    """``value`` as a float in ``(low, high]`` (``[1, high]`` for ``low = 1``), or a
+    :class:`ParameterError` naming it and the range."""
+    v = check_positive(name, value, unit)
+    if not (low < v <= high or v == low == 1.0):
+        bracket = "[" if low == 1.0 else "("
+        raise ParameterError(f"{name} must be in {bracket}{low:g}, {high:g}], got {value!r}")
+    return v
+
+
 def _limit_settings(robot: RobotModel, velocity_limits, position_margin_rad: float):
     lim = robot.limits
     margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
@@ -103,22 +114,8 @@ class PathFollowingController(Controller):
             acceleration_cap]``) or a constant [rad/s²] (scalar or per joint).
         position_margin_rad: the position bounds stop this far inside the URDF's [rad].
         s_max: largest time scaling (1; up to 1.5 lets a late task catch up).
-        path_tolerance: how far lower levels may move each path-error row from its optimum
-            (half-radians / half-metres, > 0).
-        progress_tolerance: the same for the progress rows (> 0).
         posture_gain_per_s: rate of the pull towards the start posture [1/s].
         posture_reference: ``"start"`` (the configuration at reset) or a configuration.
-        damping: the regularisation weight of every level (> 0).
-        max_linearisations: bound on linearise-and-solve rounds where the linearisation is
-            poor (≥ 1).
-        linearisation_tolerance: where the linearisation point is poor (first step, after
-            a fallback or a disturbance), the rounds stop when the plan moves less than
-            this [rad/s].
-        linearisation_tolerance_m: otherwise, a round is added while the linearised path
-            error of the applied state is further than this from the true one (tangent
-            units, about half a metre or half a radian per unit).
-        relinearise_threshold_rad: a measured ``q`` this far from the predicted one counts
-            as a disturbance [rad].
         torque_limit_fraction: bound the joint torques of the plan through the inverse
             dynamics to this share of the URDF's effort limits (``None``: no torque rows).
         servo_time_constant_s: the joints follow each new velocity command as a first-order
@@ -127,6 +124,9 @@ class PathFollowingController(Controller):
             step ``Δ`` then asks the servo for ``Δ/τ_v`` at once, so the dynamics-aware
             acceleration limit is scaled by ``min(1, τ_v/T)`` (a constant one is taken as
             given).
+        tuning: the expert settings (tolerances, linearisation rounds, trust region,
+            acceleration reserve): :class:`PathFollowingTuning`, whose defaults are the
+            measured choices of docs/theory.md §8.
         extra_terms: more terms, added to the lowest (posture) level.
         extra_limits: more limits (any :class:`~dqcontrol.controllers.problem.Limit`).
         solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
@@ -148,20 +148,11 @@ class PathFollowingController(Controller):
         acceleration_cap: float = 50.0,
         position_margin_rad: float = 5e-3,
         s_max: float = 1.0,
-        path_tolerance: float = 1e-6,
-        progress_tolerance: float = 1e-6,
         posture_gain_per_s: float = 1.0,
         posture_reference: Literal["start"] | np.ndarray = "start",
-        damping: float = 1e-6,
-        max_linearisations: int = 4,
-        linearisation_tolerance: float = 1e-4,
-        linearisation_tolerance_m: float = 1e-5,
-        relinearise_threshold_rad: float = 0.02,
         torque_limit_fraction: float | None = None,
         servo_time_constant_s: float = 0.0,
-        acceleration_reserve: float = 0.9,
-        trust_radius_rad: float = 0.05,
-        trust_radius_phase_s: float = 0.02,
+        tuning: PathFollowingTuning | None = None,
         measurement_delay_periods: int = 0,
         extra_terms: tuple[Term, ...] = (),
         extra_limits: tuple[Limit, ...] = (),
@@ -169,68 +160,28 @@ class PathFollowingController(Controller):
         solver_settings: dict | None = None,
     ) -> None:
         super().__init__(robot, trajectory, period_s, measurement_delay_periods)
-        n = self.n
-        horizon_s = check_positive("horizon_s (tau_p)", horizon_s, "s")
-        breaks = interval_breakpoints(num_intervals, horizon_s, self.period_s)
-        self.num_intervals, self.horizon_s = int(num_intervals), horizon_s
-        self.s_max = check_positive("s_max", s_max, "-")
-        if not 1.0 <= self.s_max <= 1.5:
-            raise ParameterError(f"s_max must be in [1, 1.5], got {s_max!r}")
-        tols = {"path_tolerance": path_tolerance, "progress_tolerance": progress_tolerance}
-        for key, value in tols.items():
-            check_positive(key, value, "-")
-        self.damping = check_positive("damping", damping, "-")
-        if isinstance(max_linearisations, bool) or int(max_linearisations) < 1:
-            raise ParameterError(f"max_linearisations must be ≥ 1, got {max_linearisations!r}")
-        self.max_linearisations = int(max_linearisations)
-        self.linearisation_tolerance = check_positive(
-            "linearisation_tolerance", linearisation_tolerance, "rad/s"
-        )
-        self.linearisation_tolerance_m = check_positive(
-            "linearisation_tolerance_m", linearisation_tolerance_m, "m"
-        )
-        self.relinearise_threshold_rad = check_positive(
-            "relinearise_threshold_rad", relinearise_threshold_rad, "rad"
-        )
-        if torque_limit_fraction is not None:
-            torque_limit_fraction = check_positive(
-                "torque_limit_fraction", torque_limit_fraction, "-"
-            )
-            if torque_limit_fraction > 1.0:
-                raise ParameterError(
-                    "torque_limit_fraction must be in (0, 1] or None, got "
-                    f"{torque_limit_fraction!r}"
-                )
-        self.torque_limit_fraction = torque_limit_fraction
-        self.acceleration_reserve = check_positive(
-            "acceleration_reserve", acceleration_reserve, "-"
-        )
-        if self.acceleration_reserve > 1.0:
+        self.horizon_s = check_positive("horizon_s (tau_p)", horizon_s, "s")
+        breaks = interval_breakpoints(num_intervals, self.horizon_s, self.period_s)
+        self.num_intervals = int(num_intervals)
+        self.s_max = _in_range("s_max", s_max, 1.0, 1.5, "-")
+        self.tuning = PathFollowingTuning() if tuning is None else tuning
+        if not isinstance(self.tuning, PathFollowingTuning):
             raise ParameterError(
-                f"acceleration_reserve must be in (0, 1], got {acceleration_reserve!r}"
+                f"tuning must be a PathFollowingTuning, got {type(tuning).__name__}"
             )
-        self.trust_radius_rad = check_positive("trust_radius_rad", trust_radius_rad, "rad")
-        self.trust_radius_phase_s = check_positive(
-            "trust_radius_phase_s", trust_radius_phase_s, "s"
+        self.torque_limit_fraction = (
+            None
+            if torque_limit_fraction is None
+            else _in_range("torque_limit_fraction", torque_limit_fraction, 0.0, 1.0, "-")
         )
-        margin, self.q_min, self.q_max, self.qd_max = _limit_settings(
+        self.position_margin_rad, self.q_min, self.q_max, self.qd_max = _limit_settings(
             robot, velocity_limits, position_margin_rad
         )
-        self.position_margin_rad = margin
         self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)
-        self.servo_time_constant_s = check_positive(
-            "servo_time_constant_s", servo_time_constant_s, "s", allow_zero=True
-        )
-        # behind a servo of time constant τ_v a command step of Δ asks for Δ/τ_v at once:
-        # over a period T the mean acceleration is then held to τ_v/T of what the torques allow
-        self._servo_share = min(1.0, self.servo_time_constant_s / self.period_s) or 1.0
-        self.prediction_model = ConsistentPrediction(
-            breaks, n, self.period_s, self.s_max, self.servo_time_constant_s
-        )
-        layout = self.layout = self.prediction_model.layout
-        self.posture = PostureTerm(layout, posture_gain_per_s)
+        self._set_servo(servo_time_constant_s, breaks)
+        self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference
-        self.levels = self._levels(path_tolerance, progress_tolerance, tuple(extra_terms))
+        self.levels = self._levels(tuple(extra_terms))
         self.limits = self._limits() + tuple(extra_limits)
         self.relaxed_limits = tuple(
             lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
@@ -243,6 +194,25 @@ class PathFollowingController(Controller):
         self._reset_state()
 
     # ------------------------------------------------------------------ composition
+    def _set_servo(self, time_constant_s: float, breaks: np.ndarray) -> None:
+        """The prediction (with the servo's lag) and the share of the dynamics-aware
+        acceleration a command step may use behind the servo."""
+        self.servo_time_constant_s = check_positive(
+            "servo_time_constant_s", time_constant_s, "s", allow_zero=True
+        )
+        # behind a servo of time constant τ_v a command step of Δ asks for Δ/τ_v at once:
+        # over a period T the mean acceleration is then held to τ_v/T of what the torques allow
+        tau_v = self.servo_time_constant_s
+        self._servo_share = min(1.0, tau_v / self.period_s) or 1.0
+        # the first-order lag is predicted only where the servo settles within a period
+        # (T > τ_v); a slower servo's integral action makes its response over a few periods
+        # differ from a first-order lag, and the loop closes faster than it (theory §8.7)
+        lag_s = tau_v if tau_v < self.period_s else 0.0
+        self.prediction_model = ConsistentPrediction(
+            breaks, self.n, self.period_s, self.s_max, lag_s
+        )
+        self.layout = self.prediction_model.layout
+
     def _set_acceleration(self, acceleration_limit, floor: float, cap: float) -> None:
         self.dynamic_acceleration = isinstance(acceleration_limit, str)
         if self.dynamic_acceleration:
@@ -263,10 +233,9 @@ class PathFollowingController(Controller):
                 "acceleration_limit", acceleration_limit, self.n, "rad/s² (or 'dynamics')"
             )
 
-    def _levels(
-        self, path_tol: float, progress_tol: float, extra: tuple[Term, ...]
-    ) -> tuple[Level, ...]:
-        layout, mu = self.layout, self.damping
+    def _levels(self, extra: tuple[Term, ...]) -> tuple[Level, ...]:
+        layout, mu, tuning = self.layout, self.tuning.damping, self.tuning
+        path_tol, progress_tol = tuning.path_tolerance, tuning.progress_tolerance
         first = float(layout.durations_s[0])
         self.singularity = SingularityDampingTerm(
             layout, SINGULAR_THRESHOLD, SINGULAR_DAMPING, PATH_WEIGHT * first * first
@@ -296,7 +265,7 @@ class PathFollowingController(Controller):
     def _limits(self) -> tuple[Limit, ...]:
         layout = self.layout
         self._trust = TrustRegionLimit(
-            layout, self.trust_radius_rad, self.trust_radius_phase_s, self.period_s
+            layout, self.tuning.trust_radius_rad, self.tuning.trust_radius_phase_s, self.period_s
         )
         durations = layout.durations_s
         coupling = 0.5 * (durations[1:] + durations[:-1])
@@ -317,7 +286,7 @@ class PathFollowingController(Controller):
             VelocityLimit(layout, self.qd_max),
             AppliedCommandBox(layout, self.q_min, self.q_max, self.qd_max, self.period_s),
             ScalingRange(layout, 0.0, self.s_max),
-            AccelerationLimit(layout, self.period_s, coupling, self.acceleration_reserve),
+            AccelerationLimit(layout, self.period_s, coupling, self.tuning.acceleration_reserve),
             PredictedPositionLimit(
                 layout, self.q_min, self.q_max, self.qd_max, reach_rad=self._trust.radii_rad
             ),
@@ -387,7 +356,7 @@ class PathFollowingController(Controller):
     def _disturbed(self, q: np.ndarray) -> bool:
         if self._expected_q is None:
             return True
-        return float(np.max(np.abs(q - self._expected_q))) > self.relinearise_threshold_rad
+        return float(np.max(np.abs(q - self._expected_q))) > self.tuning.relinearise_threshold_rad
 
     def _mismatch(self, q: np.ndarray, problem: Problem, z: np.ndarray) -> float:
         """How far the linearised path error of the first predicted state is from the
@@ -416,14 +385,17 @@ class PathFollowingController(Controller):
             done += 1
             iterations += result.iterations
             solve_time += result.solve_time_s
-            if result.failed_level == 0 or done == self.max_linearisations:
+            if result.failed_level == 0 or done == self.tuning.max_linearisations:
                 break
             z = result.solution.x
             qd_plan, s_plan = self.layout.split(z)
             if poor:
-                if float(np.max(np.abs(qd_plan - pred.warm_qd))) < self.linearisation_tolerance:
+                if (
+                    float(np.max(np.abs(qd_plan - pred.warm_qd)))
+                    < self.tuning.linearisation_tolerance
+                ):
                     break
-            elif self._mismatch(q, problem, z) < self.linearisation_tolerance_m:
+            elif self._mismatch(q, problem, z) < self.tuning.linearisation_tolerance_m:
                 break
             pred = model.at(q, self.sigma, qd_plan.copy(), np.clip(s_plan, 0.0, self.s_max))
         self._last = problem

@@ -8,12 +8,11 @@ The horizon is cut into intervals at the breakpoints ``b_0 = 0 < b_1 = T < … <
     q_{i+1} = q + Σ_{j≤i} Δ_j qd_j,        σ_{i+1} = σ + Σ_{j≤i} Δ_j s_j,
 
 (``weights[i, j] = Δ_j`` for ``j ≤ i``). With a joint velocity loop that follows each new
-command as a first-order lag of time constant ``τ_v`` (``lag_s``), a joint starting interval
-``j`` at velocity ``v`` moves ``Δ_j qd_j + c_j (v - qd_j)`` with ``c_j = τ_v (1 - e^{-Δ_j/τ_v})``;
-taking ``v`` as the previous interval's command (the measured velocity for the first), the
-states stay exact and linear in the decision:
-
-    q_{i+1} = q + c_0 qd_meas + Σ_{j≤i} [(Δ_j - c_j) qd_j + c_{j+1} qd_j [j < i]].
+command as a first-order lag of time constant ``τ_v`` (``lag_s``), a joint entering
+interval ``j`` at velocity ``v_j`` moves ``(Δ_j - c_j) qd_j + c_j v_j`` with
+``c_j = τ_v (1 - e_j)``, ``e_j = e^{-Δ_j/τ_v}``, and leaves it at
+``v_{j+1} = e_j v_j + (1 - e_j) qd_j`` (``v_0``: the measured velocity). The velocities, and
+so the states, stay exact and linear in the decision and in ``v_0``.
 
 The phase has no lag. The kinematics are linearised at the previous
 plan shifted by one period (interval averages of the old piecewise-constant plan over the
@@ -66,6 +65,25 @@ def shift_matrix(breaks: np.ndarray, shift_s: float) -> np.ndarray:
     return out
 
 
+def _lag_weights(durations: np.ndarray, lag_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(W, w_v)``: ``q_{i+1} - q = Σ_j W[i, j] qd_j + w_v[i] v_0`` behind a first-order
+    velocity lag of time constant ``lag_s`` (module docstring); ``lag_s = 0``: ``W[i, j] = Δ_j``
+    for ``j ≤ i``, ``w_v = 0``."""
+    p = durations.size
+    if lag_s <= 0.0:
+        return np.tril(np.broadcast_to(durations, (p, p))), np.zeros(p)
+    e = np.exp(-durations / lag_s)
+    c = lag_s * (1.0 - e)
+    v_coef = np.zeros((p, p))  # v_j = v_coef[j] · qd + v0_coef[j] v_0
+    v0_coef = np.ones(p)
+    for j in range(1, p):
+        v_coef[j] = e[j - 1] * v_coef[j - 1]
+        v_coef[j, j - 1] += 1.0 - e[j - 1]
+        v0_coef[j] = e[j - 1] * v0_coef[j - 1]
+    step = np.diag(durations - c) + c[:, None] * v_coef  # displacement of interval j
+    return np.cumsum(step, axis=0), np.cumsum(c * v0_coef)
+
+
 class ConsistentPrediction(PredictionModel):
     """States ``q_{i+1}``, ``σ_{i+1}`` at the breakpoints, affine in the decision.
 
@@ -94,14 +112,8 @@ class ConsistentPrediction(PredictionModel):
         p = durations.size
         self.sigma_weights = np.tril(np.broadcast_to(durations, (p, p)))
         self.lag_s = float(lag_s)
-        if self.lag_s > 0.0:
-            c = self.lag_s * (1.0 - np.exp(-durations / self.lag_s))
-            follow = np.tril(np.broadcast_to(np.append(c[1:], 0.0), (p, p)), -1)
-            self.weights = np.tril(np.broadcast_to(durations - c, (p, p))) + follow
-            self._c0 = float(c[0])
-        else:
-            self.weights = self.sigma_weights
-            self._c0 = 0.0
+        self.weights, self._v0_weights = _lag_weights(durations, self.lag_s)
+        self._lagging = self.lag_s > 0.0  # the measured velocity enters the states
         self.qd_measured = np.zeros(num_joints)
         self._shift = shift_matrix(self.breaks, self.period_s)
         self.plan_qd = np.zeros((p, num_joints))
@@ -114,24 +126,31 @@ class ConsistentPrediction(PredictionModel):
 
     def at(self, q: np.ndarray, sigma: float, qd_lin: np.ndarray, s_lin: np.ndarray) -> Prediction:
         """The prediction linearised at the decision ``(qd_lin, s_lin)``."""
-        base = q + self._c0 * self.qd_measured if self._c0 else q
+        base = self._base(q)
         q_lin = base + self.weights @ qd_lin
         sigma_lin = sigma + self.sigma_weights @ s_lin
-        p = self.layout.num_blocks
         return Prediction(
             q_lin,
             sigma_lin,
-            np.broadcast_to(base, (p, q.size)),
-            np.full(p, float(sigma)),
+            base,
+            np.full(self.layout.num_blocks, float(sigma)),
             self.weights,
             qd_lin,
             s_lin,
             self.sigma_weights,
         )
 
+    def _base(self, q: np.ndarray) -> np.ndarray:
+        """The states with a zero decision ``(p, n)``: ``q`` plus the measured velocity's
+        share behind a lagging velocity loop."""
+        p = self.layout.num_blocks
+        if not self._lagging:
+            return np.broadcast_to(q, (p, q.size))
+        return q + self._v0_weights[:, None] * self.qd_measured
+
     def state_after_first(self, q: np.ndarray, qd_0: np.ndarray) -> np.ndarray:
         """``q_1`` after the first interval with the command ``qd_0`` [rad]."""
-        return q + self._c0 * self.qd_measured + self.weights[0, 0] * qd_0
+        return self._base(q)[0] + self.weights[0, 0] * qd_0
 
     def predict(self, q: np.ndarray, sigma: float) -> Prediction:
         qd_lin = self._shift @ self.plan_qd

@@ -1,0 +1,67 @@
+"""The tuning of the path-following controller: tolerances, linearisation, trust region
+(docs/theory.md §8). The defaults are the measured choices of §8; a user rarely needs
+another."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dqcontrol.controllers.base import check_positive
+from dqcontrol.errors import ParameterError
+
+__all__ = ["PathFollowingTuning"]
+
+
+@dataclass(frozen=True)
+class PathFollowingTuning:
+    """Expert settings of :class:`~dqcontrol.controllers.path_following.PathFollowingController`.
+
+    Attributes:
+        path_tolerance: how far lower levels may move each path-error row from its optimum
+            (half-radians / half-metres, > 0).
+        progress_tolerance: the same for the progress rows (> 0).
+        damping: the regularisation weight of every level (> 0).
+        max_linearisations: bound on linearise-and-solve rounds per step (integer ≥ 1).
+        linearisation_tolerance: where the linearisation point is poor (first step, after a
+            fallback or a disturbance), the rounds stop when the plan moves less than this
+            [rad/s].
+        linearisation_tolerance_m: otherwise, a round is added while the linearised path
+            error of the applied state is further than this from the true one (tangent
+            units, about half a metre or half a radian per unit).
+        relinearise_threshold_rad: a measured ``q`` this far from the predicted one counts as
+            a disturbance [rad].
+        acceleration_reserve: share of ``a_max`` the plan may use between intervals, in
+            ``(0, 1]`` (the applied command may use all of it).
+        trust_radius_rad: ``ρ_q``, the trust region of the joint states at the first state
+            [rad] (it grows with the state's time).
+        trust_radius_phase_s: ``ρ_σ``, the same for the phase [s].
+    """
+
+    path_tolerance: float = 1e-6
+    progress_tolerance: float = 1e-6
+    damping: float = 1e-6
+    max_linearisations: int = 4
+    linearisation_tolerance: float = 1e-4
+    linearisation_tolerance_m: float = 1e-5
+    relinearise_threshold_rad: float = 0.02
+    acceleration_reserve: float = 0.9
+    trust_radius_rad: float = 0.05
+    trust_radius_phase_s: float = 0.02
+
+    def __post_init__(self) -> None:
+        units = {
+            "path_tolerance": "-", "progress_tolerance": "-", "damping": "-",
+            "linearisation_tolerance": "rad/s", "linearisation_tolerance_m": "m",
+            "relinearise_threshold_rad": "rad", "acceleration_reserve": "-",
+            "trust_radius_rad": "rad", "trust_radius_phase_s": "s",
+        }  # fmt: skip
+        for name, unit in units.items():
+            object.__setattr__(self, name, check_positive(name, getattr(self, name), unit))
+        if self.acceleration_reserve > 1.0:
+            raise ParameterError(
+                f"acceleration_reserve must be in (0, 1], got {self.acceleration_reserve!r}"
+            )
+        rounds = self.max_linearisations
+        if isinstance(rounds, bool) or int(rounds) != rounds or rounds < 1:
+            raise ParameterError(f"max_linearisations must be an integer ≥ 1, got {rounds!r}")
+        object.__setattr__(self, "max_linearisations", int(rounds))
