@@ -7,6 +7,8 @@ from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult
 from dqcontrol.controllers.bounds import Box, command_box, safe_command, velocity_position_box
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.local import LocalController
+from dqcontrol.controllers.path_following import PathFollowingController
+from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
 from dqcontrol.controllers.prediction import integration_matrix, prediction_instants
 from dqcontrol.controllers.predictive import PredictiveController, PredictiveNoScalingController
 from dqcontrol.controllers.problem import (
@@ -26,6 +28,8 @@ from dqcontrol.controllers.qp_controller import QPController
 from dqcontrol.controllers.tracking import QPProblem, TrackingController
 
 __all__ = [
+    "PathFollowingController",
+    "PathFollowingTuning",
     "BlockQP",
     "Bounds",
     "Box",
