@@ -60,6 +60,13 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 #: Largest accepted obstacle coordinate or size [m] (as for a URDF's origins).
 MAX_EXTENT_M = 1e4
 
+#: A distance below this [m] is coal's sign that the penetration solver (EPA) failed (it
+#: returns ``-DBL_MAX`` on some deep penetrations); such a pair is reported at ``-inf`` with
+#: NaN witness points and normal and a zero gradient.
+FAILED_DISTANCE_M = -1e3
+
+_NAN3 = np.full(3, np.nan)
+
 
 def _finite_vector(name: str, value, size: int) -> tuple[float, ...]:
     try:
@@ -307,7 +314,8 @@ class PairDistance(NamedTuple):
 
     Attributes:
         pair: index of the pair in :attr:`CollisionModel.pairs`.
-        distance_m: signed distance [m] (negative: penetration depth).
+        distance_m: signed distance [m] (negative: penetration depth; ``-inf`` where the
+            penetration solver failed, with NaN points and normal and a zero gradient).
         point_a_m, point_b_m: witness points on ``a`` and ``b`` in the world [m] ``(3,)``.
         normal: unit vector from ``a`` to ``b`` ``(3,)``: moving ``b`` along it increases
             the distance.
@@ -550,7 +558,13 @@ class CollisionModel:
         for k in chosen.tolist():
             res = compute(gm, gd, k)
             d = res.min_distance
-            if d < influence_m:
+            if not d > FAILED_DISTANCE_M:  # EPA gave up on a deep penetration
+                found.append(k)
+                dist.append(-math.inf)
+                pa.append(_NAN3)
+                pb.append(_NAN3)
+                normal.append(_NAN3)
+            elif d < influence_m:
                 found.append(k)
                 dist.append(d)
                 pa.append(res.getNearestPoint1())
@@ -561,7 +575,7 @@ class CollisionModel:
             return ()
         idx = np.array(found)
         pa, pb, normal = np.array(pa), np.array(pb), np.array(normal)
-        grad = self._gradients(idx, pa, pb, normal)
+        grad = np.nan_to_num(self._gradients(idx, pa, pb, normal), nan=0.0)
         return tuple(
             PairDistance(int(k), float(dk), pa[i], pb[i], normal[i], grad[i])
             for i, (k, dk) in enumerate(zip(found, dist, strict=True))

@@ -1,0 +1,181 @@
+"""Collision avoidance as a limit: self-collision and obstacles (docs/theory.md §10,
+FORMULATION §11).
+
+For every pair of a :class:`~dqcontrol.model.collision.CollisionModel` closer than the
+influence distance ``d_i``, with distance ``d`` and gradient ``∇d`` (witness points, normal and
+point Jacobians, §10.1):
+
+- **states are data** (the thesis's prediction, ``weights = 0``: the local and the thesis's
+  predictive controllers): a velocity damper on the applied command (§10.2),
+
+      ∇dᵀ q̇_0 ≥ -k max(d - d_s, 0),     k = min(ξ / (d_i - d_s), 1/T),
+
+  evaluated at the measured ``q``; the cap ``1/T`` keeps one period from using more than the
+  margin left, and a pair already inside the safety distance may not come closer (rather
+  than being asked to leave at a rate the acceleration bound may forbid);
+- **states are affine in the decision** (the consistent prediction of the path-following
+  controller, ``q_i(z) = q_base,i + Σ_j W_ij q̇_j``): the distance linearised at each predicted
+  state's linearisation point ``q̄_i`` (§10.3),
+
+      d(q̄_i) + ∇d(q̄_i)ᵀ (q_i(z) - q̄_i) ≥ min(d_s, d(q)),
+
+  where ``d(q)`` is the pair's distance at the measured state (a pair already inside the
+  safety distance may not come closer, rather than being asked to jump out).
+
+The limit is inactive (no rows) while every pair is further than ``d_i``. Its rows change
+with the pairs and the configuration, so a controller's backend sets up again at every step
+with rows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.problem import Inequality, Limit
+from dqcontrol.errors import ParameterError
+from dqcontrol.model.collision import CollisionModel, PairDistance
+
+__all__ = ["CollisionLimit"]
+
+#: Accepted ranges of the parameters: influence and safety distances [m], gain [m/s].
+INFLUENCE_RANGE_M = (1e-3, 1.0)
+SAFETY_RANGE_M = (0.0, 0.5)
+GAIN_RANGE_M_PER_S = (1e-3, 10.0)
+
+
+def _in_range(name: str, value, bounds: tuple[float, float], unit: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number [{unit}], got {value!r}") from None
+    lo, hi = bounds
+    if not (math.isfinite(v) and lo <= v <= hi):
+        raise ParameterError(f"{name} must be in [{lo:g}, {hi:g}] [{unit}], got {value!r}")
+    return v
+
+
+class CollisionLimit(Limit):
+    """Keep every pair of ``collision`` at least ``safety_distance_m`` apart.
+
+    Args:
+        collision: the robot's collision model with its obstacles and pairs.
+        influence_distance_m: ``d_i`` [m]: pairs closer than this get rows (0.10).
+        safety_distance_m: ``d_s`` [m], ``< d_i``: the distance kept (0.02).
+        gain_m_per_s: ``ξ`` [m/s]: the approach speed the damper allows at ``d_i``,
+            falling linearly to 0 at ``d_s`` (0.5).
+
+    Attributes:
+        last_min_distance_m: the smallest distance at the measured state at the last step
+            (``inf`` when no pair was within ``d_i``).
+        last_rows: rows given at the last step.
+        pairs_in_influence: pairs within ``d_i`` (summed over the states) at the last step.
+    """
+
+    name = "collision"
+
+    def __init__(
+        self,
+        collision: CollisionModel,
+        *,
+        influence_distance_m: float = 0.10,
+        safety_distance_m: float = 0.02,
+        gain_m_per_s: float = 0.5,
+    ) -> None:
+        if not isinstance(collision, CollisionModel):
+            raise ParameterError(
+                f"collision must be a CollisionModel, got {type(collision).__name__}"
+            )
+        self.collision = collision
+        self.influence_m = _in_range(
+            "influence_distance_m", influence_distance_m, INFLUENCE_RANGE_M, "m"
+        )
+        self.safety_m = _in_range("safety_distance_m", safety_distance_m, SAFETY_RANGE_M, "m")
+        if not self.safety_m < self.influence_m:
+            raise ParameterError(
+                f"safety_distance_m ({safety_distance_m!r}) must be < influence_distance_m "
+                f"({influence_distance_m!r}) [m]"
+            )
+        self.gain_m_per_s = _in_range("gain_m_per_s", gain_m_per_s, GAIN_RANGE_M_PER_S, "m/s")
+        self.last_min_distance_m = math.inf
+        self.last_rows = 0
+        self.pairs_in_influence = 0
+        self._key: bytes | None = None
+        self._rows: Inequality | None = None
+
+    def reset(self) -> None:
+        """Forget the cached rows."""
+        self._key = None
+        self._rows = None
+
+    def rows(self, ctx: StepContext) -> Inequality | None:
+        pred = ctx.prediction
+        if ctx.robot.nq != self.collision.robot.nq:
+            raise ParameterError(
+                f"the collision model has {self.collision.robot.nq} joints, the controller's "
+                f"robot {ctx.robot.nq}"
+            )
+        consistent = bool(np.any(pred.weights))
+        key = ctx.q.tobytes() + ctx.qd_prev.tobytes() + np.float64(ctx.period_s).tobytes()
+        if consistent:
+            key += pred.q_lin.tobytes() + pred.q_base.tobytes() + pred.weights.tobytes()
+        if key == self._key:  # the same step asked again (set-up, then bounds)
+            return self._rows
+        now = _usable(self.collision.query(ctx.q, self.influence_m))
+        self.last_min_distance_m = min((p.distance_m for p in now), default=math.inf)
+        if consistent:
+            out = self._predicted(ctx, now)
+        else:
+            out = self._damper(ctx, now)
+        self._key, self._rows = key, out
+        self.last_rows = 0 if out is None else int(out.lower.size)
+        return out
+
+    # ------------------------------------------------------------------ the two forms
+    def _damper(self, ctx: StepContext, now: tuple[PairDistance, ...]) -> Inequality | None:
+        """``∇dᵀ q̇_0 ≥ -k max(d - d_s, 0)`` for the pairs within ``d_i`` at the measured
+        ``q``."""
+        self.pairs_in_influence = len(now)
+        if not now:
+            return None
+        layout = ctx.layout
+        rate = min(self.gain_m_per_s / (self.influence_m - self.safety_m), 1.0 / ctx.period_s)
+        c = np.zeros((len(now), layout.num_vars))
+        c[:, layout.qd_index()[0]] = np.array([p.gradient for p in now])
+        d = np.array([p.distance_m for p in now])
+        lower = -rate * np.maximum(d - self.safety_m, 0.0)
+        return Inequality(self.name, c, lower, np.full(d.size, np.inf))
+
+    def _predicted(self, ctx: StepContext, now: tuple[PairDistance, ...]) -> Inequality | None:
+        """``∇d(q̄_i)ᵀ Σ_j W_ij q̇_j ≥ min(d_s, d(q)) - d(q̄_i) + ∇d(q̄_i)ᵀ (q̄_i - q_base,i)``
+        at every predicted state."""
+        pred, layout = ctx.prediction, ctx.layout
+        current = {p.pair: p.distance_m for p in now}
+        idx = layout.qd_index()
+        rows, lower = [], []
+        count = 0
+        for i in range(layout.num_blocks):
+            q_bar = pred.q_lin[i]
+            found = _usable(self.collision.query(q_bar, self.influence_m))
+            count += len(found)
+            if not found:
+                continue
+            grads = np.array([p.gradient for p in found])
+            d_bar = np.array([p.distance_m for p in found])
+            floor = np.array([min(self.safety_m, current.get(p.pair, math.inf)) for p in found])
+            c = np.zeros((len(found), layout.num_vars))
+            c[:, idx] = pred.weights[i][None, :, None] * grads[:, None, :]
+            rows.append(c)
+            lower.append(floor - d_bar + grads @ (q_bar - pred.q_base[i]))
+        self.pairs_in_influence = count
+        if not rows:
+            return None
+        low = np.concatenate(lower)
+        return Inequality(self.name, np.vstack(rows), low, np.full(low.size, np.inf))
+
+
+def _usable(found: tuple[PairDistance, ...]) -> tuple[PairDistance, ...]:
+    """The pairs with a finite distance (a failed penetration query gives no row)."""
+    return tuple(p for p in found if math.isfinite(p.distance_m))
