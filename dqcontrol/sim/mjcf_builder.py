@@ -12,8 +12,10 @@ Pinocchio read (``robot.source``), then edits it as an :class:`mujoco.MjSpec`:
 2. :func:`build_spec` moves the root to ``robot.base_placement``, welds locked joints at their
    lock value, sets armature, damping and the torque limits of the controlled joints, adds a
    site named ``robot.ee_frame`` at the Pinocchio end-effector frame, an optional payload body
-   at that frame, and one torque actuator (``motor``, clamped to the torque limit) per
-   controlled joint.
+   at that frame, one torque actuator (``motor``, clamped to the torque limit) per
+   controlled joint, and the obstacles (:func:`add_obstacles`: static geoms in the world).
+
+:func:`count_contacts` sorts a state's contacts into robot–obstacle and self contacts.
 
 Nothing here steps physics; :mod:`dqcontrol.sim.mujoco_sim` owns the servo loop.
 """
@@ -30,6 +32,7 @@ import pinocchio as pin
 
 from dqcontrol.dq.algebra import qfrom_axis_angle, qfrom_matrix, qmul, qto_matrix
 from dqcontrol.errors import ConfigurationError, URDFError
+from dqcontrol.model.collision import Box, Capsule, Cylinder, HalfSpace, Obstacle, Sphere
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.model.urdf_source import URDFSource
 
@@ -37,9 +40,13 @@ __all__ = [
     "MESH_EXTENSIONS",
     "PAYLOAD_BODY",
     "ACTUATOR_SUFFIX",
+    "OBSTACLE_PREFIX",
+    "ContactCount",
     "PreparedURDF",
     "SpecOptions",
+    "add_obstacles",
     "build_spec",
+    "count_contacts",
     "prepare_urdf_xml",
     "resolve_mesh_path",
 ]
@@ -52,6 +59,8 @@ PAYLOAD_BODY = "dqcontrol_payload"
 ACTUATOR_SUFFIX = "_servo"
 #: Radius [m] of the payload's solid-sphere inertia (and of its visual marker).
 PAYLOAD_RADIUS_M = 0.02
+#: Obstacle ``name`` is the geom ``OBSTACLE_PREFIX + name``.
+OBSTACLE_PREFIX = "obstacle_"
 
 # Compiler settings the simulator relies on; they override the URDF's own <mujoco> block.
 _FORCED_COMPILER = {
@@ -90,6 +99,8 @@ class SpecOptions:
         effort_limit_nm: torque limit of each joint's drive [N·m] (already scaled).
         payload_kg: extra mass at the end-effector [kg] (0: no payload body).
         payload_offset_m: payload centre in the end-effector frame [m].
+        obstacles: static obstacles in the world (named, e.g. by
+            :class:`~dqcontrol.model.collision.CollisionModel`).
     """
 
     physics_dt_s: float
@@ -99,6 +110,7 @@ class SpecOptions:
     effort_limit_nm: np.ndarray
     payload_kg: float
     payload_offset_m: np.ndarray
+    obstacles: tuple[Obstacle, ...] = ()
 
 
 # ----------------------------------------------------------------------------- URDF text
@@ -322,4 +334,84 @@ def build_spec(robot: RobotModel, prepared: PreparedURDF, options: SpecOptions) 
             density=0.0,
             rgba=[0.8, 0.1, 0.1, 1.0],
         )
+    add_obstacles(spec, options.obstacles)
     return spec
+
+
+def add_obstacles(spec: mujoco.MjSpec, obstacles: tuple[Obstacle, ...]) -> None:
+    """Add each obstacle as a static geom of the world body, named
+    ``OBSTACLE_PREFIX + name`` (a :class:`HalfSpace` as a MuJoCo plane, which collides as the
+    solid below it). Contacts with the robot's collision geoms are on."""
+    for k, obs in enumerate(obstacles):
+        name = OBSTACLE_PREFIX + (obs.name or str(k))
+        rgba = [0.55, 0.35, 0.75, 0.6]
+        if isinstance(obs, HalfSpace):
+            normal = np.array(obs.normal)
+            axis = np.cross([0.0, 0.0, 1.0], normal)
+            angle = float(np.arctan2(np.linalg.norm(axis), normal[2]))
+            axis = (
+                axis / np.linalg.norm(axis)
+                if np.linalg.norm(axis) > 1e-12
+                else np.array([1.0, 0.0, 0.0])
+            )
+            spec.worldbody.add_geom(
+                name=name,
+                type=mujoco.mjtGeom.mjGEOM_PLANE,
+                size=[0.0, 0.0, 0.05],
+                pos=normal * obs.offset_m,
+                quat=qfrom_axis_angle(axis, angle),
+                rgba=rgba,
+            )
+            continue
+        if isinstance(obs, Sphere):
+            kind, size = mujoco.mjtGeom.mjGEOM_SPHERE, [obs.radius_m, 0.0, 0.0]
+        elif isinstance(obs, Box):
+            kind, size = mujoco.mjtGeom.mjGEOM_BOX, [0.5 * v for v in obs.size_m]
+        elif isinstance(obs, Capsule):
+            kind, size = mujoco.mjtGeom.mjGEOM_CAPSULE, [obs.radius_m, 0.5 * obs.length_m, 0.0]
+        elif isinstance(obs, Cylinder):
+            kind, size = mujoco.mjtGeom.mjGEOM_CYLINDER, [obs.radius_m, 0.5 * obs.length_m, 0.0]
+        else:
+            raise ConfigurationError(f"obstacle {name}: unsupported shape {type(obs).__name__}")
+        spec.worldbody.add_geom(
+            name=name,
+            type=kind,
+            size=size,
+            pos=list(obs.position_m),
+            quat=list(obs.quaternion_wxyz),
+            rgba=rgba,
+        )
+
+
+@dataclass(frozen=True)
+class ContactCount:
+    """The contacts of one state.
+
+    Attributes:
+        obstacle: contacts between the robot and an obstacle.
+        self_contact: contacts between two of the robot's geoms.
+        deepest_m: the deepest penetration over them [m] (0 without contact).
+    """
+
+    obstacle: int
+    self_contact: int
+    deepest_m: float
+
+
+def count_contacts(model: mujoco.MjModel, data: mujoco.MjData) -> ContactCount:
+    """Sort the contacts of ``data`` (after ``mj_forward`` or a step) into robot–obstacle and
+    self contacts; contacts between two obstacles are not counted."""
+    obstacle = self_contact = 0
+    deepest = 0.0
+    for i in range(data.ncon):
+        con = data.contact[i]
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or "" for g in con.geom]
+        on_obstacle = [n.startswith(OBSTACLE_PREFIX) for n in names]
+        if all(on_obstacle):
+            continue
+        if any(on_obstacle):
+            obstacle += 1
+        else:
+            self_contact += 1
+        deepest = max(deepest, -float(con.dist))
+    return ContactCount(obstacle, self_contact, deepest)
