@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -153,3 +156,10 @@ def test_joint_map_refuses_a_mismatch_and_names_the_joints(driver_names, fragmen
     for fragment in fragments:
         assert fragment in str(info.value)
     assert isinstance(info.value, ConfigurationError)
+
+
+def test_the_drivers_page_example_runs():
+    page = Path(__file__).resolve().parents[1] / "docs" / "drivers.md"
+    blocks = re.findall(r"^```python\n(.*?)^```", page.read_text("utf-8"), re.M | re.S)
+    assert blocks
+    exec(compile("\n".join(blocks), str(page), "exec"), {"__name__": "drivers_md"})

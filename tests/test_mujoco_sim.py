@@ -229,7 +229,7 @@ def test_reset_sets_state_and_time(lbr4p_sim):
         {"effort_scale": float("inf")},
         {"payload_kg": -1.0},
         {"payload_offset_m": [0.0, 0.1]},
-        {"motor": "torque"},
+        {"motor": "current"},  # "velocity" or "torque"
         {"servo_time_constant_s": 0.001},  # < 2 physics steps
         {"integral_time_constant_s": 0.0},
         {"armature": [0.1, 0.2]},

@@ -20,8 +20,9 @@ Drivers here:
 - :class:`KinematicDriver` — ideal velocity tracking, ``q_{k+1} = q_k + T u_k``;
 - :class:`SimulationDriver` — any simulation object with ``reset``/``step``/``measure``
   (:class:`~dqcontrol.sim.MujocoSimulation`, the fault campaign's wrappers);
-  :class:`MujocoDriver` builds the MuJoCo simulation itself (an unknown payload and
-  reduced torque limits are its ``payload_kg`` and ``effort_scale``);
+  :class:`MujocoDriver` builds the MuJoCo simulation itself (velocity servos by default,
+  computed torque with ``motor="torque"``; an unknown payload and reduced torque limits
+  are its ``payload_kg`` and ``effort_scale``);
 - :class:`VelocityFromPosition` — a velocity driver over a position-only interface
   (:class:`PositionInterface`): it integrates the velocity command into a position target;
 - :class:`FaultyDriver` — measurement faults around any driver: seeded Gaussian noise and a
@@ -265,7 +266,7 @@ class MujocoDriver(SimulationDriver):
     @property
     def meta(self) -> dict:
         """``simulator``, ``physics_dt_s`` and the joint drive (``motor``) for the run log."""
-        return {**super().meta, "motor": getattr(self.simulation, "motor", "velocity")}
+        return {**super().meta, "motor": self.simulation.motor}
 
 
 class VelocityFromPosition:

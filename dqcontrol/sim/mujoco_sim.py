@@ -52,6 +52,21 @@ T = 1 ms controller sees a first-order lag of a few periods (industrial velocity
 [N·m/rad] (:meth:`MujocoSimulation.servo_gains`). ``tests/test_mujoco_sim.py`` measures the
 step response and the holding drift.
 
+Computed torque (``motor="torque"``)
+------------------------------------
+The drives compute the torque from the full rigid-body model (docs FORMULATION §12)::
+
+    a = K_v (u_ref - qd) + q̈_ff,   K_v = 1 / τ_v
+    τ = sat_τmax( M(q) a + C(q, qd) qd + g(q) + D qd )     one Pinocchio RNEA call
+
+with the nominal model (the controller's Pinocchio model plus the rotor inertia and the joint
+damping ``D``; not the payload). A new command ``u`` is reached along a ramp: ``u_ref`` goes
+linearly from the previous reference to ``u`` over ``command_ramp_s`` (default: the duration
+of the :meth:`MujocoSimulation.step` that brings it, i.e. one control period) and
+``q̈_ff = Δu / command_ramp_s`` is its slope, so that with a perfect model the joint velocity
+follows ``u_ref`` exactly and reaches ``u`` at the end of the period. No integral action: what
+the model does not know (a payload) shows as a velocity error ``τ_v M⁻¹ τ_unknown``.
+
 Physical defaults (documented choices, not identified values)
 --------------------------------------------------------------
 * armature (reflected rotor inertia) ``= 1e-3 s² × effort_max`` [kg·m²]: a drive's
@@ -100,7 +115,7 @@ SERVO_TIME_CONSTANT_S = 0.005
 MAX_PHYSICS_DT_S = 0.002
 #: Default armature per N·m of effort limit [kg·m² / (N·m)] (module docstring).
 ARMATURE_PER_NM = 1e-3
-_MOTORS = ("velocity",)
+_MOTORS = ("velocity", "torque")
 
 
 @dataclass(frozen=True, slots=True)
@@ -175,10 +190,13 @@ class MujocoSimulation:
             base placement, locked joints and end-effector frame.
         physics_dt_s: MuJoCo time step [s], ``0 < dt ≤ 0.002``.
         gravity: gravity on (-9.81 m/s² along world z).
-        motor: joint drive model; ``"velocity"`` (the velocity servo of the module
-            docstring) is the only one.
+        motor: joint drive model: ``"velocity"`` (the velocity servo of the module
+            docstring) or ``"torque"`` (computed torque, the module docstring).
         servo_time_constant_s: ``τ_v`` [s], the servo's velocity time constant
-            (``≥ 2 physics_dt_s``).
+            (``≥ 2 physics_dt_s``); with ``motor="torque"`` the gain is ``K_v = 1/τ_v``.
+        command_ramp_s: ``motor="torque"`` only: time [s] over which a new command is
+            ramped in (``None``: the duration of the ``step`` that brings it); a whole
+            number of physics steps.
         integral_time_constant_s: ``τ_i`` [s] of the integral action; ``math.inf`` turns it
             off (pure proportional servo).
         gravity_feedforward: the drives add the nominal model's gravity torque ``g_nom(q)``.
@@ -204,6 +222,7 @@ class MujocoSimulation:
         gravity: bool = True,
         motor: str = "velocity",
         servo_time_constant_s: float = SERVO_TIME_CONSTANT_S,
+        command_ramp_s: float | None = None,
         integral_time_constant_s: float = 0.05,
         gravity_feedforward: bool = True,
         armature: float | np.ndarray | None = None,
@@ -267,6 +286,11 @@ class MujocoSimulation:
 
         self.robot = robot
         self.physics_dt_s = dt
+        #: The joint drive model (``"velocity"`` or ``"torque"``).
+        self.motor = motor
+        self.command_ramp_s = (
+            None if command_ramp_s is None else _positive("command_ramp_s", command_ramp_s, "s")
+        )
         self.servo_time_constant_s = tau_v
         self.integral_time_constant_s = tau_i
         self.effort_scale = scale
@@ -334,6 +358,11 @@ class MujocoSimulation:
         self._peak = np.zeros(n)
         self._sat = np.zeros(n, dtype=bool)
         self._free = np.zeros(n, dtype=bool)
+        # computed torque: the ramp from u0 to u over ramp_steps physics steps
+        self._u0 = np.zeros(n)
+        self._du = np.zeros(n)  # (u - u0) / ramp time [rad/s²]
+        self._ramp_steps = 0
+        self._ramp_done = 0
         self._warnings = 0
         self.reset(np.clip(np.zeros(n), robot.limits.q_min, robot.limits.q_max))
 
@@ -405,7 +434,10 @@ class MujocoSimulation:
         self._u[:] = qd0
         self._um[:] = qd0
         self._w[:] = 0.0
-        self._servo_torque()
+        self._u0[:] = qd0
+        self._du[:] = 0.0
+        self._ramp_steps = self._ramp_done = 0
+        self._drive_torque()
         d.ctrl[:] = self._tau
         mujoco.mj_forward(m, d)
         np.abs(self._tau, out=self._peak)
@@ -448,9 +480,45 @@ class MujocoSimulation:
         """
         u = self.robot.check_q(qd_command, "qd_command")
         steps = self.steps_for(duration_s)
+        if self.motor == "torque" and not np.array_equal(u, self._u):
+            ramp = steps if self.command_ramp_s is None else self.steps_for(self.command_ramp_s)
+            self._u0[:] = self._reference()
+            np.subtract(u, self._u0, out=self._du)
+            self._du /= ramp * self.physics_dt_s
+            self._ramp_steps, self._ramp_done = ramp, 0
         self._u[:] = u
         self._advance(steps)
         return self.measure()
+
+    def _reference(self) -> np.ndarray:
+        """Computed torque: the velocity reference ``u_ref`` [rad/s] of the present step."""
+        if self._ramp_done >= self._ramp_steps:
+            return self._u.copy()
+        return self._u0 + (self._ramp_done * self.physics_dt_s) * self._du
+
+    def _drive_torque(self) -> None:
+        """The drives' torque ``self._tau`` (clipped) for the present state and command."""
+        if self.motor == "velocity":
+            self._servo_torque()
+        else:
+            self._computed_torque()
+
+    def _computed_torque(self) -> None:
+        """``τ = M a + C qd + g + D qd``, ``a = (u_ref - qd)/τ_v + q̈_ff``, clipped; advances
+        the ramp by one physics step."""
+        d = self._data
+        q, qd, a, tau = self._q, self._qd, self._a, self._tau
+        np.take(d.qpos, self._qpos_idx, out=q)
+        np.take(d.qvel, self._dof_idx, out=qd)
+        ramping = self._ramp_done < self._ramp_steps
+        np.subtract(self._reference(), qd, out=a)
+        np.multiply(a, 1.0 / self.servo_time_constant_s, out=a)
+        if ramping:
+            np.add(a, self._du, out=a)
+            self._ramp_done += 1
+        tau[:] = pin.rnea(self._pin_model, self._pin_data, q, qd, a)
+        tau += self.joint_damping * qd
+        np.clip(tau, -self.torque_limit, self.torque_limit, out=tau)
 
     def _servo_torque(self) -> None:
         """Servo torques ``self._tau`` (clipped) for the current state and command; updates
@@ -499,7 +567,7 @@ class MujocoSimulation:
         m, d = self._model, self._data
         ctrl, qfrc, dof = d.ctrl, d.qfrc_actuator, self._dof_idx
         tau, tmp, peak = self._tau, self._tmp, self._peak
-        servo, mj_step = self._servo_torque, mujoco.mj_step
+        servo, mj_step = self._drive_torque, mujoco.mj_step
         peak[:] = 0.0
         for _ in range(steps):
             servo()
@@ -559,6 +627,6 @@ class MujocoSimulation:
     def __repr__(self) -> str:
         return (
             f"MujocoSimulation('{self.robot.model.name}', n={self.robot.nq}, "
-            f"dt={self.physics_dt_s} s, payload={self.payload_kg} kg, "
+            f"dt={self.physics_dt_s} s, motor={self.motor!r}, payload={self.payload_kg} kg, "
             f"effort_scale={self.effort_scale})"
         )
