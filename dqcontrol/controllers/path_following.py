@@ -265,7 +265,10 @@ class PathFollowingController(Controller):
     def _limits(self) -> tuple[Limit, ...]:
         layout = self.layout
         self._trust = TrustRegionLimit(
-            layout, self.tuning.trust_radius_rad, self.tuning.trust_radius_phase_s, self.period_s
+            layout,
+            self.tuning.trust_radius_rad,
+            self.tuning.trust_radius_phase_s,
+            self.tuning.trust_growth_time_s,
         )
         durations = layout.durations_s
         coupling = 0.5 * (durations[1:] + durations[:-1])

@@ -32,9 +32,10 @@ class PathFollowingTuning:
             a disturbance [rad].
         acceleration_reserve: share of ``a_max`` the plan may use between intervals, in
             ``(0, 1]`` (the applied command may use all of it).
-        trust_radius_rad: ``ρ_q``, the trust region of the joint states at the first state
-            [rad] (it grows with the state's time).
+        trust_radius_rad: ``ρ_q``, the trust region of the joint states now [rad]; it grows
+            as ``1 + t/t_g`` with the state's time ``t``.
         trust_radius_phase_s: ``ρ_σ``, the same for the phase [s].
+        trust_growth_time_s: ``t_g`` [s].
     """
 
     path_tolerance: float = 1e-6
@@ -47,13 +48,14 @@ class PathFollowingTuning:
     acceleration_reserve: float = 0.9
     trust_radius_rad: float = 0.05
     trust_radius_phase_s: float = 0.02
+    trust_growth_time_s: float = 0.05
 
     def __post_init__(self) -> None:
         units = {
             "path_tolerance": "-", "progress_tolerance": "-", "damping": "-",
             "linearisation_tolerance": "rad/s", "linearisation_tolerance_m": "m",
             "relinearise_threshold_rad": "rad", "acceleration_reserve": "-",
-            "trust_radius_rad": "rad", "trust_radius_phase_s": "s",
+            "trust_radius_rad": "rad", "trust_radius_phase_s": "s", "trust_growth_time_s": "s",
         }  # fmt: skip
         for name, unit in units.items():
             object.__setattr__(self, name, check_positive(name, getattr(self, name), unit))

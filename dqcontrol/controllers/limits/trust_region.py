@@ -3,13 +3,13 @@
 The path error is linearised at the shifted previous plan ``(q̄_i, σ̄_i)``; its error grows
 with the square of the distance from that point. The rows
 
-    |q_i(z) - q̄_i| ≤ ρ_q (1 + t_i / T),        |σ_i(z) - σ̄_i| ≤ ρ_σ (1 + t_i / T)
+    |q_i(z) - q̄_i| ≤ ρ_q (1 + t_i / t_g),        |σ_i(z) - σ̄_i| ≤ ρ_σ (1 + t_i / t_g)
 
-(``t_i`` the time of state ``i`` from now) keep every predicted state where the linear
-model holds: tight at the first state, which is applied, wider further out, where the
-plan is revised many times before it is executed (the radius grows like the deviation a
-constant change of the commands would make). The plan may move further over several
-steps, or over several linearise-and-solve rounds of one step.
+(``t_i`` the time of state ``i`` from now, ``t_g`` the growth time) keep every predicted
+state where the linear model holds: tight at the first state, which is applied, wider
+further out, where the plan is revised many times before it is executed (the radius grows
+like the deviation a constant change of the commands would make). The plan may move further
+over several steps, or over several linearise-and-solve rounds of one step.
 """
 
 from __future__ import annotations
@@ -29,24 +29,28 @@ class TrustRegionLimit(Limit):
         layout: the decision layout.
         radius_rad: ``ρ_q`` at the first state [rad] (``inf``: no joint rows).
         radius_phase_s: ``ρ_σ`` at the first state [s] (``inf``: no phase rows).
-        period_s: ``T`` [s].
+        growth_time_s: ``t_g`` [s]: the radius doubles every ``t_g`` of prediction time.
     """
 
     name = "trust_region"
 
     def __init__(
-        self, layout: DecisionLayout, radius_rad: float, radius_phase_s: float, period_s: float
+        self,
+        layout: DecisionLayout,
+        radius_rad: float,
+        radius_phase_s: float,
+        growth_time_s: float,
     ) -> None:
         self.layout = layout
         ends = layout.instants_s + layout.durations_s
-        self._growth = 1.0 + ends / float(period_s)
+        self._growth = 1.0 + ends / float(growth_time_s)
         self.radius_rad = float(radius_rad)
         self.radius_phase_s = float(radius_phase_s)
         self._weights: np.ndarray | None = None
 
     @property
     def radii_rad(self) -> np.ndarray:
-        """``ρ_q (1 + t_i/T)`` per state [rad] (``inf`` without joint rows)."""
+        """``ρ_q (1 + t_i/t_g)`` per state [rad] (``inf`` without joint rows)."""
         return self.radius_rad * self._growth
 
     def _matrices(self, weights: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
