@@ -53,7 +53,10 @@ examples:
   dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10,pf
   dqcontrol run --period 0.001                      the 1 kHz controller
   dqcontrol run --robot panda --simulator kinematic
-  dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0"""
+  dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0
+  dqcontrol run --controllers pf --obstacle sphere:0.49,-0.39,0.70,0.03
+  dqcontrol run --obstacle plane:0,0,1,0.45 --obstacle box:0.3,-0.5,0.4,0.2,0.1,0.3 \
+      --self-collision"""
 
 #: The physics step of the MuJoCo simulation [s]; ``T`` must be a multiple of it.
 PHYSICS_DT_S = 0.001
@@ -195,6 +198,35 @@ def register(subparsers) -> None:
         metavar="A",
         help="joint acceleration bound [rad/s^2] of every controller (default: 10)",
     )
+    g = p.add_argument_group(
+        "obstacles and self-collision (every QP controller keeps its distance, docs/theory.md "
+        "section 10)"
+    )
+    g.add_argument(
+        "--obstacle",
+        action="append",
+        default=[],
+        metavar="SHAPE:VALUES",
+        help="an obstacle fixed in the world, every value in metres (repeatable): "
+        "sphere:X,Y,Z,R; box:X,Y,Z,SX,SY,SZ (centre and side lengths, axis-aligned); "
+        "capsule:X,Y,Z,R,L and cylinder:X,Y,Z,R,L (centre, radius, length, vertical axis); "
+        "plane:NX,NY,NZ,D (the solid n.x <= D below the plane, n pointing into free space: "
+        "plane:0,0,1,0.45 is a table top 0.45 m high)",
+    )
+    g.add_argument(
+        "--self-collision",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="also keep the robot's own links apart (default: off)",
+    )
+    g.add_argument(
+        "--safety-distance",
+        type=_positive_float("m"),
+        default=0.02,
+        metavar="D_S",
+        help="distance kept from obstacles and between links [m] (default: 0.02; pairs "
+        "closer than 0.1 m are constrained)",
+    )
     g = p.add_argument_group("simulation, viewer and output")
     g.add_argument(
         "--simulator",
@@ -324,6 +356,12 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
     (:func:`dqcontrol.registry.build_controller`)."""
     from dqcontrol.registry import build_controller
 
+    extra = {}
+    collision = getattr(args, "_collision", None)
+    if collision is not None:
+        from dqcontrol.controllers.limits.collision import CollisionLimit
+
+        extra["extra_limits"] = (CollisionLimit(collision, safety_distance_m=args.safety_distance),)
     shared = {
         "velocity_limits": velocity_limits,
         "acceleration_limit": args.acceleration_limit,
@@ -334,7 +372,7 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
         from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
 
         shared["servo_time_constant_s"] = SERVO_TIME_CONSTANT_S
-    return build_controller(name, robot, trajectory, args.period, shared=shared)
+    return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
 
 
 # ---------------------------------------------------------------------- output helpers
@@ -478,7 +516,69 @@ def _check_options(args) -> tuple:
             )
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
+    args._collision = _collision_model(args, robot, q0)
     return robot, q0, robot_meta, velocity
+
+
+def _collision_model(args, robot, q0):
+    """The collision model of ``--obstacle``/``--self-collision`` (``None`` without them);
+    parser error (exit 2) for a bad obstacle, a bad safety distance or a controller that
+    takes no limits."""
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.model.collision import CollisionModel, parse_obstacle
+    from dqcontrol.registry import controller_spec
+
+    parser = args._parser
+    if not args.obstacle and not args.self_collision:
+        return None
+    obstacles = []
+    for k, text in enumerate(args.obstacle):
+        try:
+            obstacles.append(parse_obstacle(text, name=f"obstacle{k + 1}"))
+        except ParameterError as exc:
+            parser.error(f"--obstacle: {exc}")
+    if not args.safety_distance < 0.1:
+        parser.error(
+            f"--safety-distance must be < 0.1 m (the influence distance), got "
+            f"{args.safety_distance:g}"
+        )
+    limitless = [c for c in args.controllers if not controller_spec(c).qp]
+    if limitless:
+        parser.error(
+            f"--obstacle/--self-collision: {', '.join(limitless)} takes no limits; choose QP "
+            "controllers (e.g. --controllers local,p10,pf)"
+        )
+    try:
+        model = CollisionModel(robot, obstacles, self_collision=args.self_collision)
+    except ParameterError as exc:
+        parser.error(f"--obstacle/--self-collision: {exc}")
+    start = model.min_distance(q0)
+    if start < args.safety_distance:
+        print(
+            f"dqcontrol run: the start configuration is {1e3 * start:.1f} mm from contact, "
+            f"inside the safety distance {1e3 * args.safety_distance:g} mm",
+            file=sys.stderr,
+        )
+    return model
+
+
+def collision_report(label: str, robot, collision, qs) -> str:
+    """One line per run: the smallest distance over the run and the contacts of its
+    configurations in the MuJoCo model with the obstacles."""
+    import numpy as np
+
+    from dqcontrol.sim.mjcf_builder import replay_contacts
+
+    qs = np.atleast_2d(qs)
+    if qs.shape[0] == 0:
+        return f"{label}: no samples"
+    closest = min(collision.min_distance(q) for q in qs)
+    contacts = replay_contacts(robot, collision.obstacles, qs)
+    return (
+        f"{label}: min distance {1e3 * closest:.1f} mm; contacts robot-obstacle "
+        f"{contacts.obstacle}, self {contacts.self_contact}, deepest "
+        f"{1e3 * contacts.deepest_m:.1f} mm"
+    )
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -496,7 +596,11 @@ def _main(args: argparse.Namespace) -> int:
     fps = 10.0 if args.short else 30.0
     progress = not args.short
 
+    collision = args._collision
+    obstacles = collision.obstacles if collision is not None else ()
     viewer = MeshcatViewer(robot, q=q0) if args.viewer else None
+    if viewer is not None and obstacles:
+        viewer.show_obstacles(obstacles)
     try:
         runs = []  # (label, result, anchored trajectory)
         for label in args.controllers:
@@ -513,6 +617,10 @@ def _main(args: argparse.Namespace) -> int:
                 "horizon_s": getattr(controller, "horizon_s", None),
                 "command": "dqcontrol run",
             }
+            if collision is not None:
+                meta["obstacles"] = list(args.obstacle)
+                meta["self_collision"] = bool(args.self_collision)
+                meta["safety_distance_m"] = args.safety_distance
             bar = progress_bar(f"{label:>12}", args.duration, progress)
             on_progress = progress_callback(bar)
             try:
@@ -542,6 +650,14 @@ def _main(args: argparse.Namespace) -> int:
         )
         print(metrics_table([(label, result.metrics) for label, result, _ in runs]))
         print(TABLE_LEGEND)
+        if collision is not None:
+            print(
+                f"collision: {collision.num_pairs} pairs, safety distance "
+                f"{1e3 * args.safety_distance:g} mm (contacts: the run's states in MuJoCo "
+                "with the obstacles)"
+            )
+            for label, result, _ in runs:
+                print("  " + collision_report(label, robot, collision, result.log.q))
         print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
         drawable = [(label, r.log, traj) for label, r, traj in runs if len(r.log)]
         if viewer is not None and drawable:
@@ -590,9 +706,16 @@ def _write_results(runs, robot, out, args, fmt, dpi, fps, progress, name) -> lis
             bar.update()
             html = out / f"{label}_replay.html"
             points = traj.path_positions(1000)
+            collision = getattr(args, "_collision", None)
             written.append(
                 export_replay_html(
-                    robot, result.log, html, path_points=points, fps=fps, speed=args.speed
+                    robot,
+                    result.log,
+                    html,
+                    path_points=points,
+                    fps=fps,
+                    speed=args.speed,
+                    obstacles=collision.obstacles if collision is not None else (),
                 )
             )
             bar.update()

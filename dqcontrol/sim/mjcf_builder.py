@@ -47,6 +47,7 @@ __all__ = [
     "add_obstacles",
     "build_spec",
     "count_contacts",
+    "replay_contacts",
     "prepare_urdf_xml",
     "resolve_mesh_path",
 ]
@@ -414,4 +415,32 @@ def count_contacts(model: mujoco.MjModel, data: mujoco.MjData) -> ContactCount:
         else:
             self_contact += 1
         deepest = max(deepest, -float(con.dist))
+    return ContactCount(obstacle, self_contact, deepest)
+
+
+def replay_contacts(
+    robot: RobotModel, obstacles: tuple[Obstacle, ...], qs: np.ndarray
+) -> ContactCount:
+    """Contacts of a run's configurations ``qs`` ``(N, n)`` [rad] in the robot's MuJoCo model
+    with ``obstacles`` (positions set, ``mj_forward``; no dynamics): the contacts summed over
+    the samples and the deepest penetration [m]."""
+    n = robot.nq
+    effort = np.asarray(robot.limits.effort_max, dtype=float)
+    effort = np.where(np.isfinite(effort) & (effort > 0.0), effort, 1.0)  # unused: no dynamics
+    options = SpecOptions(
+        0.001, False, np.zeros(n), None, effort, 0.0, np.zeros(3), tuple(obstacles)
+    )
+    model = build_spec(robot, prepare_urdf_xml(robot.source), options).compile()
+    data = mujoco.MjData(model)
+    joint = mujoco.mjtObj.mjOBJ_JOINT
+    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, joint, j)] for j in robot.joint_names]
+    obstacle = self_contact = 0
+    deepest = 0.0
+    for q in np.atleast_2d(qs):
+        data.qpos[adr] = q
+        mujoco.mj_forward(model, data)
+        found = count_contacts(model, data)
+        obstacle += found.obstacle
+        self_contact += found.self_contact
+        deepest = max(deepest, found.deepest_m)
     return ContactCount(obstacle, self_contact, deepest)

@@ -70,6 +70,12 @@ TRACE_COLOR = 0xD62728
 AXIS_COLORS = (0xE41A1C, 0x4DAF4A, 0x377EB8)
 #: Radii [m] of the path and trace tubes; length [m] of the target triad's axes.
 PATH_RADIUS_M = 0.003
+#: Colour and opacity of the obstacles.
+OBSTACLE_COLOR = 0x8E5BC4
+OBSTACLE_OPACITY = 0.55
+#: A half-space is drawn as a slab this wide [m] and this thick [m], its top on the plane.
+PLANE_DRAWN_SIZE_M = 2.0
+PLANE_DRAWN_THICKNESS_M = 0.01
 TRACE_RADIUS_M = 0.004
 TRIAD_LENGTH_M = 0.08
 
@@ -338,6 +344,45 @@ def _material(color: int, opacity: float = 1.0):
     return mat
 
 
+def _obstacle_parts(obs) -> list[tuple[object, np.ndarray]]:
+    """Meshcat geometries and world transforms that draw one obstacle."""
+    import meshcat.geometry as mg
+
+    from dqcontrol.model.collision import Box, Capsule, Cylinder, HalfSpace, Sphere
+
+    if isinstance(obs, HalfSpace):
+        normal = np.array(obs.normal)
+        axis = np.cross([0.0, 0.0, 1.0], normal)
+        sin, cos = float(np.linalg.norm(axis)), float(normal[2])
+        rot = np.eye(3)
+        if sin > 1e-12:
+            rot = pin.AngleAxis(math.atan2(sin, cos), axis / sin).matrix()
+        elif cos < 0.0:
+            rot = np.diag([1.0, -1.0, -1.0])
+        matrix = np.eye(4)
+        matrix[:3, :3] = rot
+        matrix[:3, 3] = normal * (obs.offset_m - 0.5 * PLANE_DRAWN_THICKNESS_M)
+        size = [PLANE_DRAWN_SIZE_M, PLANE_DRAWN_SIZE_M, PLANE_DRAWN_THICKNESS_M]
+        return [(mg.Box(size), matrix)]
+    world = obs.placement().homogeneous
+    if isinstance(obs, Sphere):
+        return [(mg.Sphere(obs.radius_m), world)]
+    if isinstance(obs, Box):
+        return [(mg.Box(list(obs.size_m)), world)]
+    # meshcat's cylinder runs along its local y axis: turn it onto z
+    upright = np.eye(4)
+    upright[:3, :3] = pin.AngleAxis(math.pi / 2, np.array([1.0, 0.0, 0.0])).matrix()
+    parts = [(mg.Cylinder(obs.length_m, obs.radius_m), world @ upright)]
+    if isinstance(obs, Capsule):
+        for end in (-0.5, 0.5):
+            cap = np.eye(4)
+            cap[2, 3] = end * obs.length_m
+            parts.append((mg.Sphere(obs.radius_m), world @ cap))
+    elif not isinstance(obs, Cylinder):
+        raise ParameterError(f"cannot draw obstacle {obs!r}")
+    return parts
+
+
 # ---------------------------------------------------------------------- the viewer
 class MeshcatViewer:
     """The robot of a :class:`~dqcontrol.model.RobotModel` in Meshcat, with path, trace
@@ -482,6 +527,18 @@ class MeshcatViewer:
         self._guard(
             self.vis[f"{self.root}/trace"].set_object, _tube(pts, TRACE_RADIUS_M), _material(color)
         )
+
+    def show_obstacles(
+        self, obstacles: Sequence, *, color: int = OBSTACLE_COLOR, opacity: float = OBSTACLE_OPACITY
+    ) -> None:
+        """Draw obstacles (:mod:`dqcontrol.model.collision`) at their world poses, replacing
+        any drawn before; a half-space is a square slab whose top is the plane."""
+        self._guard(self.vis[f"{self.root}/obstacles"].delete)
+        for k, obs in enumerate(obstacles):
+            node = self.vis[f"{self.root}/obstacles/{obs.name or k}"]
+            for part, (geometry, matrix) in enumerate(_obstacle_parts(obs)):
+                self._guard(node[str(part)].set_object, geometry, _material(color, opacity))
+                self._guard(node[str(part)].set_transform, matrix)
 
     def show_target(self, pose: np.ndarray) -> None:
         """Place the target frame at a pose (unit dual quaternion vec8, or a 4×4 matrix)."""
@@ -760,6 +817,7 @@ def export_replay_html(
     fps: float = 30.0,
     speed: float = 1.0,
     loop: bool = True,
+    obstacles: Sequence = (),
 ) -> Path:
     """Write a self-contained HTML replay of a run: ``path`` (``.html``) is returned.
 
@@ -769,12 +827,15 @@ def export_replay_html(
         path_points: world positions ``(N, 3)`` [m] of the reference path (e.g.
             ``controller.trajectory.path_positions()``); default: the run's targets.
         fps, speed, loop: see :meth:`MeshcatViewer.set_animation`.
+        obstacles: obstacles to draw (:meth:`MeshcatViewer.show_obstacles`).
 
     No server is started and nothing waits for a browser.
     """
     viewer = MeshcatViewer(robot, live=False, q=log.q[0] if len(log) else None)
     pts = translation(log.target) if path_points is None else np.asarray(path_points)
     viewer.show_path(pts)
+    if len(obstacles):
+        viewer.show_obstacles(obstacles)
     viewer.frame_scene(np.vstack((pts.reshape(-1, 3), translation(log.pose))))
     viewer.set_animation(log, fps=fps, speed=speed, loop=loop)
     return viewer.save_html(path)
