@@ -1,7 +1,9 @@
 """Closed loops: one control loop (:func:`run_loop`) against a joint driver — ideal kinematic,
-MuJoCo, a position-only interface or a faulty wrapper — and its thin names for the kinematic
-loop and the MuJoCo simulation."""
+MuJoCo, a position-only interface, a faulty wrapper or a simulation in another process
+(:class:`BridgeDriver`, :class:`SimServer`) — and its thin names for the kinematic loop and
+the MuJoCo simulation."""
 
+from dqcontrol.sim.bridge import BridgeDriver, SimServer
 from dqcontrol.sim.driver import (
     FaultyDriver,
     JointDriver,
@@ -21,6 +23,7 @@ from dqcontrol.sim.mujoco_loop import run_mujoco
 from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation, ServoGains
 
 __all__ = [
+    "BridgeDriver",
     "FaultyDriver",
     "JointDriver",
     "JointMismatchError",
@@ -32,6 +35,7 @@ __all__ = [
     "PositionInterface",
     "RunResult",
     "ServoGains",
+    "SimServer",
     "SimulatedDriver",
     "SimulationDriver",
     "VelocityFromPosition",

@@ -255,6 +255,9 @@ def run_loop(
         )
     log = rec.finish()
     log.meta["stop"] = stop
+    report = getattr(driver, "report", None)
+    if callable(report):  # the driver's own counters (e.g. the bridge's rejected packets)
+        log.meta["driver_report"] = report()
     if note:
         log.meta["note"] = note
     metrics = compute_metrics(log, controller.trajectory, bounds_of(controller, log.q), period)

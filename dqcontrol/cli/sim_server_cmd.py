@@ -1,0 +1,68 @@
+"""``dqcontrol sim-server``: serve the MuJoCo simulation behind the joint-driver protocol on
+a ZMQ socket (:mod:`dqcontrol.sim.bridge`), for a controller in another process."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["register"]
+
+_DESCRIPTION = """\
+Serve a robot in MuJoCo on a ZMQ socket (loopback by default). A client — the
+dqcontrol.sim.bridge.BridgeDriver with run_loop, or any program that speaks the wire
+format of docs/drivers.md — sends a reset, then one velocity command per control period;
+the server steps the simulation one period per command and answers with the state.
+Bad packets are answered with an error and counted, never fatal. Ctrl-C stops it."""
+
+_EPILOG = """\
+examples:
+  dqcontrol sim-server --port 5555
+  dqcontrol sim-server --port 5555 --period 0.01 --motor torque --payload 3"""
+
+
+def register(subparsers) -> None:
+    """Add the ``sim-server`` subcommand."""
+    p = subparsers.add_parser(
+        "sim-server",
+        help="serve the MuJoCo simulation to a controller in another process (ZMQ)",
+        description=_DESCRIPTION,
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--robot", default="lbr4p", help="lbr4p (default), panda or a URDF path")
+    p.add_argument("--ee-frame", default=None, help="end-effector frame (default: the robot's)")
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
+    p.add_argument("--port", type=int, default=5555, help="TCP port (default 5555; 0: any)")
+    p.add_argument("--period", type=float, default=0.05, help="control period T [s]")
+    p.add_argument(
+        "--motor", choices=("velocity", "torque"), default="velocity", help="joint drive"
+    )
+    p.add_argument("--payload", type=float, default=0.0, help="unknown payload [kg]")
+    p.add_argument("--max-messages", type=int, default=None, help="stop after this many messages")
+    p.set_defaults(func=_main, _parser=p)
+
+
+def _main(args: argparse.Namespace) -> int:
+    from dqcontrol.cli.run_cmd import load_robot
+    from dqcontrol.sim import MujocoDriver
+    from dqcontrol.sim.bridge import SimServer
+
+    try:
+        robot, _q0, _meta = load_robot(args.robot, args.ee_frame)
+    except ValueError as exc:
+        args._parser.error(str(exc))
+    driver = MujocoDriver(robot, args.period, motor=args.motor, payload_kg=args.payload)
+    with SimServer(driver, f"tcp://{args.host}:{args.port}") as server:
+        print(
+            f"dqcontrol sim-server: {robot.model.name} ({len(driver.joint_names)} joints, "
+            f"T = {args.period:g} s, {args.motor} drive) on {server.address}",
+            flush=True,
+        )
+        try:
+            server.serve(max_messages=args.max_messages)
+        except KeyboardInterrupt:
+            pass
+        rejected = dict(server.rejected)
+        print(f"served {server.served} messages; rejected {rejected or 'none'}", file=sys.stderr)
+    return 0

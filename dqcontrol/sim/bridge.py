@@ -1,0 +1,375 @@
+"""A process bridge: a joint driver served over ZMQ, and the driver that talks to it.
+
+:class:`SimServer` serves any simulated driver (e.g. :class:`~dqcontrol.sim.MujocoDriver`)
+on a ZMQ ROUTER socket; :class:`BridgeDriver` is a :class:`~dqcontrol.sim.driver.JointDriver`
+on a DEALER socket that connects to it, so that :func:`~dqcontrol.sim.run_loop` runs the
+controller in another process exactly as in-process. The server steps its simulation by
+one period per command (stepped, simulated time); the client may pace itself on the wall
+clock (``run_loop(..., realtime=True)``).
+
+Wire format, version 1 (every number little-endian; docs/drivers.md has the table):
+
+- header, 12 bytes: ``b"DQ"``, version ``u8`` (1), kind ``u8``, sequence number ``u32``,
+  joint count ``n`` ``u16``, status ``u16``;
+- ``HELLO`` (1, client → server): the header only; answered by ``WELCOME`` (2): the
+  period ``f64`` [s] and the joint names, UTF-8, separated by ``\\0``;
+- ``RESET`` (3): ``q0[n]`` ``f64`` [rad]; answered by ``STATE``;
+- ``COMMAND`` (4): ``qd[n]`` [rad/s], ``s``, ``σ`` [s], all ``f64``; status 0 = track,
+  1 = brake, 2 = hold (zero velocity); answered by ``STATE``;
+- ``STATE`` (5, server → client): ``t`` [s], ``q[n]``, ``qd[n]``, ``torque[n]``,
+  ``torque_peak[n]``, all ``f64``; its sequence number is that of the message it answers;
+- ``ERROR`` (6, server → client): the reason, UTF-8; status: the reason's code.
+
+Both ends reject a packet of the wrong length, magic, version, kind or joint count, with a
+non-finite number, or (client) with a sequence number other than the one awaited (a
+duplicate, a reordered or a late reply), and count it by reason; neither ever raises on
+one. The server answers a repeated command (same sequence number as the last executed)
+with the same state, without stepping again.
+"""
+
+from __future__ import annotations
+
+import struct
+import threading
+import time
+from collections import Counter
+
+import numpy as np
+
+from dqcontrol.errors import DQControlError, ParameterError
+from dqcontrol.sim.mujoco_sim import Measurement
+
+__all__ = [
+    "HEADER",
+    "PROTOCOL_VERSION",
+    "BridgeDriver",
+    "BridgeError",
+    "SimServer",
+    "decode",
+    "encode_command",
+    "encode_state",
+]
+
+PROTOCOL_VERSION = 1
+MAGIC = b"DQ"
+#: magic, version, kind, sequence number, joint count, status.
+HEADER = struct.Struct("<2sBBIHH")
+HELLO, WELCOME, RESET, COMMAND, STATE, ERROR = 1, 2, 3, 4, 5, 6
+TRACK, BRAKE, HOLD = 0, 1, 2
+_KINDS = {HELLO, WELCOME, RESET, COMMAND, STATE, ERROR}
+
+
+class BridgeError(DQControlError):
+    """The bridge could not be set up (no server, no answer to ``HELLO``, a bad address)."""
+
+
+class PacketError(ValueError):
+    """A packet that is rejected; ``reason`` names why (the counters' key)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+def _header(kind: int, seq: int, n: int, status: int = 0) -> bytes:
+    return HEADER.pack(MAGIC, PROTOCOL_VERSION, kind, seq & 0xFFFFFFFF, n, status)
+
+
+def _floats(*arrays) -> bytes:
+    return np.concatenate([np.atleast_1d(np.asarray(a, dtype="<f8")) for a in arrays]).tobytes()
+
+
+def encode_command(seq: int, qd: np.ndarray, s: float, sigma: float, status: int = TRACK) -> bytes:
+    """A ``COMMAND`` packet."""
+    return _header(COMMAND, seq, len(qd), status) + _floats(qd, s, sigma)
+
+
+def encode_state(seq: int, m: Measurement, status: int = 0) -> bytes:
+    """A ``STATE`` packet answering message ``seq``."""
+    return _header(STATE, seq, len(m.q), status) + _floats(
+        m.t_s, m.q, m.qd, m.torque, m.torque_peak
+    )
+
+
+def _body_size(kind: int, n: int) -> int | None:
+    return {
+        HELLO: 0,
+        RESET: 8 * n,
+        COMMAND: 8 * (n + 2),
+        STATE: 8 * (1 + 4 * n),
+    }.get(kind)
+
+
+def decode(packet: bytes, n_expected: int | None = None) -> tuple[int, int, int, object]:
+    """``(kind, seq, status, body)`` of a packet; ``body``: the float array (``RESET``,
+    ``COMMAND``, ``STATE``), ``(period, names)`` (``WELCOME``), the text (``ERROR``) or
+    ``None`` (``HELLO``).
+
+    Raises:
+        PacketError: the packet is malformed (its ``reason`` says how).
+    """
+    if len(packet) < HEADER.size:
+        raise PacketError("short packet")
+    magic, version, kind, seq, n, status = HEADER.unpack_from(packet)
+    if magic != MAGIC:
+        raise PacketError("bad magic")
+    if version != PROTOCOL_VERSION:
+        raise PacketError("wrong version")
+    if kind not in _KINDS:
+        raise PacketError("unknown kind")
+    body = packet[HEADER.size :]
+    if kind == ERROR:
+        return kind, seq, status, body.decode("utf-8", "replace")
+    if kind == WELCOME:
+        if len(body) < 8:
+            raise PacketError("wrong length")
+        period = struct.unpack_from("<d", body)[0]
+        names = tuple(body[8:].decode("utf-8", "replace").split("\0")) if n else ()
+        if len(names) != n or not (np.isfinite(period) and period > 0):
+            raise PacketError("bad welcome")
+        return kind, seq, status, (period, names)
+    if n_expected is not None and kind != HELLO and n != n_expected:
+        raise PacketError("wrong joint count")
+    size = _body_size(kind, n)
+    if size is None or len(body) != size:
+        raise PacketError("wrong length")
+    if kind == HELLO:
+        return kind, seq, status, None
+    values = np.frombuffer(body, dtype="<f8").astype(float)
+    if not np.isfinite(values[: None if kind != STATE else 1 + 2 * n]).all():
+        raise PacketError("non-finite value")
+    return kind, seq, status, values
+
+
+def _zmq():
+    try:
+        import zmq
+    except ImportError as exc:  # pragma: no cover - pyzmq comes with meshcat
+        raise BridgeError("the bridge needs pyzmq (pip install pyzmq)") from exc
+    return zmq
+
+
+def _loopback(address: str) -> str:
+    if not isinstance(address, str) or not address.startswith("tcp://"):
+        raise ParameterError(f"address must be 'tcp://HOST:PORT', got {address!r}")
+    return address
+
+
+class SimServer:
+    """Serves a simulated driver on ``address`` (a ZMQ ROUTER socket).
+
+    Args:
+        driver: a simulated driver (``reset``, ``write``, ``hold``, ``read``, ``period_s``).
+        address: ``tcp://127.0.0.1:PORT``; port 0 picks a free port (:attr:`address`
+            says which).
+
+    :meth:`serve` answers messages until :meth:`stop` (or ``max_messages``); every
+    rejected packet is counted in :attr:`rejected` by reason and answered with ``ERROR``.
+    """
+
+    def __init__(self, driver, address: str = "tcp://127.0.0.1:0") -> None:
+        zmq = _zmq()
+        self.driver = driver
+        self.joint_names = tuple(driver.joint_names)
+        self.n = len(self.joint_names)
+        self._ctx = zmq.Context.instance()
+        self._sock = self._ctx.socket(zmq.ROUTER)
+        self._sock.setsockopt(zmq.LINGER, 0)
+        addr = _loopback(address)
+        if addr.endswith(":0"):
+            port = self._sock.bind_to_random_port(addr[: addr.rindex(":")])
+            addr = f"{addr[: addr.rindex(':')]}:{port}"
+        else:
+            self._sock.bind(addr)
+        #: The address the server listens on.
+        self.address = addr
+        self.rejected: Counter[str] = Counter()
+        self.served = 0
+        self._stop = threading.Event()
+        self._last_seq: int | None = None
+        self._last_state: bytes | None = None
+
+    def stop(self) -> None:
+        """Ask :meth:`serve` to return (from another thread)."""
+        self._stop.set()
+
+    def close(self) -> None:
+        self._sock.close(0)
+
+    def serve(self, *, max_messages: int | None = None, poll_ms: int = 50) -> None:
+        """Answer messages until :meth:`stop` or ``max_messages`` have been handled."""
+        zmq = _zmq()
+        handled = 0
+        while not self._stop.is_set() and (max_messages is None or handled < max_messages):
+            if not self._sock.poll(poll_ms, zmq.POLLIN):
+                continue
+            frames = self._sock.recv_multipart()
+            handled += 1
+            if len(frames) != 2:
+                self.rejected["bad framing"] += 1
+                continue
+            ident, packet = frames
+            for answer in self.answers(packet):
+                self._sock.send_multipart([ident, answer])
+
+    def answers(self, packet: bytes) -> list[bytes]:
+        """The packets sent back for ``packet``: :meth:`handle`'s one answer (a subclass may
+        drop, repeat or delay answers to test a client)."""
+        return [self.handle(packet)]
+
+    def handle(self, packet: bytes) -> bytes:
+        """The answer to one packet (never raises)."""
+        try:
+            kind, seq, status, body = decode(packet, self.n)
+            if kind == HELLO:
+                names = "\0".join(self.joint_names).encode()
+                return (
+                    _header(WELCOME, seq, self.n) + struct.pack("<d", self.driver.period_s) + names
+                )
+            if kind == RESET:
+                m = self.driver.reset(body)
+            elif kind == COMMAND:
+                if seq == self._last_seq and self._last_state is not None:
+                    self.rejected["duplicate"] += 1
+                    return self._last_state
+                if status == HOLD:
+                    self.driver.hold()
+                else:
+                    self.driver.write(body[: self.n])
+                m = self.driver.read()
+            else:
+                raise PacketError("unexpected kind")
+        except PacketError as exc:
+            self.rejected[exc.reason] += 1
+            return _header(ERROR, 0, 0, 1) + exc.reason.encode()
+        except Exception as exc:  # noqa: BLE001 - the server reports, it does not stop
+            self.rejected["driver error"] += 1
+            return _header(ERROR, 0, 0, 2) + f"{type(exc).__name__}: {exc}".encode()
+        self.served += 1
+        self._last_seq, self._last_state = seq, encode_state(seq, m)
+        return self._last_state
+
+    def __enter__(self) -> SimServer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+        self.close()
+
+
+class BridgeDriver:
+    """A joint driver whose arm is a :class:`SimServer` in another process or thread.
+
+    Args:
+        address: the server's ``tcp://127.0.0.1:PORT``.
+        timeout_s: how long ``reset``/``write``/``hold`` wait for the answering state [s];
+            without it the measurement is not renewed (the loop's watchdog counts that).
+        hello_timeout_s: how long the first contact may take [s].
+
+    Raises:
+        BridgeError: no ``WELCOME`` within ``hello_timeout_s``.
+
+    Attributes:
+        rejected: received packets rejected, by reason (``"stale sequence"`` for
+            duplicated, reordered or late replies, ``"wrong length"``, ``"wrong version"``,
+            ``"non-finite value"``, ``"wrong joint count"``, ``"server error: …"`` ...).
+        timeouts: commands whose state did not arrive within ``timeout_s``.
+    """
+
+    def __init__(
+        self, address: str, *, timeout_s: float = 0.5, hello_timeout_s: float = 5.0
+    ) -> None:
+        zmq = _zmq()
+        self._zmq = zmq
+        self.address = _loopback(address)
+        self.timeout_s = float(timeout_s)
+        self._sock = zmq.Context.instance().socket(zmq.DEALER)
+        self._sock.setsockopt(zmq.LINGER, 0)
+        self._sock.connect(self.address)
+        self.rejected: Counter[str] = Counter()
+        self.timeouts = 0
+        self._seq = 0
+        self._last: Measurement | None = None
+        self.n = 0
+        body = self._request(_header(HELLO, 0, 0), WELCOME, hello_timeout_s)
+        if body is None:
+            self.close()
+            raise BridgeError(f"no answer from a dqcontrol sim-server at {self.address}")
+        self.period_s, self.joint_names = body
+        self.n = len(self.joint_names)
+
+    @property
+    def meta(self) -> dict:
+        return {"simulator": "bridge", "address": self.address}
+
+    def report(self) -> dict:
+        """Counters for the run log: rejected packets by reason, timeouts."""
+        return {"rejected": dict(self.rejected), "timeouts": self.timeouts}
+
+    def close(self) -> None:
+        self._sock.close(0)
+
+    def _request(self, packet: bytes, want: int, timeout_s: float):
+        """Send ``packet`` and wait for the answer of kind ``want`` carrying its sequence
+        number; returns its body, or ``None`` after ``timeout_s``."""
+        seq = HEADER.unpack_from(packet)[3]
+        self._sock.send(packet)
+        deadline = time.perf_counter() + timeout_s
+        while True:
+            left = deadline - time.perf_counter()
+            if left <= 0 or not self._sock.poll(max(1, int(1e3 * left)), self._zmq.POLLIN):
+                self.timeouts += 1
+                return None
+            try:
+                kind, got, _status, body = decode(self._sock.recv(), self.n or None)
+            except PacketError as exc:
+                self.rejected[exc.reason] += 1
+                continue
+            if kind == ERROR:
+                self.rejected[f"server error: {body}"] += 1
+                continue
+            if kind != want:
+                self.rejected["unexpected kind"] += 1
+                continue
+            if got != seq:
+                self.rejected["stale sequence"] += 1
+                continue
+            return body
+
+    def _state(self, packet: bytes) -> None:
+        values = self._request(packet, STATE, self.timeout_s)
+        if values is None:
+            return
+        n = self.n
+        self._last = Measurement(
+            t_s=float(values[0]),
+            q=values[1 : 1 + n],
+            qd=values[1 + n : 1 + 2 * n],
+            torque=values[1 + 2 * n : 1 + 3 * n],
+            torque_peak=values[1 + 3 * n :],
+        )
+
+    def _next(self) -> int:
+        self._seq = (self._seq + 1) & 0xFFFFFFFF
+        return self._seq
+
+    def reset(self, q0: np.ndarray) -> Measurement:
+        """Reset the served simulation at ``q0`` [rad] (server's joint order)."""
+        self._state(_header(RESET, self._next(), self.n) + _floats(q0))
+        if self._last is None:
+            raise BridgeError(f"no answer to reset from {self.address}")
+        return self._last
+
+    def read(self) -> Measurement:
+        if self._last is None:
+            raise BridgeError(f"no measurement from {self.address} yet (reset first)")
+        return self._last
+
+    def write(self, qd_command: np.ndarray) -> None:
+        self._state(encode_command(self._next(), qd_command, 1.0, 0.0))
+
+    def hold(self) -> None:
+        self._state(encode_command(self._next(), np.zeros(self.n), 0.0, 0.0, HOLD))
+
+    def __repr__(self) -> str:
+        return f"BridgeDriver({self.address!r}, n={self.n})"

@@ -1,0 +1,285 @@
+"""The process bridge on the loopback address: equal to the in-process run, wall-clock pacing,
+and bad, dropped, repeated, reordered and late packets, and a server that disappears."""
+
+from __future__ import annotations
+
+import struct
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from dqcontrol.controllers import LocalController
+from dqcontrol.model.library import LBR4P_Q0
+from dqcontrol.sim import KinematicDriver, MujocoDriver, run_loop
+from dqcontrol.sim.bridge import (
+    COMMAND,
+    HEADER,
+    BridgeDriver,
+    BridgeError,
+    SimServer,
+    decode,
+    encode_command,
+)
+from dqcontrol.trajectories import Circle
+
+zmq = pytest.importorskip("zmq")
+
+
+class Served:
+    """A server in a thread, stopped and closed on exit."""
+
+    def __init__(self, server: SimServer) -> None:
+        self.server = server
+        self.thread = threading.Thread(target=server.serve, daemon=True)
+
+    def __enter__(self) -> SimServer:
+        self.thread.start()
+        return self.server
+
+    def __exit__(self, *exc) -> None:
+        self.server.stop()
+        self.thread.join(timeout=5.0)
+        self.server.close()
+
+
+def test_a_stepped_run_over_the_socket_equals_the_in_process_run(lbr4p):
+    ref = run_loop(
+        LocalController(lbr4p, Circle(1.0), 0.05), MujocoDriver(lbr4p, 0.05), q0=LBR4P_Q0
+    )
+    with Served(SimServer(MujocoDriver(lbr4p, 0.05))) as server:
+        client = BridgeDriver(server.address)
+        res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
+        client.close()
+    assert len(res.log) == len(ref.log) and res.metrics.completed
+    for name in ("t_s", "q", "qd_measured", "qd_command", "torque", "torque_peak", "sigma"):
+        np.testing.assert_allclose(getattr(res.log, name), getattr(ref.log, name), atol=1e-12)
+    assert res.log.meta["simulator"] == "bridge"
+    assert res.log.meta["driver_report"] == {"rejected": {}, "timeouts": 0}
+
+
+def test_at_100_hz_on_the_wall_clock(lbr4p):
+    with Served(SimServer(MujocoDriver(lbr4p, 0.01))) as server:
+        client = BridgeDriver(server.address)
+        start = time.perf_counter()
+        res = run_loop(
+            LocalController(lbr4p, Circle(2.0), 0.01), client, q0=LBR4P_Q0, realtime=True
+        )
+        wall = time.perf_counter() - start
+        client.close()
+    stop = res.log.meta["stop"]
+    if res.reason == "deadline":  # a loaded machine: the watchdog did its job
+        pytest.skip(f"missed a deadline under load: {res.note}")
+    assert res.metrics.completed and wall >= 0.01 * (len(res.log) - 1)
+    assert stop["lateness_max_ms"] < 0.0 and stop["brake_periods"] >= 1
+
+
+def _raw(address: str):
+    sock = zmq.Context.instance().socket(zmq.DEALER)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.connect(address)
+    return sock
+
+
+def _header(kind, seq, n, status=0, version=1, magic=b"DQ"):
+    return HEADER.pack(magic, version, kind, seq, n, status)
+
+
+def test_the_server_counts_bad_packets_and_keeps_serving(lbr4p):
+    nan_cmd = encode_command(1, np.full(7, np.nan), 1.0, 0.0)
+    bad = {
+        "short packet": b"DQ",
+        "bad magic": _header(COMMAND, 1, 7, magic=b"XX") + bytes(72),
+        "wrong version": _header(COMMAND, 1, 7, version=9) + bytes(72),
+        "unknown kind": _header(77, 1, 7) + bytes(72),
+        "wrong length": _header(COMMAND, 1, 7) + bytes(40),
+        "wrong joint count": encode_command(1, np.zeros(6), 1.0, 0.0),
+        "non-finite value": nan_cmd,
+    }
+    with Served(SimServer(KinematicDriver(lbr4p, 0.05))) as server:
+        sock = _raw(server.address)
+        for packet in bad.values():
+            sock.send(packet)
+            assert sock.poll(2000)
+            kind, _, _, reason = decode(sock.recv())
+            assert kind == 6 and reason in bad
+        sock.send_multipart([b"two", b"frames"])
+        sock.close(0)
+        client = BridgeDriver(server.address)
+        res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
+        client.close()
+        assert res.metrics.completed
+        time.sleep(0.1)
+        assert {k: server.rejected[k] for k in bad} == dict.fromkeys(bad, 1)
+        assert server.rejected["bad framing"] == 1
+
+
+def test_a_repeated_command_is_answered_without_stepping_again(lbr4p):
+    with Served(SimServer(KinematicDriver(lbr4p, 0.05))) as server:
+        client = BridgeDriver(server.address)
+        client.reset(LBR4P_Q0)
+        sock = _raw(server.address)
+        sock.send(_header(3, 1, 7) + np.asarray(LBR4P_Q0, "<f8").tobytes())
+        assert sock.poll(2000)
+        sock.recv()
+        cmd = encode_command(5, np.full(7, 0.1), 1.0, 0.0)
+        states = []
+        for _ in range(2):
+            sock.send(cmd)
+            assert sock.poll(2000)
+            states.append(decode(sock.recv(), 7)[3])
+        sock.close(0)
+        client.close()
+        np.testing.assert_array_equal(states[0], states[1])
+        assert states[0][0] == pytest.approx(0.05) and server.rejected["duplicate"] == 1
+
+
+class Chaos(SimServer):
+    """A server whose answers are corrupted, repeated, reordered, delayed or dropped by a
+    plan keyed by the command count; it records every command it receives."""
+
+    def __init__(self, driver, plan) -> None:
+        super().__init__(driver)
+        self.plan = plan
+        self.commands: list[np.ndarray] = []
+        self._held: bytes | None = None
+
+    def answers(self, packet: bytes) -> list[bytes]:
+        kind = HEADER.unpack_from(packet)[2] if len(packet) >= HEADER.size else 0
+        answer = self.handle(packet)
+        if kind != COMMAND:
+            return [answer]
+        self.commands.append(decode(packet, self.n)[3][: self.n].copy())
+        action = self.plan(len(self.commands))
+        n = self.n
+        if action == "garbage":
+            nan = bytearray(answer)
+            struct.pack_into("<d", nan, HEADER.size + 8, float("nan"))  # q[0]
+            wrong_version = bytearray(answer)
+            wrong_version[2] = 2
+            return [answer[:-8], bytes(wrong_version), bytes(nan), answer[:8] + b"\x00" * 4, answer]
+        if action == "joints":
+            seq = HEADER.unpack_from(answer)[3]
+            return [HEADER.pack(b"DQ", 1, 5, seq, n - 1, 0) + bytes(8 * (1 + 4 * (n - 1))), answer]
+        if action == "repeat":
+            return [answer, answer]
+        if action == "hold back":  # answered late, after the next command's answer
+            self._held = answer
+            return []
+        if action == "release":
+            late, self._held = self._held, None
+            return [answer, late]
+        if action == "drop":
+            return []
+        return [answer]
+
+
+def test_the_client_rejects_bad_late_and_repeated_packets_with_reasons(lbr4p):
+    plan = {3: "garbage", 5: "joints", 7: "repeat", 9: "hold back", 10: "release"}.get
+    with Served(Chaos(KinematicDriver(lbr4p, 0.05), plan)) as server:
+        client = BridgeDriver(server.address, timeout_s=0.2)
+        res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
+        client.close()
+    report = res.log.meta["driver_report"]
+    assert report["rejected"] == {
+        "wrong length": 1,
+        "wrong version": 1,
+        "non-finite value": 1,
+        "wrong joint count": 2,  # a header with n = 6, and one truncated to n = 0
+        "stale sequence": 2,  # the repeated answer of command 7 and the late one of 9
+    }
+    assert report["timeouts"] == 1  # command 9: its answer came too late
+    assert res.metrics.completed and not res.interrupted
+    _assert_safe(server.commands, lbr4p)
+
+
+def _assert_safe(commands, lbr4p, a_max=10.0, period=0.05):
+    u = np.array(commands)
+    assert np.isfinite(u).all()
+    assert (np.abs(u) <= lbr4p.limits.qd_max + 1e-9).all()
+    assert np.abs(np.diff(u, axis=0)).max() <= a_max * period + 1e-9
+
+
+def test_dropped_answers_make_the_loop_brake_and_hold(lbr4p):
+    plan = lambda k: "drop" if k >= 8 else None  # noqa: E731
+    with Served(Chaos(KinematicDriver(lbr4p, 0.05), plan)) as server:
+        client = BridgeDriver(server.address, timeout_s=0.05)
+        start = time.perf_counter()
+        res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
+        took = time.perf_counter() - start
+        client.close()
+    assert res.reason == "stale" and res.log.meta["stop"]["reason"] == "stale"
+    assert "not renewed for 3 periods" in res.note and took < 5.0
+    assert len(res.log) == 8 + 2  # the last two samples from a measurement 1-2 periods old
+    brake = res.log.meta["stop"]["brake_periods"]
+    assert brake >= 1 and len(server.commands) == len(res.log) + brake + 1  # + the hold
+    assert not server.commands[-1].any() and not server.commands[-2].any()
+    _assert_safe(server.commands, lbr4p)
+
+
+def test_a_server_that_disappears(lbr4p):
+    served = Served(SimServer(KinematicDriver(lbr4p, 0.05)))
+    with served as server:
+        client = BridgeDriver(server.address, timeout_s=0.05)
+
+        def vanish(k, _driver, _result):
+            if k == 5:
+                server.stop()
+                served.thread.join(timeout=5.0)
+
+        res = run_loop(
+            LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0, on_sample=vanish
+        )
+        client.close()
+    assert res.reason == "stale" and len(res.log) <= 9
+    assert res.log.meta["driver_report"]["timeouts"] >= 3
+
+
+def test_no_server_is_a_clear_error():
+    with pytest.raises(BridgeError, match="no answer from a dqcontrol sim-server"):
+        BridgeDriver("tcp://127.0.0.1:9", hello_timeout_s=0.2)
+
+
+def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
+    from dqcontrol.cli import main
+
+    with socket_port() as port:
+        pass
+    done = threading.Event()
+    codes = []
+
+    def serve():
+        codes.append(main(["sim-server", "--port", str(port), "--max-messages", "40"]))
+        done.set()
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    client = BridgeDriver(f"tcp://127.0.0.1:{port}", hello_timeout_s=10.0)
+    res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
+    client.close()
+    sent = 2 + len(res.log) + res.log.meta["stop"]["brake_periods"] + 1  # hello, reset, hold
+    assert res.metrics.completed and sent < 40
+    sock = _raw(f"tcp://127.0.0.1:{port}")
+    for _ in range(40 - sent):  # the server stops after its 40th message
+        sock.send(_header(1, 0, 0))
+        assert sock.poll(5000)
+        sock.recv()
+    sock.close(0)
+    thread.join(timeout=20.0)
+    assert done.is_set() and codes == [0]
+    assert "on tcp://127.0.0.1:" in capsys.readouterr().out
+
+
+class socket_port:
+    """A free TCP port on the loopback address."""
+
+    def __enter__(self) -> int:
+        import socket
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        return self.sock.getsockname()[1]
+
+    def __exit__(self, *exc) -> None:
+        self.sock.close()
