@@ -1,9 +1,11 @@
 """Fault injection around a simulation: measurement noise and measurement delay.
 
-The closed loops (:func:`~dqcontrol.sim.run_mujoco`) talk to a simulation through five
-members — ``reset``, ``step``, ``measure``, ``steps_for`` and ``model`` (plus ``data`` for a
-viewer). :class:`FaultySimulation` wraps any object with these members and corrupts what
-the controller *sees*, never the physics:
+The control loop (:func:`~dqcontrol.sim.run_loop`, through
+:class:`~dqcontrol.sim.SimulationDriver`) talks to a simulation through five members —
+``reset``, ``step``, ``measure``, ``steps_for`` and ``model`` (plus ``data`` for a viewer).
+:class:`FaultySimulation` wraps any object with these members and corrupts what the
+controller *sees*, never the physics (the same faults around any joint driver:
+:class:`~dqcontrol.sim.FaultyDriver`):
 
 - seeded Gaussian noise on the measured joint positions and velocities;
 - a measurement delay of ``d`` control periods: the controller receives the joint positions
