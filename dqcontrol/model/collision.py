@@ -45,6 +45,7 @@ __all__ = [
     "Capsule",
     "CollisionModel",
     "Cylinder",
+    "DistanceBatch",
     "HalfSpace",
     "Obstacle",
     "OBSTACLE_KINDS",
@@ -66,6 +67,9 @@ MAX_EXTENT_M = 1e4
 FAILED_DISTANCE_M = -1e3
 
 _NAN3 = np.full(3, np.nan)
+
+#: Shapes further apart than this [m] take their normal from the witness points.
+SEPARATED_M = 1e-6
 
 
 def _finite_vector(name: str, value, size: int) -> tuple[float, ...]:
@@ -309,6 +313,23 @@ def read_srdf_pairs(srdf: str | os.PathLike) -> tuple[tuple[str, str], ...]:
     return tuple(pairs)
 
 
+class DistanceBatch(NamedTuple):
+    """The pairs within an influence distance at several configurations (one row each).
+
+    Attributes:
+        state: index of the configuration ``(k,)``.
+        pair: index of the pair in :attr:`CollisionModel.pairs` ``(k,)``.
+        distance_m: signed distance [m] ``(k,)`` (``-inf``: the penetration solver failed;
+            the gradient is then zero).
+        gradient: ``∂d/∂q`` [m/rad] ``(k, n)``.
+    """
+
+    state: np.ndarray
+    pair: np.ndarray
+    distance_m: np.ndarray
+    gradient: np.ndarray
+
+
 class PairDistance(NamedTuple):
     """One pair's distance at one configuration.
 
@@ -495,6 +516,7 @@ class CollisionModel:
             ]
         )
         self._plane_pair = self._plane[self._b] if self._b.size else np.zeros(0, dtype=bool)
+        self._radius_sum = self._radii[self._a] + self._radii[self._b]
 
     # ------------------------------------------------------------------ queries
     @property
@@ -530,7 +552,8 @@ class CollisionModel:
         centres = np.einsum("gij,gj->gi", rot[joints], self._centres_joint) + trans[joints]
         self._trans = trans
         a, b = self._a, self._b
-        gap = np.linalg.norm(centres[a] - centres[b], axis=1) - self._radii[a] - self._radii[b]
+        between = centres[a] - centres[b]
+        gap = np.sqrt(np.einsum("ij,ij->i", between, between)) - self._radius_sum
         plane = self._plane_pair
         if plane.any():
             nb = self._normals[b[plane]]
@@ -555,10 +578,12 @@ class CollisionModel:
         gm, gd = self.geometry, self.geometry_data
         compute = pin.computeDistance
         found, dist, pa, pb, normal = [], [], [], [], []
+        failed = False
         for k in chosen.tolist():
             res = compute(gm, gd, k)
             d = res.min_distance
             if not d > FAILED_DISTANCE_M:  # EPA gave up on a deep penetration
+                failed = True
                 found.append(k)
                 dist.append(-math.inf)
                 pa.append(_NAN3)
@@ -574,30 +599,140 @@ class CollisionModel:
         if not found:
             return ()
         idx = np.array(found)
-        pa, pb, normal = np.array(pa), np.array(pb), np.array(normal)
-        grad = np.nan_to_num(self._gradients(idx, pa, pb, normal), nan=0.0)
+        pa, pb = np.array(pa), np.array(pb)
+        normal = _separation_normals(np.array(dist), pa, pb, np.array(normal))
+        grad = self._gradients(idx, pa, pb, normal)
+        if failed:
+            grad[np.isnan(grad)] = 0.0
         return tuple(
             PairDistance(int(k), float(dk), pa[i], pb[i], normal[i], grad[i])
             for i, (k, dk) in enumerate(zip(found, dist, strict=True))
         )
 
     def _gradients(
-        self, idx: np.ndarray, pa: np.ndarray, pb: np.ndarray, normal: np.ndarray
+        self,
+        idx: np.ndarray,
+        pa: np.ndarray,
+        pb: np.ndarray,
+        normal: np.ndarray,
+        jacobians: np.ndarray | None = None,
     ) -> np.ndarray:
         """``∇d = (J_b(p_b) - J_a(p_a))ᵀ n`` for the pairs ``idx`` ``(k, n)`` [m/rad].
 
         With the world-frame joint Jacobian ``[J_v; J_ω]`` (the velocity of the body point at
         the world origin), the velocity of a body point at ``p`` is ``J_v q̇ + J_ω q̇ × p``
         on the columns of the joints that carry the body, so
-        ``nᵀ J_p = (nᵀ J_v + (p × n)ᵀ J_ω)`` on those columns."""
-        jac = self.data.J
-        jv, jw = jac[:3], jac[3:]
+        ``nᵀ J_p = (nᵀ J_v + (p × n)ᵀ J_ω)`` on those columns. ``jacobians``: one ``(6, n)``
+        world Jacobian per pair ``(k, 6, n)`` (default: the last :meth:`update`'s)."""
         ja = self._support[self._joint_of[self._a[idx]]]
         jb = self._support[self._joint_of[self._b[idx]]]
-        n_v = normal @ jv
-        grad_b = (n_v + np.cross(pb, normal) @ jw) * jb
-        grad_a = (n_v + np.cross(pa, normal) @ jw) * ja
+        if jacobians is None:
+            jac = self.data.J
+            n_v = normal @ jac[:3]
+            grad_b = (n_v + _cross(pb, normal) @ jac[3:]) * jb
+            grad_a = (n_v + _cross(pa, normal) @ jac[3:]) * ja
+        else:
+            jv, jw = jacobians[:, :3], jacobians[:, 3:]
+            n_v = np.einsum("ki,kij->kj", normal, jv)
+            grad_b = (n_v + np.einsum("ki,kij->kj", _cross(pb, normal), jw)) * jb
+            grad_a = (n_v + np.einsum("ki,kij->kj", _cross(pa, normal), jw)) * ja
         return grad_b - grad_a
+
+    def query_batch(self, qs: np.ndarray, influence_m: float) -> DistanceBatch:
+        """Every pair closer than ``influence_m`` [m] at each configuration of ``qs``
+        ``(N, n)`` (unchecked): the same distances and gradients as :meth:`query`, with one
+        bounding-sphere filter for the whole batch (the path-following controller's
+        predicted states)."""
+        model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
+        count, nj = qs.shape[0], model.njoints
+        rot = np.empty((count, nj, 3, 3))
+        trans = np.empty((count, nj, 3))
+        rot[:, 0], trans[:, 0] = np.eye(3), 0.0
+        jac = np.empty((count, 6, self.robot.nq))
+        placements = data.oMi
+        for i in range(count):
+            pin.computeJointJacobians(model, data, qs[i])
+            jac[i] = data.J
+            for j in self._moving_joints:
+                m = placements[j]
+                rot[i, j] = m.rotation
+                trans[i, j] = m.translation
+        joints = self._joint_of
+        centres = np.einsum("ngij,gj->ngi", rot[:, joints], self._centres_joint)
+        centres += trans[:, joints]
+        a, b = self._a, self._b
+        between = centres[:, a] - centres[:, b]
+        gap = np.sqrt(np.einsum("npi,npi->np", between, between)) - self._radius_sum
+        plane = self._plane_pair
+        if plane.any():
+            gap[:, plane] = (
+                np.einsum("pi,npi->np", self._normals[b[plane]], centres[:, a[plane]])
+                - self._offsets[b[plane]]
+                - self._radii[a[plane]]
+            )
+        states, pairs = np.nonzero(gap < influence_m)
+        self.query_count += states.size
+        compute = pin.computeDistance
+        found_state, found, dist, pa, pb, normal = [], [], [], [], [], []
+        last = -1
+        for i, k in zip(states.tolist(), pairs.tolist(), strict=True):
+            if i != last:
+                pin.forwardKinematics(model, data, qs[i])
+                pin.updateGeometryPlacements(model, data, gm, gd)
+                last = i
+            res = compute(gm, gd, k)
+            d = res.min_distance
+            if not d > FAILED_DISTANCE_M:
+                found_state.append(i)
+                found.append(k)
+                dist.append(-math.inf)
+                pa.append(_NAN3)
+                pb.append(_NAN3)
+                normal.append(_NAN3)
+            elif d < influence_m:
+                found_state.append(i)
+                found.append(k)
+                dist.append(d)
+                pa.append(res.getNearestPoint1())
+                pb.append(res.getNearestPoint2())
+                normal.append(res.normal)
+        n = self.robot.nq
+        if not found:
+            empty = np.zeros(0, dtype=int)
+            return DistanceBatch(empty, empty, np.zeros(0), np.zeros((0, n)))
+        state = np.array(found_state)
+        idx = np.array(found)
+        distance = np.array(dist)
+        pa, pb = np.array(pa), np.array(pb)
+        normal = _separation_normals(distance, pa, pb, np.array(normal))
+        grad = self._gradients(idx, pa, pb, normal, jac[state])
+        grad[~np.isfinite(distance)] = 0.0
+        return DistanceBatch(state, idx, distance, grad)
+
+
+def _separation_normals(
+    distance: np.ndarray, pa: np.ndarray, pb: np.ndarray, normal: np.ndarray
+) -> np.ndarray:
+    """``(p_b - p_a)/d`` where the shapes are apart (``d > SEPARATED_M``): the direction in
+    which the distance grows, whichever witness points GJK chose on parallel faces (coal's own
+    normal there depends on its warm start); coal's normal where they touch or overlap."""
+    apart = distance > SEPARATED_M
+    if apart.any():
+        normal = normal.copy()
+        normal[apart] = (pb[apart] - pa[apart]) / distance[apart, None]
+    return normal
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise ``a × b`` of ``(k, 3)`` arrays (``np.cross`` costs tens of µs for small ones)."""
+    return np.stack(
+        (
+            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+        ),
+        axis=1,
+    )
 
 
 def _robot_geometry(robot: RobotModel) -> pin.GeometryModel:

@@ -123,11 +123,11 @@ class CollisionLimit(Limit):
             key += pred.q_lin.tobytes() + pred.q_base.tobytes() + pred.weights.tobytes()
         if key == self._key:  # the same step asked again (set-up, then bounds)
             return self._rows
-        now = _usable(self.collision.query(ctx.q, self.influence_m))
-        self.last_min_distance_m = min((p.distance_m for p in now), default=math.inf)
         if consistent:
-            out = self._predicted(ctx, now)
+            out = self._predicted(ctx)
         else:
+            now = _usable(self.collision.query(ctx.q, self.influence_m))
+            self.last_min_distance_m = min((p.distance_m for p in now), default=math.inf)
             out = self._damper(ctx, now)
         self._key, self._rows = key, out
         self.last_rows = 0 if out is None else int(out.lower.size)
@@ -148,32 +148,32 @@ class CollisionLimit(Limit):
         lower = -rate * np.maximum(d - self.safety_m, 0.0)
         return Inequality(self.name, c, lower, np.full(d.size, np.inf))
 
-    def _predicted(self, ctx: StepContext, now: tuple[PairDistance, ...]) -> Inequality | None:
+    def _predicted(self, ctx: StepContext) -> Inequality | None:
         """``∇d(q̄_i)ᵀ Σ_j W_ij q̇_j ≥ min(d_s, d(q)) - d(q̄_i) + ∇d(q̄_i)ᵀ (q̄_i - q_base,i)``
-        at every predicted state."""
+        at every predicted state (one batched query: the measured state, then the
+        linearisation points)."""
         pred, layout = ctx.prediction, ctx.layout
-        current = {p.pair: p.distance_m for p in now}
-        idx = layout.qd_index()
-        rows, lower = [], []
-        count = 0
-        for i in range(layout.num_blocks):
-            q_bar = pred.q_lin[i]
-            found = _usable(self.collision.query(q_bar, self.influence_m))
-            count += len(found)
-            if not found:
-                continue
-            grads = np.array([p.gradient for p in found])
-            d_bar = np.array([p.distance_m for p in found])
-            floor = np.array([min(self.safety_m, current.get(p.pair, math.inf)) for p in found])
-            c = np.zeros((len(found), layout.num_vars))
-            c[:, idx] = pred.weights[i][None, :, None] * grads[:, None, :]
-            rows.append(c)
-            lower.append(floor - d_bar + grads @ (q_bar - pred.q_base[i]))
-        self.pairs_in_influence = count
-        if not rows:
+        qs = np.vstack([ctx.q[None, :], pred.q_lin])
+        batch = self.collision.query_batch(qs, self.influence_m)
+        usable = np.isfinite(batch.distance_m)
+        state, pair = batch.state[usable], batch.pair[usable]
+        dist, grads = batch.distance_m[usable], batch.gradient[usable]
+        now = state == 0
+        self.last_min_distance_m = float(dist[now].min()) if now.any() else math.inf
+        current = np.full(self.collision.num_pairs, math.inf)
+        current[pair[now]] = dist[now]
+        ahead = ~now
+        self.pairs_in_influence = int(ahead.sum())
+        if not ahead.any():
             return None
-        low = np.concatenate(lower)
-        return Inequality(self.name, np.vstack(rows), low, np.full(low.size, np.inf))
+        block = state[ahead] - 1
+        grads, d_bar, pair = grads[ahead], dist[ahead], pair[ahead]
+        floor = np.minimum(self.safety_m, current[pair])
+        c = np.zeros((block.size, layout.num_vars))
+        c[:, layout.qd_index()] = pred.weights[block][:, :, None] * grads[:, None, :]
+        offset = np.einsum("kj,kj->k", grads, pred.q_lin[block] - pred.q_base[block])
+        lower = floor - d_bar + offset
+        return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
 
 
 def _usable(found: tuple[PairDistance, ...]) -> tuple[PairDistance, ...]:
