@@ -143,7 +143,9 @@ def run_loop(
 
     Returns:
         :class:`RunResult`; Ctrl-C, a driver or simulator error, a stale measurement or a
-        missed deadline keep the completed samples (``interrupted=True``, a ``note``).
+        missed deadline keep the completed samples (``interrupted=True``, a ``note``). The
+        log's ``meta["stop"]`` says why the run ended and how long it braked, and
+        ``meta["driver_report"]`` holds the driver's ``report()`` where it has one.
 
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
