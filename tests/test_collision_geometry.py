@@ -294,3 +294,39 @@ def test_a_batch_is_the_single_queries(lbr4p, panda):
         apart = batch.distance_m > 1e-3
         error = np.abs(batch.gradient - np.array([r[3] for r in rows]))[apart]
         assert error.max() < FD_TOL
+
+
+def test_batched_kinematics_are_pinocchio(lbr4p, panda):
+    """The numpy chain of :meth:`CollisionModel.query_batch` gives Pinocchio's joint
+    placements and world Jacobians (a re-based LBR4p too)."""
+    based = load_lbr4p(
+        base=np.array([[0, -1, 0, 0.1], [1, 0, 0, 0.2], [0, 0, 1, 0.3], [0, 0, 0, 1]])
+    )
+    for robot in (lbr4p, panda, based):
+        cm = CollisionModel(robot)
+        qs = robot.random_configurations(5, 1)
+        rot, trans, jac = cm._kinematics_batch(qs)
+        for i, q in enumerate(qs):
+            pin.computeJointJacobians(cm.model, cm.data, q)
+            assert np.allclose(jac[i], cm.data.J, atol=1e-12)
+            for j in range(1, cm.model.njoints):
+                assert np.allclose(rot[i, j], cm.data.oMi[j].rotation, atol=1e-12)
+                assert np.allclose(trans[i, j], cm.data.oMi[j].translation, atol=1e-12)
+
+
+@pytest.mark.parametrize("robot_name", ["lbr4p", "panda"])
+def test_the_filter_never_drops_a_pair_within_reach(robot_name, lbr4p, panda):
+    """The bounding balls give lower bounds of every pair's distance, so no pair within the
+    influence distance is filtered out."""
+    robot = lbr4p if robot_name == "lbr4p" else panda
+    cm = CollisionModel(robot, OBSTACLES)
+    qs = robot.random_configurations(20, 7, margin_rad=0.1)
+    rot, trans, _ = cm._kinematics_batch(qs)
+    bounds = cm._gaps(rot, trans)
+    for i, q in enumerate(qs):
+        true = np.full(cm.num_pairs, np.inf)
+        for p in cm.query(q, math.inf):
+            true[p.pair] = p.distance_m
+        finite = np.isfinite(true)
+        assert np.all(bounds[i][finite] <= true[finite] + 1e-9)
+    assert np.mean(bounds > 0.0) > 0.5  # and they are not trivially low

@@ -489,6 +489,8 @@ class CollisionModel:
             shape.computeLocalAABB()
             self._centres_local[k] = np.asarray(shape.aabb_center)
             self._radii[k] = float(shape.aabb_radius)
+            if isinstance(shape, coal.Sphere):  # the ball itself, not its box's
+                self._radii[k] = float(shape.radius)
         self._normals = np.zeros((count, 3))
         self._offsets = np.zeros(count)
         for k, obs in enumerate(self.obstacles):
@@ -509,6 +511,7 @@ class CollisionModel:
                 self._support[j, model.idx_vs[k]] = 1.0
                 k = model.parents[k]
         self._moving_joints = sorted({int(j) for j in self._joint_of if j > 0})
+        self._revolute = self._revolute_tables()
         self._centres_joint = np.array(
             [
                 go.placement.act(self._centres_local[k])
@@ -548,20 +551,7 @@ class CollisionModel:
             rot[j] = m.rotation
             trans[j] = m.translation
         rot[0], trans[0] = np.eye(3), np.zeros(3)
-        joints = self._joint_of
-        centres = np.einsum("gij,gj->gi", rot[joints], self._centres_joint) + trans[joints]
-        self._trans = trans
-        a, b = self._a, self._b
-        between = centres[a] - centres[b]
-        gap = np.sqrt(np.einsum("ij,ij->i", between, between)) - self._radius_sum
-        plane = self._plane_pair
-        if plane.any():
-            nb = self._normals[b[plane]]
-            gap[plane] = (
-                np.einsum("ij,ij->i", nb, centres[a[plane]])
-                - self._offsets[b[plane]]
-                - self._radii[a[plane]]
-            )
+        gap = self._gaps(rot[None], trans[None])[0]
         return np.flatnonzero(gap < influence_m)
 
     def update(self, q: np.ndarray) -> None:
@@ -638,25 +628,71 @@ class CollisionModel:
             grad_a = (n_v + np.einsum("ki,kij->kj", _cross(pa, normal), jw)) * ja
         return grad_b - grad_a
 
-    def query_batch(self, qs: np.ndarray, influence_m: float) -> DistanceBatch:
-        """Every pair closer than ``influence_m`` [m] at each configuration of ``qs``
-        ``(N, n)`` (unchecked): the same distances and gradients as :meth:`query`, with one
-        bounding-sphere filter for the whole batch (the path-following controller's
-        predicted states)."""
-        model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
-        count, nj = qs.shape[0], model.njoints
+    def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians
+        ``(N, 6, n)`` (as Pinocchio's ``data.J``) of a batch of configurations.
+
+        A chain of 1-DoF revolute joints is computed for the whole batch in numpy:
+        ``R_j = R_parent R_p,j Rot(a_j, q_j)``, ``t_j = R_parent t_p,j + t_parent``, and
+        joint ``j``'s column ``[t_j × ω_j; ω_j]`` with ``ω_j = R_j a_j``; other models loop
+        over Pinocchio."""
+        count, nj = qs.shape[0], self.model.njoints
         rot = np.empty((count, nj, 3, 3))
         trans = np.empty((count, nj, 3))
         rot[:, 0], trans[:, 0] = np.eye(3), 0.0
-        jac = np.empty((count, 6, self.robot.nq))
-        placements = data.oMi
-        for i in range(count):
-            pin.computeJointJacobians(model, data, qs[i])
-            jac[i] = data.J
-            for j in self._moving_joints:
-                m = placements[j]
-                rot[i, j] = m.rotation
-                trans[i, j] = m.translation
+        jac = np.zeros((count, 6, self.robot.nq))
+        if self._revolute is None:
+            model, data = self.model, self.data
+            for i in range(count):
+                pin.computeJointJacobians(model, data, qs[i])
+                jac[i] = data.J
+                for j in range(1, nj):
+                    m = data.oMi[j]
+                    rot[i, j] = m.rotation
+                    trans[i, j] = m.translation
+            return rot, trans, jac
+        parents, rotations, shifts, k1, k2, axes, iq = self._revolute
+        for j in range(1, nj):
+            angle = qs[:, iq[j]]
+            local = rotations[j] + np.sin(angle)[:, None, None] * k1[j]
+            local += (1.0 - np.cos(angle))[:, None, None] * k2[j]
+            up = rot[:, parents[j]]
+            rot[:, j] = up @ local
+            trans[:, j] = up @ shifts[j] + trans[:, parents[j]]
+            omega = rot[:, j] @ axes[j]
+            jac[:, 3:, iq[j]] = omega
+            jac[:, :3, iq[j]] = _cross(trans[:, j], omega)
+        return rot, trans, jac
+
+    def _revolute_tables(self) -> tuple | None:
+        """Constant tables of :meth:`_kinematics_batch` for a chain of 1-DoF revolute
+        joints (``None`` otherwise): each joint's parent, placement ``(R_p, t_p)``,
+        ``R_p K`` and ``R_p K²`` (``K`` the cross-product matrix of its unit axis ``a``),
+        ``a`` and its index in ``q``."""
+        from dqcontrol.model.chain_batch import _revolute_axis
+
+        model = self.model
+        nj = model.njoints
+        rotations, shifts = np.zeros((nj, 3, 3)), np.zeros((nj, 3))
+        k1, k2, axes = np.zeros((nj, 3, 3)), np.zeros((nj, 3, 3)), np.zeros((nj, 3))
+        iq = np.zeros(nj, dtype=int)
+        for j in range(1, nj):
+            axis = _revolute_axis(model.joints[j])
+            if axis is None or model.joints[j].nq != 1:
+                return None
+            k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+            placement = model.jointPlacements[j]
+            rotations[j], shifts[j] = placement.rotation, placement.translation
+            k1[j], k2[j], axes[j] = rotations[j] @ k, rotations[j] @ k @ k, axis
+            iq[j] = model.idx_qs[j]
+        parents = np.array([int(model.parents[j]) for j in range(nj)])
+        return parents, rotations, shifts, k1, k2, axes, iq
+
+    def _gaps(self, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
+        """Lower bounds of every pair's distance ``(N, pairs)`` [m] from the joint placements
+        ``(N, njoints, 3, 3)``, ``(N, njoints, 3)``: each shape is inside a ball (the
+        sphere itself, else the ball around its bounding box), and two balls are their
+        centres' distance less the radii apart; a half-space takes the ball's height."""
         joints = self._joint_of
         centres = np.einsum("ngij,gj->ngi", rot[:, joints], self._centres_joint)
         centres += trans[:, joints]
@@ -670,6 +706,16 @@ class CollisionModel:
                 - self._offsets[b[plane]]
                 - self._radii[a[plane]]
             )
+        return gap
+
+    def query_batch(self, qs: np.ndarray, influence_m: float) -> DistanceBatch:
+        """Every pair closer than ``influence_m`` [m] at each configuration of ``qs``
+        ``(N, n)`` (unchecked): the same distances and gradients as :meth:`query`, with one
+        bounding-sphere filter for the whole batch (the path-following controller's
+        predicted states)."""
+        model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
+        rot, trans, jac = self._kinematics_batch(qs)
+        gap = self._gaps(rot, trans)
         states, pairs = np.nonzero(gap < influence_m)
         self.query_count += states.size
         compute = pin.computeDistance
