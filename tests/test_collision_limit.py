@@ -258,3 +258,27 @@ def test_fuzz_obstacles_near_the_path(robot, phase, offset, radius, start):
     ctrl = make(robot, "path_following", Circle(2.0), (CollisionLimit(cm),))
     run = closed_loop(robot, ctrl, cm, 2.5, q0=q0)
     assert run["d_min"].min() >= SAFETY_M - TOLERANCE_M
+
+
+@pytest.mark.parametrize("name", ["path_following", "local"])
+def test_a_mesh_robot_keeps_the_safety_distance(name):
+    """The Panda (convex hulls of its meshes, the SRDF's allowed pairs) with a ball on its
+    circle."""
+    from dqcontrol import load_panda
+    from dqcontrol.model import PANDA_Q0, panda_urdf_path
+
+    panda = load_panda()
+    srdf = panda_urdf_path()[0].parent.parent / "srdf" / "panda.srdf"
+    point = dq_to_se3(Circle(2.0).anchored_at(panda.pose(PANDA_Q0)).target(1.0)).translation
+    cm = CollisionModel(
+        panda, (Sphere(name="ball", position_m=tuple(point), radius_m=0.03),), srdf=srdf
+    )
+    cls, kw = CONTROLLERS[name]
+    ctrl = cls(
+        panda, Circle(2.0), T, acceleration_limit=10.0, extra_limits=(CollisionLimit(cm),), **kw
+    )
+    run = closed_loop(panda, ctrl, cm, 3.0, q0=PANDA_Q0)
+    assert run["d_min"].min() >= SAFETY_M - TOLERANCE_M
+    assert run["sigma"][-1] < 1.0 and run["fallbacks"] == 0
+    if name == "path_following":
+        assert run["deviation"].max() < PATH_GOAL_M

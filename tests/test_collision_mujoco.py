@@ -137,3 +137,15 @@ def test_fuzz_no_contact_in_mujoco(robot, phase, offset, radius):
     )
     assert Replay(robot, cm.obstacles).contacts(run["q"])[:2] == (0, 0)
     assert not math.isnan(run["d_min"].min())
+
+
+def test_the_folding_task_has_no_self_contact_with_the_limit(robot):
+    from test_collision_limit import fold_task
+
+    cm = CollisionModel(robot)
+    replay = Replay(robot, ())
+    task = fold_task(robot)
+    free = closed_loop(robot, make(robot, "path_following", task), cm, 5.0)
+    assert replay.contacts(free["q"])[1] > 0  # MuJoCo sees the wrist in the pedestal
+    run = closed_loop(robot, make(robot, "path_following", task, (CollisionLimit(cm),)), cm, 5.0)
+    assert replay.contacts(run["q"]) == (0, 0, 0.0)
