@@ -282,3 +282,17 @@ def test_a_mesh_robot_keeps_the_safety_distance(name):
     assert run["sigma"][-1] < 1.0 and run["fallbacks"] == 0
     if name == "path_following":
         assert run["deviation"].max() < PATH_GOAL_M
+
+
+@pytest.mark.parametrize("name", list(CONTROLLERS))
+def test_a_start_inside_the_safety_distance_comes_no_closer(robot, name):
+    """A ball 10 mm from the wrist at the start (inside ``d_s``): no QP fails, and no pair
+    comes closer than it started."""
+    wrist = robot.placement(LBR4P_Q0, "lbr4p_link_6").translation
+    centre = wrist + np.array([0.0, -1.0, 0.0]) * (0.06 + 0.04 + 0.01)
+    cm = CollisionModel(robot, (Sphere(name="ball", position_m=tuple(centre), radius_m=0.04),))
+    start = cm.min_distance(LBR4P_Q0)
+    assert start == pytest.approx(0.01, abs=1e-6)
+    run = closed_loop(robot, make(robot, name, Circle(2.0), (CollisionLimit(cm),)), cm, 1.0)
+    assert run["fallbacks"] == 0
+    assert run["d_min"].min() >= start - 1e-5
