@@ -82,6 +82,8 @@ class BlockAssembly:
         self.structure = 0
         self._ready = False
         self.conflict = np.zeros(0, dtype=np.int8)
+        #: whether a hard bound won a conflict on the applied block at the last build
+        self.has_conflict = False
 
     # ------------------------------------------------------------------ set-up
     def _setup_terms(self, ctx: StepContext) -> bool:
@@ -139,12 +141,14 @@ class BlockAssembly:
             if limit.constant:
                 a, b = slots[id(limit)]
                 lower[a:b], upper[a:b] = item.lower, item.upper
-        self._lower0, self._upper0 = lower, upper
+        self._bounds0 = np.array([lower, upper])
         self._fixed = tuple(sorted(set(fixed)))
         self._plan(sorted(self.limits, key=lambda lim: lim.hard), slots)  # soft first
         self.conflict = conflict
+        self._marked = True  # conflict may hold marks: cleared at the next build
         self._clash = conflict[: layout.num_joints]
         self._no_clash = bytes(layout.num_joints)
+        self._no_mark = bytes(nv)
 
     def _plan(self, ordered: list[Limit], slots: dict) -> None:
         """What each step does per limit: the fast paths as bound methods (in the limits'
@@ -183,10 +187,33 @@ class BlockAssembly:
         Soft bounds are merged before hard ones: the generic limits' soft bounds first, then
         the fast paths in the limits' order (soft limits sort first), then the generic
         limits' hard bounds."""
-        lower = self._lower0.copy()
-        upper = self._upper0.copy()
+        bounds = self._bounds0.copy()
+        lower, upper = bounds[0], bounds[1]
         conflict = self.conflict
-        conflict.fill(0)
+        if self._marked:
+            conflict.fill(0)
+        late: tuple | list = ()
+        if self._generic:
+            late = self._generic_bounds(ctx, relaxed, lower, upper, conflict)
+            if late is None:
+                return None
+        for tighten in self._relaxed_tightens if relaxed else self._all_tightens:
+            tighten(ctx, lower, upper, conflict)
+        for row_bounds, a, b, relaxable in self._row_bounds:
+            if relaxed and relaxable:
+                lower[a:b], upper[a:b] = -np.inf, np.inf
+            else:
+                row_bounds(ctx, lower[a:b], upper[a:b])
+        for item in late:
+            merge_into(lower, upper, conflict, item)
+        marked = self._marked = conflict.tobytes() != self._no_mark
+        self.has_conflict = marked and self._clash.tobytes() != self._no_clash
+        return lower, upper
+
+    def _generic_bounds(self, ctx, relaxed: bool, lower, upper, conflict) -> list | None:
+        """The limits without fast paths, through their rows: their soft bounds merged and
+        their rows' bounds written in place; their hard bounds returned (merged last), or
+        ``None`` if the rows' structure changed."""
         late: list[Bounds] = []
         for limit, slot in self._generic:
             items = _items(limit.rows(ctx))
@@ -205,21 +232,7 @@ class BlockAssembly:
                 lower[slot[0] : slot[1]], upper[slot[0] : slot[1]] = -np.inf, np.inf
             elif not self._same_rows(items, slot, lower, upper, ctx.layout.num_vars):
                 return None
-        for tighten in self._relaxed_tightens if relaxed else self._all_tightens:
-            tighten(ctx, lower, upper, conflict)
-        for row_bounds, a, b, relaxable in self._row_bounds:
-            if relaxed and relaxable:
-                lower[a:b], upper[a:b] = -np.inf, np.inf
-            else:
-                row_bounds(ctx, lower[a:b], upper[a:b])
-        for item in late:
-            merge_into(lower, upper, conflict, item)
-        return lower, upper
-
-    @property
-    def has_conflict(self) -> bool:
-        """Whether a hard bound won a conflict on the applied block at the last build."""
-        return self._clash.tobytes() != self._no_clash
+        return late
 
     def _same_rows(self, items: tuple, slot: tuple, lower, upper, nv: int) -> bool:
         """Write the rows' bounds into ``slot``; False if their matrix is not the one set up."""
@@ -251,8 +264,9 @@ class BlockAssembly:
             c = c.copy()
             for term in self._generic_terms:
                 add_residual(hessian, c, term.residual(ctx))
+        lower, upper = bounds
         return _new_qp(
-            BlockQP, (hessian, c, self._C, bounds[0], bounds[1], self._fixed, self.structure, warm)
+            BlockQP, (hessian, c, self._C, lower, upper, self._fixed, self.structure, warm)
         )
 
 

@@ -4,8 +4,9 @@ One implementation of each bound rule of docs/theory.md §5, used by every contr
 velocity/position/braking box of one joint (:func:`near_limit_box`) and the intersection
 with the acceleration interval under the conflict rule (:func:`intersect_hard`). The QP
 controllers' limits write them straight into the QP's bound vectors
-(:func:`applied_box_into`, :func:`predicted_boxes_into`, :func:`hard_interval_into`; the
-generic merge of any limit's bounds: :func:`intersect_into`, :func:`hard_into`); the
+(:func:`applied_box_into`, :func:`predicted_boxes_into`, :func:`hard_interval_into`, the two
+first ones in one pass: :func:`command_box_into`; the generic merge of any limit's bounds:
+:func:`intersect_into`, :func:`hard_into`); the
 proportional controller's clip takes the applied box of every joint in one call
 (:func:`joint_boxes`, with :func:`joint_constants` saying how far from a limit a joint's
 box is just ``±qd_max``). :mod:`~dqcontrol.controllers.bounds` computes the same numbers
@@ -24,6 +25,7 @@ from dqcontrol._compiled import compiled
 __all__ = [
     "applied_box_into",
     "clip_into",
+    "command_box_into",
     "hard_interval_into",
     "hard_into",
     "intersect_hard",
@@ -289,6 +291,46 @@ def applied_box_into(
         k = index[j]
         lower[k] = _max(lower[k], lo)
         upper[k] = _min(upper[k], hi)
+
+
+@compiled
+def command_box_into(
+    q: np.ndarray,
+    qd_prev: np.ndarray,
+    values: np.ndarray,
+    a_max: np.ndarray,
+    period_s: float,
+    braking: bool,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    conflict: np.ndarray,
+) -> int:
+    """The command box of the applied block merged into ``lower``/``upper`` in place, joint
+    by joint: :func:`applied_box_into` at the measured ``q`` (n,), then the hard acceleration
+    interval ``qd_prev ± T a`` with the conflict rule (:func:`hard_interval_into`).
+
+    ``values`` is ``[q_min; q_max; qd_max]`` (3, n), ``a_max[0]`` the applied block's
+    ``a`` (the braking constants ``a T``, ``2 a``, ``(a T)²`` are formed here as
+    ``bounds.braking_constants`` forms them). Joint ``j``'s command is entry ``j`` of the
+    bounds (the applied block comes first); ``conflict[j]`` is set where the rule applied.
+    Returns the number of conflicts."""
+    count = 0
+    for j in range(q.shape[0]):
+        qj = q[j]
+        a = a_max[0, j]
+        at = a * period_s
+        lo, hi = near_limit_box(
+            values[1, j] - qj, qj - values[0, j], values[2, j], period_s, braking, at,
+            2.0 * a, at * at,
+        )  # fmt: skip
+        prev = qd_prev[j]
+        lo, hi, clash = intersect_hard(_max(lower[j], lo), _min(upper[j], hi), prev - at, prev + at)
+        lower[j] = lo
+        upper[j] = hi
+        if clash:
+            conflict[j] = 1
+            count += 1
+    return count
 
 
 @compiled

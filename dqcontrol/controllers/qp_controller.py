@@ -230,19 +230,6 @@ class QPController(Controller):
             warm[:, n] = pred.warm_s
         return warm.ravel()
 
-    def _solve_blocks(self, ctx: StepContext) -> tuple | None:
-        """``(solution, lower, upper, conflict, relaxed)`` by the block path, or ``None``."""
-        assembly = self._assembly
-        qp = assembly.build(ctx, False, self._warm(ctx) if self._warm_starts else None)
-        if qp is None:
-            return None
-        sol = self.qp.solve_blocks(qp)
-        relaxed = False
-        if not sol.ok and assembly.relaxable:
-            sol = self.qp.solve_blocks(assembly.build(ctx, relaxed=True))
-            relaxed = sol.ok
-        return sol, qp.lower, qp.upper, assembly.has_conflict, relaxed
-
     def _solve_levels(self, ctx: StepContext) -> tuple:
         """``(solution, lower, upper, conflict, relaxed)`` by the lexicographic levels."""
         if self._dense_backend is None:
@@ -271,14 +258,24 @@ class QPController(Controller):
         ctx = self._measured_context(q) if self._one_block else self._context(q)
         for prepare in self._prepare:
             prepare(ctx)
-        out = self._solve_blocks(ctx) if self._assembly is not None else None
-        if out is None:
-            self._assembly = None
-            out = self._solve_levels(ctx)
-        return self._finish(ctx, *out, start)
+        assembly = self._assembly
+        if assembly is not None:  # one level: its BlockQP, solved by the block backend
+            qp = assembly.build(ctx, False, self._warm(ctx) if self._warm_starts else None)
+            if qp is not None:
+                sol = self.qp.solve_blocks(qp)
+                relaxed = False
+                if not sol.ok and assembly.relaxable:  # again without the relaxable limits
+                    sol = self.qp.solve_blocks(assembly.build(ctx, relaxed=True))
+                    relaxed = sol.ok
+                out = (sol, qp.lower, qp.upper, assembly.has_conflict, relaxed)
+                return self._finish(ctx, out, start)
+            self._assembly = None  # not block diagonal: the levels' dense path from now on
+        return self._finish(ctx, self._solve_levels(ctx), start)
 
-    def _finish(self, ctx, sol, lower, upper, clash, relaxed, start) -> StepResult:
-        """Apply the solution (clipped to the applied block's bounds) or the fallback."""
+    def _finish(self, ctx: StepContext, out: tuple, start: float) -> StepResult:
+        """Apply the solution (clipped to the applied block's bounds) or the fallback;
+        ``out`` is ``(solution, lower, upper, conflict, relaxed)``."""
+        sol, lower, upper, clash, relaxed = out
         n = self.n
         if sol.ok:
             z = sol.x
@@ -306,13 +303,16 @@ class QPController(Controller):
             conflict_joints=conflict, message=message,
         )  # fmt: skip
         sigma = self.sigma
-        if self._one_block:
+        if self._one_block:  # no horizon to report
             pose, target = self._pose_target
-        else:
-            pose, target = ctx.poses[0], ctx.targets[0]
+            return self._new_result(
+                qd_command=qd_cmd, s=s_now, sigma=sigma,
+                sigma_next=sigma + self.period_s * s_now, pose=pose, target=target,
+                diagnostics=diag,
+            )  # fmt: skip
         return self._new_result(
             qd_command=qd_cmd, s=s_now, sigma=sigma, sigma_next=sigma + self.period_s * s_now,
-            pose=pose, target=target, diagnostics=diag,
+            pose=ctx.poses[0], target=ctx.targets[0], diagnostics=diag,
             horizon_qd=horizon_qd, horizon_s=horizon_s,
         )  # fmt: skip
 
@@ -327,7 +327,7 @@ class QPController(Controller):
 
     def _commit(self, z, qd_cmd: np.ndarray, s_now: float) -> tuple:
         """Remember the plan (the fallback's: hold the command, ``s = 0``); the horizon
-        reported in the result (``None`` for one block)."""
+        reported in the result."""
         layout = self.layout
         p = layout.num_blocks
         if z is None:

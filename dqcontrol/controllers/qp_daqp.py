@@ -122,7 +122,6 @@ class DaqpQP:
             )
         self.last_method = "daqp"
         self._structure: int | None = None
-        self._shape: tuple = ()
         self._box = False
         self._model = None
         self._block = 0
@@ -228,9 +227,9 @@ class DaqpQP:
         least-distance one). Never raises for a failed solve: the solution says so."""
         start = perf_counter()
         hessian = qp.hessian
-        if qp.structure != self._structure or hessian.shape != self._shape:
+        if qp.structure != self._structure:  # the number names the shapes too
             self._configure_blocks(qp)
-            self._structure, self._shape = qp.structure, hessian.shape
+            self._structure = qp.structure
         lower, upper = qp.lower, qp.upper
         if self._box:
             state = bounds_state(lower, upper)  # compiled: 0 usable, 1 clamp, -1 refused

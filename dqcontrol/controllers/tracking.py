@@ -16,10 +16,11 @@ with ``w_i = dx_d/dσ(σ̂_i) + K (x_d(σ̂_i) - x̂_i)``. As a composition:
   :class:`~dqcontrol.controllers.terms.scaling.ScalingTerm` (``λ2``),
   :class:`~dqcontrol.controllers.terms.damping.DampingTerm` (``μ``),
   :class:`~dqcontrol.controllers.terms.stall_damping.StallDampingTerm`;
-- limits: :class:`~dqcontrol.controllers.limits.joint_box.JointBoxLimit` (the applied
-  block, and the predicted ones: relaxable),
-  :class:`~dqcontrol.controllers.limits.acceleration.AccelerationLimit` (hard, with the
-  coupling rows), :class:`~dqcontrol.controllers.limits.scaling_range.ScalingRange`;
+- limits: :class:`~dqcontrol.controllers.limits.command_box.CommandBoxLimit` (the applied
+  block's :class:`~dqcontrol.controllers.limits.joint_box.JointBoxLimit` and the hard
+  :class:`~dqcontrol.controllers.limits.acceleration.AccelerationLimit` with the coupling
+  rows, in one pass), the predicted blocks' joint boxes (relaxable),
+  :class:`~dqcontrol.controllers.limits.scaling_range.ScalingRange`;
 - levels: ``priority="weighted"`` (the thesis: one level, the weights above) or
   ``"strict"`` (three levels: tracking ≻ scaling ≻ damping, docs/theory.md §7.6).
 """
@@ -33,6 +34,7 @@ import numpy as np
 from dqcontrol.controllers.backends.base import DEFAULT_SOLVER
 from dqcontrol.controllers.base import check_position_margin, check_positive, per_joint
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit as _Acceleration
+from dqcontrol.controllers.limits.command_box import CommandBoxLimit
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.prediction.thesis import ThesisPrediction
@@ -212,10 +214,10 @@ class TrackingController(QPController):
         prediction = ThesisPrediction(
             layout, period_s, phase_prediction if self.scaling else "nominal"
         )
-        self._joint_boxes = (
-            JointBoxLimit(layout, q_min, q_max, qd_max, braking_aware),
-            JointBoxLimit(layout, q_min, q_max, qd_max, braking_aware, predicted=True),
-        )
+        applied = JointBoxLimit(layout, q_min, q_max, qd_max, braking_aware)
+        predicted = JointBoxLimit(layout, q_min, q_max, qd_max, braking_aware, predicted=True)
+        predicted.values = applied.values  # one set of bounds (in-place edits included)
+        self._joint_boxes = (applied, predicted)
         levels = self._compose_levels(layout, period_s, tuple(extra_terms))
         limits = self._compose_limits(layout, period_s) + tuple(extra_limits)
         if self.a_const is not None:
@@ -313,11 +315,12 @@ class TrackingController(QPController):
 
     def _compose_limits(self, layout, period_s: float) -> tuple[Limit, ...]:
         s_min = 0.0 if self.scaling else 1.0
-        boxes = self._joint_boxes if self.p > 1 else self._joint_boxes[:1]
+        applied, predicted = self._joint_boxes
+        acceleration = _Acceleration(layout, period_s, np.diff(self.instants_s))
         return (
-            *boxes,
+            CommandBoxLimit(applied, acceleration),
+            *((predicted,) if self.p > 1 else ()),
             ScalingRange(layout, s_min, 1.0),
-            _Acceleration(layout, period_s, np.diff(self.instants_s)),
         )
 
     # ------------------------------------------------------------------ the step's pieces

@@ -37,8 +37,9 @@ class JointBoxLimit(Limit):
         predicted: bound the predicted blocks ``i ≥ 1`` (relaxable: dropped when the
             problem is infeasible) instead of the applied one.
 
-    The attributes ``q_min``, ``q_max``, ``qd_max``, ``braking_aware`` are read at every
-    step. The fast path writes the box straight into the QP's bounds in one compiled call
+    ``q_min``, ``q_max``, ``qd_max`` (the rows of :attr:`values`; assigned values are copied
+    in, in-place edits count) and ``braking_aware`` are read at every step. The fast path
+    writes the box straight into the QP's bounds in one compiled call
     (``joint_box.applied_box_into`` / ``predicted_boxes_into``), which :meth:`rows` calls too.
     """
 
@@ -52,7 +53,7 @@ class JointBoxLimit(Limit):
         *,
         predicted: bool = False,
     ) -> None:
-        self.q_min, self.q_max, self.qd_max = q_min, q_max, qd_max
+        self.values = np.array([q_min, q_max, qd_max], dtype=float)
         self.braking_aware = bool(braking_aware)
         self.predicted = bool(predicted)
         self.relaxable = self.predicted
@@ -69,7 +70,45 @@ class JointBoxLimit(Limit):
         self._brake = np.zeros((3,) + ((p, n) if self.predicted else (n,)))
         self._kernel = predicted_boxes_into if self.predicted else applied_box_into
 
-    def _braking(self, ctx: StepContext) -> np.ndarray:
+    @property
+    def values(self) -> np.ndarray:
+        """``[q_min; q_max; qd_max]`` ``(3, n)`` [rad, rad, rad/s]. Limits given the same
+        array (``other.values = limit.values``) share their bounds, in-place edits included."""
+        return self._values
+
+    @values.setter
+    def values(self, values: np.ndarray) -> None:
+        self._values = values
+        self._q_min, self._q_max, self._qd_max = values
+
+    @property
+    def q_min(self) -> np.ndarray:
+        """Position bounds [rad] (already shrunk by any margin)."""
+        return self._q_min
+
+    @q_min.setter
+    def q_min(self, value: np.ndarray) -> None:
+        self._values[0] = value
+
+    @property
+    def q_max(self) -> np.ndarray:
+        """Position bounds [rad] (already shrunk by any margin)."""
+        return self._q_max
+
+    @q_max.setter
+    def q_max(self, value: np.ndarray) -> None:
+        self._values[1] = value
+
+    @property
+    def qd_max(self) -> np.ndarray:
+        """Velocity bound [rad/s]."""
+        return self._qd_max
+
+    @qd_max.setter
+    def qd_max(self, value: np.ndarray) -> None:
+        self._values[2] = value
+
+    def braking_constants(self, ctx: StepContext) -> np.ndarray:
         """``[a T, 2 a, (a T)²]`` at each block (``(3, p, n)``, or ``(3, n)`` for the
         applied block), cached while ``ctx.a_max`` and ``T`` stay the same."""
         a_max, period = ctx.a_max, ctx.period_s
@@ -85,10 +124,10 @@ class JointBoxLimit(Limit):
         key = self._brake_key
         brake = self._brake
         if ctx.a_max is not key[0] or ctx.period_s != key[1]:
-            brake = self._braking(ctx)
+            brake = self.braking_constants(ctx)
         self._kernel(
-            ctx.prediction.q_lin if self.predicted else ctx.q, self.q_min, self.q_max,
-            self.qd_max, ctx.period_s, self.braking_aware, brake, self._index, lower, upper,
+            ctx.prediction.q_lin if self.predicted else ctx.q, self._q_min, self._q_max,
+            self._qd_max, ctx.period_s, self.braking_aware, brake, self._index, lower, upper,
         )  # fmt: skip
         return True
 
@@ -99,8 +138,8 @@ class JointBoxLimit(Limit):
         lo = np.full(size, -np.inf)
         up = np.full(size, np.inf)
         self._kernel(
-            ctx.prediction.q_lin if self.predicted else ctx.q, self.q_min, self.q_max,
-            self.qd_max, ctx.period_s, self.braking_aware, self._braking(ctx), self._local,
-            lo, up,
+            ctx.prediction.q_lin if self.predicted else ctx.q, self._q_min, self._q_max,
+            self._qd_max, ctx.period_s, self.braking_aware, self.braking_constants(ctx),
+            self._local, lo, up,
         )  # fmt: skip
         return Bounds(self.name, self._global, lo, up)

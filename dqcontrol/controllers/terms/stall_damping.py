@@ -35,8 +35,8 @@ class StallDampingTerm(Term):
         delay_steps: how many consecutive steps ``s`` must stay below ``s_stall`` before
             the damping acts (≥ 0).
 
-    :attr:`weight` is this step's weight (fixed by :meth:`prepare`); :meth:`observe`
-    updates the memory after each step.
+    :attr:`weight` is this step's weight, set by the memory: :meth:`observe` updates it
+    after each step (and the weight of the next step with it).
     """
 
     name = "stall_damping"
@@ -52,7 +52,6 @@ class StallDampingTerm(Term):
         self._blocks[:, np.arange(n), np.arange(n)] = 1.0
         self._b = np.zeros(p * n)
         self._diag = np.arange(n)
-        self.weight = 0.0
         self.reset()
 
     @staticmethod
@@ -60,24 +59,27 @@ class StallDampingTerm(Term):
         """Steps of ``period_s`` [s] that make up ``delay_s`` [s] (rounded up)."""
         return math.ceil(delay_s / period_s - 1e-9)
 
+    @property
+    def weight(self) -> float:
+        """``μ_stall (1 - s / s_stall)`` once ``s`` has stayed below ``s_stall`` for
+        ``delay_steps`` steps, else 0."""
+        if self.stalled_steps >= self.delay_steps and self.weight_max:
+            return self.weight_max * (1.0 - self.s_applied / self.stall_scaling)
+        return 0.0
+
     def reset(self) -> None:
         self.s_applied = 1.0
         self.stalled_steps = 0  # consecutive steps with s below stall_scaling
-        self.weight = 0.0
-
-    def prepare(self, ctx: StepContext) -> None:
-        if self.stalled_steps >= self.delay_steps and self.weight_max:
-            self.weight = self.weight_max * (1.0 - self.s_applied / self.stall_scaling)
-        else:
-            self.weight = 0.0
 
     def residual(self, ctx: StepContext) -> Residual:
         return Residual(self.name, self.weight, self._b, blocks=self._blocks, held=False)
 
     def add_gram(self, ctx: StepContext, hessian: np.ndarray) -> bool:
-        if self.weight:
-            d = self._diag
-            hessian[:, d, d] += 2.0 * self.weight
+        if self.stalled_steps >= self.delay_steps and self.weight_max:
+            weight = self.weight
+            if weight:
+                d = self._diag
+                hessian[:, d, d] += 2.0 * weight
         return True
 
     def observe(self, z: np.ndarray | None, s_applied: float) -> None:
