@@ -10,10 +10,11 @@ GJK/EPA and the distance is continuous in ``q``.
 Obstacles are frozen values with units, fixed in the world: :class:`Sphere`, :class:`Box`,
 :class:`Capsule`, :class:`Cylinder` at a pose, and :class:`HalfSpace` (a table or floor).
 
-The pairs considered (:class:`CollisionModel`) are every robot link against every obstacle
-and, for self-collision, every pair of links except those that cannot move relative to each
-other (on the same rigid body), adjacent links (joined by one joint, touching by design) and
-the pairs the user allows (a list, or the ``<disable_collisions>`` of an SRDF file).
+The pairs considered (:class:`CollisionModel`) are every shape on a moving link against
+every obstacle and, for self-collision, every pair of shapes except those that cannot move
+relative to each other (on the same rigid body), those on adjacent bodies (one joint between
+them, touching by design) and those on link pairs the user allows (a list, or the
+``<disable_collisions>`` of an SRDF file).
 
 For a pair ``(a, b)`` at distance ``d`` with witness points ``p_a``, ``p_b`` and unit normal
 ``n`` from ``a`` to ``b`` (``n = (p_b - p_a)/d`` when separated), the distance changes as
@@ -26,6 +27,7 @@ gradient ``∇d = (J_b - J_a)ᵀ n`` [m/rad].
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import xml.etree.ElementTree as ET
@@ -407,21 +409,7 @@ class CollisionModel:
             for go in geometry.geometryObjects[: self.num_robot_geometries]
         ]
         self.link_names = tuple(dict.fromkeys(self._links))
-        body_names = {f.name for f in frames if f.type == pin.FrameType.BODY}
-        allowed = list(allowed_pairs)
-        if srdf is not None:
-            allowed += list(read_srdf_pairs(srdf))
-        allowed_set = set()
-        for pair in allowed:
-            if len(pair) != 2:
-                raise ParameterError(f"an allowed pair must be two link names, got {pair!r}")
-            for link in pair:
-                if link not in body_names:
-                    raise ParameterError(
-                        f"allowed pair {tuple(pair)} names link '{link}', which this robot does "
-                        f"not have; links: {sorted(body_names)}"
-                    )
-            allowed_set.add(frozenset(pair))
+        allowed_set = self._allowed(allowed_pairs, srdf)
         self.allowed_pairs = tuple(tuple(sorted(p)) for p in allowed_set)
         pairs = self._pairs(bool(self_collision), allowed_set)
         for a, b in pairs:
@@ -430,16 +418,8 @@ class CollisionModel:
         self._b = np.array([b for _, b in pairs], dtype=int)
         names = [go.name for go in geometry.geometryObjects]
         self.pairs = tuple((names[a], names[b]) for a, b in pairs)
-        obstacle_names = [o.name for o in self.obstacles]
-        self.pair_links = tuple(
-            (
-                self._links[a],
-                self._links[b]
-                if b < self.num_robot_geometries
-                else obstacle_names[b - self.num_robot_geometries],
-            )
-            for a, b in pairs
-        )
+        links = self._links + [o.name for o in self.obstacles]
+        self.pair_links = tuple((links[a], links[b]) for a, b in pairs)
         self.geometry_data = pin.GeometryData(geometry)
         for k in range(len(pairs)):
             req = self.geometry_data.distanceRequests[k]
@@ -452,6 +432,25 @@ class CollisionModel:
         self.query_count = 0
 
     # ------------------------------------------------------------------ construction
+    def _allowed(self, allowed_pairs, srdf) -> set[frozenset]:
+        """The allowed link pairs (the list and the SRDF's), each checked against the links."""
+        body_names = {f.name for f in self.model.frames if f.type == pin.FrameType.BODY}
+        allowed = list(allowed_pairs)
+        if srdf is not None:
+            allowed += list(read_srdf_pairs(srdf))
+        out = set()
+        for pair in allowed:
+            if len(pair) != 2:
+                raise ParameterError(f"an allowed pair must be two link names, got {pair!r}")
+            for link in pair:
+                if link not in body_names:
+                    raise ParameterError(
+                        f"allowed pair {tuple(pair)} names link '{link}', which this robot does "
+                        f"not have; links: {sorted(body_names)}"
+                    )
+            out.add(frozenset(pair))
+        return out
+
     def _pairs(self, self_collision: bool, allowed: set) -> list[tuple[int, int]]:
         geoms = self.geometry.geometryObjects
         nr = self.num_robot_geometries
@@ -830,12 +829,6 @@ def _named_obstacles(obstacles) -> tuple[Obstacle, ...]:
             raise ParameterError(f"two obstacles are named '{name}'; names must be unique")
         seen.add(name)
         if name != obs.name:
-            obs = _renamed(obs, name)
+            obs = dataclasses.replace(obs, name=name)
         out.append(obs)
     return tuple(out)
-
-
-def _renamed(obs: Obstacle, name: str) -> Obstacle:
-    import dataclasses
-
-    return dataclasses.replace(obs, name=name)
