@@ -20,6 +20,7 @@ of times.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Literal
 
@@ -74,6 +75,8 @@ STALL_SCALING = 0.01
 #: How long a stall must last before the posture level holds the arm still [s]: a task
 #: that starts slowly is not a stalled one.
 STALL_DELAY_S = 0.5
+#: Factor on the path level's tolerance while stalled.
+STALL_TIGHTENING = 0.01
 
 
 def _in_range(name: str, value: float, low: float, high: float, unit: str) -> float:
@@ -182,6 +185,14 @@ class PathFollowingController(Controller):
         self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference
         self.levels = self._levels(tuple(extra_terms))
+        # stalled, the held path rows get a tighter band (a drift within the band, step after
+        # step, would otherwise slide the tool along the tolerance: theory §8.3)
+        self._stalled_levels = (
+            dataclasses.replace(
+                self.levels[0], tolerance=STALL_TIGHTENING * self.levels[0].tolerance
+            ),
+            *self.levels[1:],
+        )
         self.limits = self._limits() + tuple(extra_limits)
         self.relaxed_limits = tuple(
             lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
@@ -337,7 +348,7 @@ class PathFollowingController(Controller):
         extras = {
             "s_prev": self._s_prev,
             "lag_s": self._steps * self.period_s - self.sigma,
-            "posture_scale": 0.0 if self._stalled_steps >= self._stall_steps else 1.0,
+            "posture_scale": 0.0 if self._stalled() else 1.0,
             "qd_measured": self.prediction_model.qd_measured,
         }
         return StepContext(
@@ -347,14 +358,19 @@ class PathFollowingController(Controller):
 
     def _solve(self, ctx: StepContext) -> tuple[Problem, LevelsResult, bool]:
         """Build and solve; without the predicted position rows if that fails."""
-        problem = build_problem(ctx, self.levels, self.limits, self._cache)
+        levels = self._stalled_levels if self._stalled() else self.levels
+        problem = build_problem(ctx, levels, self.limits, self._cache)
         result = solve_levels(problem, self.backend)
         if result.failed_level == 0:
-            relaxed = build_problem(ctx, self.levels, self.relaxed_limits, self._cache)
+            relaxed = build_problem(ctx, levels, self.relaxed_limits, self._cache)
             again = solve_levels(relaxed, self.backend)
             if again.failed_level != 0:
                 return relaxed, again, True
         return problem, result, False
+
+    def _stalled(self) -> bool:
+        """``s`` has stayed below :data:`STALL_SCALING` for :data:`STALL_DELAY_S`."""
+        return self._stalled_steps >= self._stall_steps
 
     def _disturbed(self, q: np.ndarray) -> bool:
         if self._expected_q is None:
