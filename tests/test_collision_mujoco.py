@@ -149,3 +149,29 @@ def test_the_folding_task_has_no_self_contact_with_the_limit(robot):
     assert replay.contacts(free["q"])[1] > 0  # MuJoCo sees the wrist in the pedestal
     run = closed_loop(robot, make(robot, "path_following", task, (CollisionLimit(cm),)), cm, 5.0)
     assert replay.contacts(run["q"]) == (0, 0, 0.0)
+
+
+def test_the_simulation_collides_with_its_obstacles(robot):
+    """An obstacle given to the simulator is a body the arm hits: a ball on the flange
+    stops it where the same command without the ball moves it."""
+    import pinocchio as pin
+
+    from dqcontrol.model import LBR4P_Q0
+    from dqcontrol.sim import MujocoSimulation
+
+    flange = robot.placement(LBR4P_Q0).translation
+    ball = Sphere(name="ball", position_m=tuple(flange + [0.0, 0.0, -0.08]), radius_m=0.05)
+    moved = {}
+    for shapes in ((), (ball,)):
+        sim = MujocoSimulation(robot, obstacles=shapes)
+        sim.reset(LBR4P_Q0)
+        jac = pin.computeFrameJacobian(
+            robot.model, robot.data, LBR4P_Q0, robot.frame_id(robot.ee_frame),
+            pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+        )  # fmt: skip
+        down = np.linalg.pinv(jac[:3]) @ np.array([0.0, 0.0, -0.1])  # 0.1 m/s down [rad/s]
+        for _ in range(20):
+            meas = sim.step(down, 0.05)
+        moved[len(shapes)] = float(robot.placement(meas.q).translation[2] - flange[2])
+    assert moved[0] < -0.05  # free: the flange goes down by more than the gap
+    assert moved[1] > -0.05  # with the ball: stopped by it

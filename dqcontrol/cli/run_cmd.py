@@ -627,8 +627,9 @@ def _main(args: argparse.Namespace) -> int:
                 if args.simulator == "mujoco":
                     on_sample = viewer.follow(controller, speed=args.speed) if viewer else None
                     result = run_mujoco(
-                        controller, q0, meta=meta, on_sample=on_sample, on_progress=on_progress
-                    )
+                        controller, q0, meta=meta, on_sample=on_sample, on_progress=on_progress,
+                        obstacles=collision.obstacles if collision is not None else (),
+                    )  # fmt: skip
                 else:
                     result = run_kinematic(controller, q0, meta=meta, on_progress=on_progress)
                     if viewer is not None:

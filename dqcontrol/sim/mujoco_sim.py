@@ -208,6 +208,9 @@ class MujocoSimulation:
             drives' nominal model) does not know [kg]; its centre is at
             ``payload_offset_m`` [m] in the end-effector frame.
         effort_scale: multiplies the URDF's effort limits (torque-saturation faults), > 0.
+        obstacles: static obstacles of :mod:`dqcontrol.model.collision` (sphere, box,
+            capsule, cylinder, half-space) added to the world as geoms the robot collides
+            with.
 
     Raises:
         ParameterError: an argument is outside its range (the message says which).
@@ -230,6 +233,7 @@ class MujocoSimulation:
         payload_kg: float = 0.0,
         payload_offset_m: np.ndarray | None = None,
         effort_scale: float = 1.0,
+        obstacles: tuple = (),
     ) -> None:
         if not isinstance(robot, RobotModel):
             raise ParameterError(f"robot must be a RobotModel, got {type(robot).__name__}")
@@ -312,7 +316,10 @@ class MujocoSimulation:
             effort_limit_nm=self.torque_limit,
             payload_kg=payload,
             payload_offset_m=offset,
+            obstacles=tuple(obstacles),
         )
+        #: Static obstacles in the world (they collide with the robot's geometry).
+        self.obstacles = tuple(obstacles)
         #: The edited :class:`mujoco.MjSpec` the model was compiled from.
         self.spec = build_spec(robot, prepared, options)
         try:
