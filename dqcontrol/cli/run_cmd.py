@@ -236,6 +236,19 @@ def register(subparsers) -> None:
         "kinematic loop",
     )
     g.add_argument(
+        "--connect",
+        metavar="ADDRESS",
+        default=None,
+        help="run against a `dqcontrol sim-server` in another process (tcp://127.0.0.1:PORT, "
+        "loopback only) instead of simulating here; --period must be the server's",
+    )
+    g.add_argument(
+        "--realtime",
+        action="store_true",
+        help="with --connect: keep the wall clock (one period per period; the watchdog "
+        "brakes and holds on a missed deadline) instead of stepping as fast as possible",
+    )
+    g.add_argument(
         "--viewer",
         action=argparse.BooleanOptionalAction,
         default=False,
@@ -373,6 +386,28 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
 
         shared["servo_time_constant_s"] = SERVO_TIME_CONSTANT_S
     return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+
+
+def run_connected(args, controller, q0, meta: dict, on_progress):
+    """One run against the sim-server at ``args.connect`` (:class:`~dqcontrol.sim.bridge.
+    BridgeDriver` and :func:`~dqcontrol.sim.loop.run_loop`)."""
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.sim.bridge import BridgeDriver
+    from dqcontrol.sim.loop import run_loop
+
+    driver = BridgeDriver(args.connect)
+    try:
+        if abs(driver.period_s - args.period) > 1e-12:
+            raise ParameterError(
+                f"--period {args.period:g} s differs from the sim-server's period "
+                f"{driver.period_s:g} s: pass --period {driver.period_s:g}"
+            )
+        return run_loop(
+            controller, driver, q0=q0, meta=meta, on_progress=on_progress,
+            realtime=args.realtime,
+        )  # fmt: skip
+    finally:
+        driver.close()
 
 
 # ---------------------------------------------------------------------- output helpers
@@ -624,7 +659,9 @@ def _main(args: argparse.Namespace) -> int:
             bar = progress_bar(f"{label:>12}", args.duration, progress)
             on_progress = progress_callback(bar)
             try:
-                if args.simulator == "mujoco":
+                if args.connect:
+                    result = run_connected(args, controller, q0, meta, on_progress)
+                elif args.simulator == "mujoco":
                     on_sample = viewer.follow(controller, speed=args.speed) if viewer else None
                     result = run_mujoco(
                         controller, q0, meta=meta, on_sample=on_sample, on_progress=on_progress,
