@@ -11,7 +11,7 @@ Table 1 (:mod:`dqcontrol.experiments.table1`) and the fault campaign
 - :func:`simulate` — the closed loop (:func:`~dqcontrol.sim.run_loop` with the kinematic or
   the MuJoCo driver, or any simulation object such as the campaign's
   :class:`~dqcontrol.faults.simulation.FaultySimulation`), with the metrics
-  of docs/theory.md §7 and, on request, the path deviation *between* the control samples:
+  of docs/theory.md §9 and, on request, the path deviation *between* the control samples:
   along MuJoCo's physics steps, or along the straight joint-space motion of the kinematic
   loop;
 - :func:`time_optimal_duration` — the TOPP-RA lower bound of the task's execution time

@@ -18,7 +18,7 @@ the *true* state). What is judged:
 - **σ reached**, ``e_mean`` and the path deviation — from the *true* state (noise-free,
   undelayed), so that a noisy sensor does not make the arm look worse or better;
 - **bound violations**: commanded velocity and acceleration (the loop's metrics,
-  docs/theory.md §7), and joint positions, of the true state (``q_true``) and of what the
+  docs/theory.md §9), and joint positions, of the true state (``q_true``) and of what the
   controller measured (``q_meas``, which includes the noise);
 - fallbacks and relaxed steps, NaN anywhere, σ monotone, ``0 ≤ s ≤ 1``;
 - for contradictory QPs, how often the solver claimed to have solved a QP that has no
