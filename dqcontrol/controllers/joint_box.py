@@ -24,7 +24,7 @@ from dqcontrol._compiled import compiled
 
 __all__ = [
     "applied_box_into",
-    "clip_into",
+    "clip_solution",
     "command_box_into",
     "hard_interval_into",
     "hard_into",
@@ -365,8 +365,22 @@ def predicted_boxes_into(
 
 
 @compiled
-def clip_into(z: np.ndarray, lower: np.ndarray, upper: np.ndarray, count: int) -> None:
-    """``z[:count] = min(max(z[:count], lower[:count]), upper[:count])`` in place (numpy's
-    ``minimum(maximum(·))``, NaN included)."""
+def clip_solution(
+    z: np.ndarray, lower: np.ndarray, upper: np.ndarray, n: int, s_at: int, s_max: float
+) -> float:
+    """Apply a QP's solution: ``z[:n]`` (the applied command) clipped to its bounds in place,
+    all of ``z`` when it has one bound per entry (one block, no general row); numpy's
+    ``minimum(maximum(·))``, NaN included. Returns the applied time scaling read before the
+    clip, ``min(max(z[s_at], 0), s_max)`` (Python's ``min`` and ``max``), or 1 when
+    ``s_at < 0`` (no scaling)."""
+    s = 1.0
+    if s_at >= 0:
+        s = z[s_at]
+        if 0.0 > s:
+            s = 0.0
+        if s_max < s:
+            s = s_max
+    count = z.shape[0] if z.shape[0] == lower.shape[0] else n
     for k in range(count):
         z[k] = _min(_max(z[k], lower[k]), upper[k])
+    return s

@@ -36,7 +36,7 @@ from dqcontrol.controllers.base import (
     per_joint,
 )
 from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.joint_box import clip_into
+from dqcontrol.controllers.joint_box import clip_solution
 from dqcontrol.controllers.levels import build_problem, solve_levels
 from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
 from dqcontrol.controllers.problem import Level, Limit, Problem, Term
@@ -125,7 +125,7 @@ class QPController(Controller):
         prediction.warm = self._warm_starts
         self._one_block = self.layout.num_blocks == 1
         self._constant_acceleration = self._acceleration_is_constant()
-        self._scaled_s = self._scaled()
+        self._s_at = self.n if self._scaled() else -1  # where the applied s is, if solved
         self._fast = self.robot.fast
         self._conflict = np.zeros(self.layout.num_vars, dtype=bool)
         self._level_note = ""
@@ -279,10 +279,8 @@ class QPController(Controller):
         n = self.n
         if sol.ok:
             z = sol.x
-            s_now = min(max(z.item(n), 0.0), self.s_max) if self._scaled_s else 1.0
-            # the applied command clipped to its bounds, in place (with one block and no
-            # general row, all of z: its s too, which s_now has read already)
-            clip_into(z, lower, upper, z.size if z.size == lower.size else n)
+            # the applied command clipped to its bounds in place; s as solved, within [0, s_max]
+            s_now = clip_solution(z, lower, upper, n, self._s_at, self.s_max)
             qd_cmd = z[:n]
             message = _RELAXED if relaxed else self._level_note
             self._level_note = ""
