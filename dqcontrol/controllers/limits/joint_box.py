@@ -37,10 +37,15 @@ class JointBoxLimit(Limit):
         predicted: bound the predicted blocks ``i ≥ 1`` (relaxable: dropped when the
             problem is infeasible) instead of the applied one.
 
-    ``q_min``, ``q_max``, ``qd_max`` (the rows of :attr:`values`; assigned values are copied
-    in, in-place edits count) and ``braking_aware`` are read at every step. The fast path
-    writes the box straight into the QP's bounds in one compiled call
-    (``joint_box.applied_box_into`` / ``predicted_boxes_into``), which :meth:`rows` calls too.
+    Attributes:
+        values: ``[q_min; q_max; qd_max]`` ``(3, n)`` [rad, rad, rad/s]; ``q_min``,
+            ``q_max`` and ``qd_max`` are its rows (assigned values are copied in, in-place
+            edits count). Limits given the same array (``other.values = limit.values``)
+            share their bounds.
+
+    ``values`` and ``braking_aware`` are read at every step. The fast path writes the box
+    straight into the QP's bounds in one compiled call (``joint_box.applied_box_into`` /
+    ``predicted_boxes_into``), which :meth:`rows` calls too.
     """
 
     def __init__(
@@ -71,42 +76,31 @@ class JointBoxLimit(Limit):
         self._kernel = predicted_boxes_into if self.predicted else applied_box_into
 
     @property
-    def values(self) -> np.ndarray:
-        """``[q_min; q_max; qd_max]`` ``(3, n)`` [rad, rad, rad/s]. Limits given the same
-        array (``other.values = limit.values``) share their bounds, in-place edits included."""
-        return self._values
-
-    @values.setter
-    def values(self, values: np.ndarray) -> None:
-        self._values = values
-        self._q_min, self._q_max, self._qd_max = values
-
-    @property
     def q_min(self) -> np.ndarray:
         """Position bounds [rad] (already shrunk by any margin)."""
-        return self._q_min
+        return self.values[0]
 
     @q_min.setter
     def q_min(self, value: np.ndarray) -> None:
-        self._values[0] = value
+        self.values[0] = value
 
     @property
     def q_max(self) -> np.ndarray:
         """Position bounds [rad] (already shrunk by any margin)."""
-        return self._q_max
+        return self.values[1]
 
     @q_max.setter
     def q_max(self, value: np.ndarray) -> None:
-        self._values[1] = value
+        self.values[1] = value
 
     @property
     def qd_max(self) -> np.ndarray:
         """Velocity bound [rad/s]."""
-        return self._qd_max
+        return self.values[2]
 
     @qd_max.setter
     def qd_max(self, value: np.ndarray) -> None:
-        self._values[2] = value
+        self.values[2] = value
 
     def braking_constants(self, ctx: StepContext) -> np.ndarray:
         """``[a T, 2 a, (a T)²]`` at each block (``(3, p, n)``, or ``(3, n)`` for the
@@ -125,9 +119,10 @@ class JointBoxLimit(Limit):
         brake = self._brake
         if ctx.a_max is not key[0] or ctx.period_s != key[1]:
             brake = self.braking_constants(ctx)
+        q_min, q_max, qd_max = self.values
         self._kernel(
-            ctx.prediction.q_lin if self.predicted else ctx.q, self._q_min, self._q_max,
-            self._qd_max, ctx.period_s, self.braking_aware, brake, self._index, lower, upper,
+            ctx.prediction.q_lin if self.predicted else ctx.q, q_min, q_max, qd_max,
+            ctx.period_s, self.braking_aware, brake, self._index, lower, upper,
         )  # fmt: skip
         return True
 
@@ -137,9 +132,9 @@ class JointBoxLimit(Limit):
             return None
         lo = np.full(size, -np.inf)
         up = np.full(size, np.inf)
+        q_min, q_max, qd_max = self.values
         self._kernel(
-            ctx.prediction.q_lin if self.predicted else ctx.q, self._q_min, self._q_max,
-            self._qd_max, ctx.period_s, self.braking_aware, self.braking_constants(ctx),
-            self._local, lo, up,
+            ctx.prediction.q_lin if self.predicted else ctx.q, q_min, q_max, qd_max,
+            ctx.period_s, self.braking_aware, self.braking_constants(ctx), self._local, lo, up,
         )  # fmt: skip
         return Bounds(self.name, self._global, lo, up)
