@@ -1,4 +1,4 @@
-"""The path-following predictive controller (FORMULATION §10, docs/theory.md §8).
+"""The path-following predictive controller (docs/theory.md §8).
 
 A composition on the QP core: the consistent prediction (states exact and linear in the
 decision ``qd_i``, ``s_i`` held over the horizon's intervals), and three priority levels:
@@ -87,6 +87,14 @@ def _in_range(name: str, value: float, low: float, high: float, unit: str) -> fl
         bracket = "[" if low == 1.0 else "("
         raise ParameterError(f"{name} must be in {bracket}{low:g}, {high:g}], got {value!r}")
     return v
+
+
+def _tightened(levels: tuple[Level, ...]) -> tuple[Level, ...]:
+    """The levels with the path level's band :data:`STALL_TIGHTENING` times narrower: while
+    stalled, a drift within the band, step after step, would otherwise slide the tool along
+    the path's tolerance (docs/theory.md §8.3)."""
+    path = levels[0]
+    return (dataclasses.replace(path, tolerance=STALL_TIGHTENING * path.tolerance), *levels[1:])
 
 
 def _limit_settings(robot: RobotModel, velocity_limits, position_margin_rad: float):
@@ -185,14 +193,7 @@ class PathFollowingController(Controller):
         self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference
         self.levels = self._levels(tuple(extra_terms))
-        # stalled, the held path rows get a tighter band (a drift within the band, step after
-        # step, would otherwise slide the tool along the tolerance: theory §8.3)
-        self._stalled_levels = (
-            dataclasses.replace(
-                self.levels[0], tolerance=STALL_TIGHTENING * self.levels[0].tolerance
-            ),
-            *self.levels[1:],
-        )
+        self._stalled_levels = _tightened(self.levels)
         self.limits = self._limits() + tuple(extra_limits)
         self.relaxed_limits = tuple(
             lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)

@@ -1,6 +1,6 @@
 """The thin dual-quaternion layer: ``vec8`` arrays and Hamilton operators.
 
-Coefficient order everywhere (FORMULATION §1, thesis eq. 2.17):
+Coefficient order everywhere (docs/theory.md §1, thesis eq. 2.17):
 ``vec8(x) = [r_w, r_x, r_y, r_z, d_w, d_x, d_y, d_z]`` with ``d = ½ t r``.
 Quaternions are ``vec4 = [w, x, y, z]``. Functions accept a single value (shape ``(8,)`` /
 ``(4,)``) and, where noted, a batch (shape ``(N, 8)`` / ``(N, 4)``).

@@ -1,6 +1,6 @@
 """Quaternion and dual-quaternion algebra on plain numpy arrays.
 
-Conventions (FORMULATION §1): ``vec4 = [w, x, y, z]``;
+Conventions (docs/theory.md §1): ``vec4 = [w, x, y, z]``;
 ``vec8 = [r_w, r_x, r_y, r_z, d_w, d_x, d_y, d_z]`` for ``x = r + ε d`` with ``d = ½ t r``.
 Products follow the thesis's Hamilton operators (eq. 2.5, 2.18):
 ``vec4(a b) = H+4(a) vec4(b) = H-4(b) vec4(a)`` and likewise ``H±8`` for ``vec8``.
@@ -319,7 +319,7 @@ def align_sign(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Flip ``x`` (and its Jacobian with it) so that ``vec8(x)·vec8(reference) ≥ 0``.
 
-    ``x`` and ``-x`` are the same pose (FORMULATION §1); without this an error ``x_d - x``
+    ``x`` and ``-x`` are the same pose (docs/theory.md §1); without this an error ``x_d - x``
     could ask the robot to unwind a full turn that does not exist. Works on a batch
     (``x``: N×8, ``reference``: N×8 or 8, ``jacobian``: N×8×n) as well.
     """
@@ -340,7 +340,7 @@ def pose_error(x: np.ndarray, x_desired: np.ndarray) -> tuple[np.ndarray, np.nda
     """Translation error [m] and rotation error [rad] between poses (broadcasts).
 
     Returns ``(‖t_d - t‖, angle(r* r_d))``: the same error as ``‖x_d - x‖`` in units a person
-    reads (FORMULATION §7).
+    reads (docs/theory.md §9).
     """
     x = np.asarray(x, dtype=float)
     x_desired = np.asarray(x_desired, dtype=float)

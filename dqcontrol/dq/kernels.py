@@ -1,6 +1,6 @@
 """Pinocchio's placement and frame Jacobian to a ``vec8`` pose and 8×n pose Jacobian, compiled.
 
-FORMULATION §2 in scalar form: from Pinocchio's ``XYZQUAT`` ``[t, r_x, r_y, r_z, r_w]``
+docs/theory.md §2 in scalar form: from Pinocchio's ``XYZQUAT`` ``[t, r_x, r_y, r_z, r_w]``
 and its 6×n frame Jacobian in ``LOCAL_WORLD_ALIGNED`` (rows ``[Jv; Jw]``, the linear
 velocity of the frame origin and the angular velocity, both in world axes)::
 

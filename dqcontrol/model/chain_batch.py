@@ -18,7 +18,7 @@ of the number of joints::
     k      = v_A ⊗ v_B                 (2^m products per configuration)
     out    = k · T                     ([vec8(x), J] for every configuration)
 
-followed by the sign convention ``r_w ≥ 0`` (FORMULATION §1) applied to each row. The size
+followed by the sign convention ``r_w ≥ 0`` (docs/theory.md §1) applied to each row. The size
 of ``T`` is ``2^m × 8(n+1)``, so this only pays for short chains (``MAX_JOINTS``); longer
 ones and any other joint type stay with Pinocchio.
 """

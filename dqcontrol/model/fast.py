@@ -36,7 +36,7 @@ class UncheckedModel:
     def acceleration_limits(
         self, q: np.ndarray, effort_fraction: float, floor: float, cap: float
     ) -> np.ndarray:
-        """``clip((f τ_max - |g(q)|) / M_jj(q), floor, cap)`` [rad/s²] (FORMULATION §6)."""
+        """``clip((f τ_max - |g(q)|) / M_jj(q), floor, cap)`` [rad/s²] (docs/theory.md §5)."""
         return self._robot._acceleration_limits(q, effort_fraction, floor, cap)
 
     def acceleration_limits_batch(

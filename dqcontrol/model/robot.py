@@ -1,6 +1,6 @@
 """The robot model: a URDF loaded by Pinocchio, with kinematics in dual-quaternion form.
 
-FORMULATION §2: the end-effector pose ``x`` (``vec8``) comes from Pinocchio's placement
+docs/theory.md §2: the end-effector pose ``x`` (``vec8``) comes from Pinocchio's placement
 ``oMf`` and the 8×n pose Jacobian from Pinocchio's 6×n frame Jacobian in
 ``LOCAL_WORLD_ALIGNED`` (rows ``[Jv; Jw]``)::
 
@@ -272,7 +272,7 @@ class RobotModel:
         return self._pose_and_jacobian(self.check_q(q))
 
     def pose_jacobian(self, q: np.ndarray) -> np.ndarray:
-        """Pose Jacobian ``∂vec8(x)/∂q`` (8×n) of the end-effector (FORMULATION §2)."""
+        """Pose Jacobian ``∂vec8(x)/∂q`` (8×n) of the end-effector (docs/theory.md §2)."""
         return self._pose_and_jacobian(self.check_q(q))[1]
 
     def _pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -353,7 +353,7 @@ class RobotModel:
         floor_rad_s2: float = 0.5,
         cap_rad_s2: float = 50.0,
     ) -> np.ndarray:
-        """Dynamics-aware joint acceleration bound ``a_max(q)`` [rad/s²] (FORMULATION §6).
+        """Dynamics-aware joint acceleration bound ``a_max(q)`` [rad/s²] (docs/theory.md §5).
 
         ``a_max_j = (effort_fraction·τ_max_j - |g_j(q)|) / M_jj(q)``, clipped to
         ``[floor_rad_s2, cap_rad_s2]``: the acceleration joint j can reach alone with the

@@ -1,4 +1,4 @@
-"""Run metrics (FORMULATION §7), computed from a :class:`~dqcontrol.runs.log.RunLog`.
+"""Run metrics (docs/theory.md §9), computed from a :class:`~dqcontrol.runs.log.RunLog`.
 
 All metrics are taken over the control samples until σ reaches ``T_tot`` (the task).
 """
@@ -37,7 +37,7 @@ class BoundSpec:
 
 @dataclass(frozen=True)
 class Metrics:
-    """The figures of one run (FORMULATION §7). Units in the names."""
+    """The figures of one run (docs/theory.md §9). Units in the names."""
 
     completed: bool
     sigma_reached_s: float

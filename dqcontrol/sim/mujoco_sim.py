@@ -54,7 +54,7 @@ step response and the holding drift.
 
 Computed torque (``motor="torque"``)
 ------------------------------------
-The drives compute the torque from the full rigid-body model (docs FORMULATION §12)::
+The drives compute the torque from the full rigid-body model (docs/drivers.md)::
 
     a = K_v (u_ref - qd) + q̈_ff,   K_v = 1 / τ_v
     τ = sat_τmax( M(q) a + C(q, qd) qd + g(q) + D qd )     one Pinocchio RNEA call

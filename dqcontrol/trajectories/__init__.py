@@ -1,4 +1,4 @@
-"""Trajectories: geometric pose paths ``traj(σ)`` in a reference frame (FORMULATION §3).
+"""Trajectories: geometric pose paths ``traj(σ)`` in a reference frame (docs/theory.md §3).
 
 Every trajectory implements the :class:`Trajectory` contract: ``target(σ) = ref ⊗ traj(σ)``
 and its derivative with respect to the phase ``σ`` [s of nominal time], batched for the

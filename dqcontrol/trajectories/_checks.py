@@ -30,7 +30,7 @@ def positive(name: str, value: float, unit: str) -> float:
 def unit_dq(name: str, value: object) -> np.ndarray:
     """``value`` as a unit dual quaternion vec8 of shape ``(8,)`` or :class:`ParameterError`.
 
-    Accepted: finite, ``| |r| - 1 | ≤ 1e-6`` and ``|r·d| ≤ 1e-6`` (FORMULATION §1). The value is
+    Accepted: finite, ``| |r| - 1 | ≤ 1e-6`` and ``|r·d| ≤ 1e-6`` (docs/theory.md §1). The value is
     returned as given (not renormalised), so that anchoring reproduces it bit for bit.
     """
     try:

@@ -1,4 +1,4 @@
-"""The trajectory contract: a geometric path of poses over a phase ``σ`` (FORMULATION §3).
+"""The trajectory contract: a geometric path of poses over a phase ``σ`` (docs/theory.md §3).
 
 A trajectory gives a unit dual quaternion ``traj(σ)`` and its derivative ``dtraj/dσ`` for
 ``σ ∈ [0, T_tot]``, where ``σ`` is measured in seconds of *nominal* time. It is geometric:
@@ -9,7 +9,7 @@ The path is expressed in a reference frame ``ref`` (a pose in world); the world 
 
     x_d(σ) = ref ⊗ traj(σ),        dx_d/dσ = ref ⊗ dtraj/dσ
 
-(FORMULATION §2–3, the thesis's eq. 4.1 with the base folded into the model). Both are
+(docs/theory.md §2–3, the thesis's eq. 4.1 with the base folded into the model). Both are
 computed as one product with the Hamilton matrix ``H+8(ref)`` (eq. 2.18), built once per
 reference.
 """
@@ -40,7 +40,7 @@ class Trajectory(ABC):
 
     Subclasses implement :meth:`local_pose` and :meth:`local_derivative` (and usually
     override :meth:`local_poses` with a vectorized version); this class turns them into world
-    targets, anchors the reference frame and measures path deviation (FORMULATION §7).
+    targets, anchors the reference frame and measures path deviation (docs/theory.md §9).
 
     Args:
         duration_s: nominal duration ``T_tot`` [s], finite and ``> 0``.
@@ -137,7 +137,7 @@ class Trajectory(ABC):
 
     # ------------------------------------------------------------------ world targets
     def target(self, sigma: float) -> np.ndarray:
-        """World target ``x_d(σ) = ref ⊗ traj(clip(σ, 0, T_tot))`` (vec8, FORMULATION §3).
+        """World target ``x_d(σ) = ref ⊗ traj(clip(σ, 0, T_tot))`` (vec8, docs/theory.md §3).
 
         Past ``T_tot`` the task holds its final pose (and before 0 its first one).
 
@@ -153,7 +153,7 @@ class Trajectory(ABC):
 
         Zero for ``σ ≥ T_tot`` because the task holds its final pose there (and for ``σ < 0``,
         where the target is held at its start, so that this is the derivative of
-        :meth:`target`). Multiply by ``s`` for ``dx_d/dt`` (FORMULATION §3).
+        :meth:`target`). Multiply by ``s`` for ``dx_d/dt`` (docs/theory.md §3).
 
         Raises:
             ParameterError: if the trajectory has no reference yet, or ``σ`` is not finite.
@@ -224,7 +224,7 @@ class Trajectory(ABC):
     def anchored_at(self, x0: np.ndarray) -> Trajectory:
         """A copy whose reference makes ``target(0) == x0``: ``ref = x0 ⊗ traj(0)*``.
 
-        This is the default reference frame of FORMULATION §3: the robot starts on the path
+        This is the default reference frame of docs/theory.md §3: the robot starts on the path
         and the tool orientation is held relative to its start orientation. ``x0`` is used as
         given (not renormalised), so ``target(0)`` reproduces it to rounding (~1e-16).
 
@@ -262,7 +262,7 @@ class Trajectory(ABC):
     def path_deviation(self, points_m: np.ndarray, *, segments: int = 20000) -> np.ndarray:
         """Distance [m] from each point to the nearest point of the geometric path.
 
-        FORMULATION §7's path deviation: how far the end effector is from the *path*, whatever
+        docs/theory.md §9's path deviation: how far the end effector is from the *path*, whatever
         ``σ``. The path is the polyline through ``segments + 1`` world positions evenly spaced
         in ``σ`` (cached per ``segments``); the point-to-segment distance is exact.
 

@@ -1,4 +1,4 @@
-"""Circle in the reference frame's xy-plane (FORMULATION §3, thesis eq. 5.1)."""
+"""Circle in the reference frame's xy-plane (docs/theory.md §3, thesis eq. 5.1)."""
 
 from __future__ import annotations
 

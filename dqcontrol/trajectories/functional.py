@@ -17,7 +17,7 @@ FD_STEP_FRACTION = float(np.finfo(float).eps ** (1.0 / 3.0))
 
 
 class FunctionTrajectory(Trajectory):
-    """Trajectory from user callables (FORMULATION §3 contract, any path).
+    """Trajectory from user callables (docs/theory.md §3 contract, any path).
 
     ``pose_fn(σ)`` must return the unit dual quaternion ``traj(σ)`` (vec8, shape ``(8,)``)
     for ``σ ∈ [0, T_tot]`` [s]; it is only ever called inside that interval. It should be
@@ -29,7 +29,7 @@ class FunctionTrajectory(Trajectory):
     path whose time scale is ``T_tot``; relative error ≈ 1e-10). Within ``h`` of an end it
     switches to the second-order one-sided difference ``(∓3x(σ) ± 4x(σ±h) ∓ x(σ±2h)) / 2h``
     so that ``pose_fn`` is not called outside ``[0, T_tot]``. Neighbouring samples are
-    sign-aligned to ``x(σ)`` first (``x`` and ``-x`` are the same pose, FORMULATION §1), so a
+    sign-aligned to ``x(σ)`` first (``x`` and ``-x`` are the same pose, docs/theory.md §1), so a
     ``pose_fn`` that flips sign does not corrupt the difference. Each derivative costs two
     extra ``pose_fn`` calls.
 

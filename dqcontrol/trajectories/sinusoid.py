@@ -1,4 +1,4 @@
-"""Sinusoid along the reference frame's x-axis, oscillating in z (FORMULATION §3, eq. 5.3)."""
+"""Sinusoid along the reference frame's x-axis, oscillating in z (docs/theory.md §3, eq. 5.3)."""
 
 from __future__ import annotations
 

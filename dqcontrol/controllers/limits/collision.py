@@ -1,5 +1,5 @@
 """Collision avoidance as a limit: self-collision and obstacles (docs/theory.md §10,
-FORMULATION §11).
+docs/theory.md §10).
 
 For every pair of a :class:`~dqcontrol.model.collision.CollisionModel` closer than the
 influence distance ``d_i``, with distance ``d`` and gradient ``∇d`` (witness points, normal and
