@@ -14,24 +14,21 @@ from dqcontrol.sim.bridge import SimServer
 pytest.importorskip("zmq")
 
 
-def _serve(server: SimServer) -> threading.Thread:
+def _run_against(server: SimServer, *options: str) -> int:
+    """``dqcontrol run --connect`` against ``server`` served by a thread; the exit code."""
     thread = threading.Thread(target=server.serve, daemon=True)
     thread.start()
-    return thread
-
-
-def test_run_against_a_sim_server(lbr4p, tmp_path, capsys):
-    server = SimServer(KinematicDriver(lbr4p, 0.05))
-    thread = _serve(server)
     try:
-        code = main([
-            "run", "--connect", server.address, "--controllers", "local", "--duration", "2",
-            "--out", str(tmp_path), "--short", "--no-viewer",
-        ])  # fmt: skip
+        return main(["run", "--connect", server.address, "--short", "--no-viewer", *options])
     finally:
         server.stop()
         thread.join(5.0)
         server.close()
+
+
+def test_run_against_a_sim_server(lbr4p, tmp_path, capsys):
+    server = SimServer(KinematicDriver(lbr4p, 0.05))
+    code = _run_against(server, "--controllers", "local", "--duration", "2", "--out", str(tmp_path))
     out = capsys.readouterr().out
     assert code == 0
     assert "local" in out and "yes" in out  # the run completed
@@ -39,15 +36,8 @@ def test_run_against_a_sim_server(lbr4p, tmp_path, capsys):
 
 def test_a_period_that_differs_from_the_servers_is_refused(lbr4p, tmp_path, capsys):
     server = SimServer(KinematicDriver(lbr4p, 0.01))
-    thread = _serve(server)
-    try:
-        code = main([
-            "run", "--connect", server.address, "--controllers", "local", "--period", "0.05",
-            "--out", str(tmp_path), "--short", "--no-viewer",
-        ])  # fmt: skip
-    finally:
-        server.stop()
-        thread.join(5.0)
-        server.close()
+    code = _run_against(
+        server, "--controllers", "local", "--period", "0.05", "--out", str(tmp_path)
+    )
     assert code != 0
     assert "--period 0.01" in capsys.readouterr().err

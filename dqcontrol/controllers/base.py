@@ -27,6 +27,7 @@ __all__ = [
     "Controller",
     "StepDiagnostics",
     "StepResult",
+    "acceleration_setting",
     "check_position_margin",
     "check_positive",
     "fast_constructor",
@@ -129,6 +130,33 @@ def per_joint(name: str, value, n: int, unit: str, *, allow_zero: bool = False) 
         rng = "≥ 0" if allow_zero else "> 0"
         raise ParameterError(f"{name} must be finite and {rng} [{unit}], got {value!r}")
     return arr
+
+
+def acceleration_setting(
+    acceleration_limit, n: int, floor: float, cap: float
+) -> tuple[np.ndarray | None, float, float]:
+    """``(a_const, floor, cap)`` of a controller's ``acceleration_limit``: a constant
+    [rad/s²] (scalar or per joint) gives ``a_const``; ``"dynamics"`` gives ``a_const = None``
+    and the validated ``floor ≤ cap`` [rad/s²] of the dynamics-aware bound (docs/theory.md
+    §5). Anything else: :class:`ParameterError` naming the parameter and what it accepts."""
+    if not isinstance(acceleration_limit, str):
+        return (
+            per_joint("acceleration_limit", acceleration_limit, n, "rad/s² (or 'dynamics')"),
+            floor,
+            cap,
+        )
+    if acceleration_limit != "dynamics":
+        raise ParameterError(
+            "acceleration_limit must be a positive number [rad/s²], one per joint, or "
+            f"'dynamics', got {acceleration_limit!r}"
+        )
+    floor_v = check_positive("acceleration_floor", floor, "rad/s^2")
+    cap_v = check_positive("acceleration_cap", cap, "rad/s^2")
+    if floor_v > cap_v:
+        raise ParameterError(
+            f"acceleration_floor ({floor}) must be ≤ acceleration_cap ({cap}) [rad/s²]"
+        )
+    return None, floor_v, cap_v
 
 
 def check_position_margin(margin_rad: float, q_min: np.ndarray, q_max: np.ndarray) -> float:

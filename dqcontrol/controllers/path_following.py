@@ -31,6 +31,7 @@ from dqcontrol.controllers.base import (
     Controller,
     StepDiagnostics,
     StepResult,
+    acceleration_setting,
     check_position_margin,
     check_positive,
     per_joint,
@@ -227,23 +228,9 @@ class PathFollowingController(Controller):
 
     def _set_acceleration(self, acceleration_limit, floor: float, cap: float) -> None:
         self.dynamic_acceleration = isinstance(acceleration_limit, str)
+        self.a_const, floor, cap = acceleration_setting(acceleration_limit, self.n, floor, cap)
         if self.dynamic_acceleration:
-            if acceleration_limit != "dynamics":
-                raise ParameterError(
-                    "acceleration_limit must be a positive number [rad/s²], one per joint, or "
-                    f"'dynamics', got {acceleration_limit!r}"
-                )
-            self.acceleration_floor = check_positive("acceleration_floor", floor, "rad/s^2")
-            self.acceleration_cap = check_positive("acceleration_cap", cap, "rad/s^2")
-            if self.acceleration_floor > self.acceleration_cap:
-                raise ParameterError(
-                    f"acceleration_floor ({floor}) must be ≤ acceleration_cap ({cap}) [rad/s²]"
-                )
-            self.a_const = None
-        else:
-            self.a_const = per_joint(
-                "acceleration_limit", acceleration_limit, self.n, "rad/s² (or 'dynamics')"
-            )
+            self.acceleration_floor, self.acceleration_cap = floor, cap
 
     def _levels(self, extra: tuple[Term, ...]) -> tuple[Level, ...]:
         layout, mu, tuning = self.layout, self.tuning.damping, self.tuning

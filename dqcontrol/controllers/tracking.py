@@ -32,7 +32,12 @@ from typing import Literal
 import numpy as np
 
 from dqcontrol.controllers.backends.base import DEFAULT_SOLVER
-from dqcontrol.controllers.base import check_position_margin, check_positive, per_joint
+from dqcontrol.controllers.base import (
+    acceleration_setting,
+    check_position_margin,
+    check_positive,
+    per_joint,
+)
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit as _Acceleration
 from dqcontrol.controllers.limits.command_box import CommandBoxLimit
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
@@ -255,23 +260,9 @@ class TrackingController(QPController):
 
     def _set_acceleration(self, n: int, acceleration_limit, floor, cap) -> None:
         self.dynamic_acceleration = isinstance(acceleration_limit, str)
-        if not self.dynamic_acceleration:
-            self.a_const = per_joint(
-                "acceleration_limit", acceleration_limit, n, "rad/s² (or 'dynamics')"
-            )
-            return
-        if acceleration_limit != "dynamics":
-            raise ParameterError(
-                "acceleration_limit must be a positive number [rad/s²], one per joint, or "
-                f"'dynamics', got {acceleration_limit!r}"
-            )
-        self.acceleration_floor = check_positive("acceleration_floor", floor, "rad/s^2")
-        self.acceleration_cap = check_positive("acceleration_cap", cap, "rad/s^2")
-        if self.acceleration_floor > self.acceleration_cap:
-            raise ParameterError(
-                f"acceleration_floor ({floor}) must be ≤ acceleration_cap ({cap}) [rad/s²]"
-            )
-        self.a_const = None
+        self.a_const, floor, cap = acceleration_setting(acceleration_limit, n, floor, cap)
+        if self.dynamic_acceleration:
+            self.acceleration_floor, self.acceleration_cap = floor, cap
 
     # ------------------------------------------------------------------ composition
     def _layout(self, n: int, period_s: float) -> DecisionLayout:
