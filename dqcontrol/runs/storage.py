@@ -21,7 +21,7 @@ import io
 import json
 import math
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -50,11 +50,19 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
-def _file_mode() -> int:
-    """Permissions of a normally created file (``0o666`` less the umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
+def _create_temporary(folder: Path, name: str) -> tuple[int, str]:
+    """A new temporary file beside ``name`` in ``folder``, opened for writing, with the
+    permissions of a normally created file: ``0o666`` less the umask, applied by the
+    kernel at creation (the process-wide umask is never read or changed, so threads that
+    create files at the same time are not affected)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(100):
+        tmp = folder / f".{name}.{secrets.token_hex(6)}.tmp"
+        try:
+            return os.open(tmp, flags, 0o666), str(tmp)
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free temporary name for {name!r} in {folder}")
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
@@ -64,13 +72,12 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    fd, tmp_name = _create_temporary(target.parent, target.name)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
-        os.chmod(tmp_name, _file_mode())  # mkstemp makes 0600 files
         os.replace(tmp_name, target)
     except BaseException:
         try:
