@@ -330,6 +330,67 @@ def bench_path_following(
     return {"by_p": by_p, "by_joints_p10": by_n, "fit_p": _power_fit(by_p)}
 
 
+def _cell_obstacles(robot: RobotModel) -> tuple:
+    """Three obstacles around the LBR4p's circle: a ball at the elbow, a box beside the
+    path, the table under it."""
+    from dqcontrol.model.collision import Box, HalfSpace, Sphere
+
+    tool = robot.placement(LBR4P_Q0).translation
+    return (
+        Sphere(name="ball", position_m=(0.2245, -0.2559, 0.9519), radius_m=0.05),
+        Box(name="crate", position_m=tuple(tool + [0.0, 0.25, -0.1]), size_m=(0.1, 0.1, 0.2)),
+        HalfSpace(name="table", normal=(0.0, 0.0, 1.0), offset_m=float(tool[2] - 0.3)),
+    )
+
+
+def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
+    """The collision limit's cost at ``period_s`` with three obstacles and self-collision:
+    pairs, pairs within the influence distance and rows per step, the limit's own time
+    and the whole step, for the local controller and the path-following one (p = 10)."""
+    from dqcontrol.controllers.limits.collision import CollisionLimit
+    from dqcontrol.model.collision import CollisionModel
+
+    robot = load_lbr4p()
+    model = CollisionModel(robot, _cell_obstacles(robot), self_collision=True)
+    shared = {"velocity_limits": THESIS_VEL, "acceleration_limit": THESIS_ACCELERATION_LIMIT}
+    out: dict = {"pairs": len(model.pairs)}
+    for name in ("local", "pf10"):
+        limit = CollisionLimit(model)
+        rows, limit_times, influence, step_times_s = [], [], [], []
+        timed_rows = limit.rows
+
+        def rows_timed(ctx, _rows=timed_rows, _times=limit_times):
+            t0 = time.perf_counter()
+            result = _rows(ctx)
+            _times.append(time.perf_counter() - t0)
+            return result
+
+        limit.rows = rows_timed
+        ctrl = build_controller(
+            name, robot, Circle(2.0), period_s, shared=shared, extra_limits=(limit,)
+        )
+        q = LBR4P_Q0.copy()
+        ctrl.reset(q)
+        for _ in range(steps):
+            res = ctrl.step(q)
+            step_times_s.append(res.diagnostics.step_time_s)
+            rows.append(limit.last_rows)
+            influence.append(limit.pairs_in_influence)
+            q = q + period_s * res.qd_command
+            if ctrl.done:
+                ctrl.reset(q)
+        plain = build_controller(name, robot, Circle(2.0), period_s, shared=shared)
+        without = step_times(plain, LBR4P_Q0, steps, 1, reference=False)["median_us"]
+        out[name] = {
+            "step_median_us": float(np.median(step_times_s) * 1e6),
+            "step_without_limit_median_us": without,
+            "limit_median_us": float(np.median(limit_times) * 1e6),
+            "rows_mean": float(np.mean(rows)),
+            "pairs_in_influence_mean": float(np.mean(influence)),
+        }
+    return out
+
+
 def _power_fit(table: dict) -> dict:
     """Exponents ``k`` of ``t ≈ a x^k`` for the whole step and for the solver alone
     (least squares in log-log over the measured points)."""
@@ -619,9 +680,11 @@ def run_all(quick: bool = False) -> dict:
     if quick:
         out["scaling"] = bench_scaling(steps=60, repeats=1, ps=(2, 10), joints=(7, 14))
         out["path_following"] = bench_path_following(steps=20, ps=(6, 10), joints=(7,))
+        out["collision"] = bench_collision(steps=20)
     else:
         out["scaling"] = bench_scaling()
         out["path_following"] = bench_path_following()
+        out["collision"] = bench_collision()
     out["targets"] = _targets(out)
     return out
 
@@ -745,7 +808,28 @@ def format_report(res: dict) -> str:
         f"solver k = {sc['fit_joints']['solver_median_us']:.2f}"
     )
     lines += _path_following_lines(res.get("path_following"))
+    lines += _collision_lines(res.get("collision"))
     return "\n".join(lines)
+
+
+def _collision_lines(col: dict | None) -> list[str]:
+    """The collision section of the report."""
+    if not col:
+        return []
+    lines = [
+        "",
+        f"collision limit (three obstacles + self-collision, {col['pairs']} pairs) [µs]: "
+        "step median (and without the limit), the limit's rows() median, rows and pairs "
+        "within the influence distance",
+    ]
+    for name in ("local", "pf10"):
+        v = col[name]
+        lines.append(
+            f"  {name}: step {v['step_median_us']:.0f} (without the limit "
+            f"{v['step_without_limit_median_us']:.0f}), limit rows {v['limit_median_us']:.0f}, "
+            f"{v['rows_mean']:.1f} rows, {v['pairs_in_influence_mean']:.1f} pairs"
+        )
+    return lines
 
 
 def _path_following_lines(pf: dict | None) -> list[str]:
