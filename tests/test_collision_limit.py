@@ -296,3 +296,27 @@ def test_a_start_inside_the_safety_distance_comes_no_closer(robot, name):
     run = closed_loop(robot, make(robot, name, Circle(2.0), (CollisionLimit(cm),)), cm, 1.0)
     assert run["fallbacks"] == 0
     assert run["d_min"].min() >= start - 1e-5
+
+
+def test_moving_rows_refresh_the_backend_like_a_new_setup(robot):
+    """Collision rows change values every step with the same shape: the backend refreshes
+    its copy of them (no new setup); the commands equal those of a backend set up anew at
+    every step."""
+    ball = Sphere(name="ball", position_m=(0.22446, -0.25589, 0.95194), radius_m=0.05)
+    cm = CollisionModel(robot, (ball,))
+    a = make(robot, "local", Circle(2.0), (CollisionLimit(cm),))
+    b = make(robot, "local", Circle(2.0), (CollisionLimit(cm),))
+    q = LBR4P_Q0.copy()
+    a.reset(q)
+    b.reset(q)
+    refreshed = 0
+    for _ in range(150):
+        before = a.qp._structure
+        ra = a.step(q)
+        refreshed += a.qp._structure == before and a.last_problem().C.shape[0] > 0
+        b.qp._structure = None  # force a new setup
+        rb = b.step(q)
+        np.testing.assert_allclose(ra.qd_command, rb.qd_command, rtol=0, atol=1e-12)
+        assert ra.s == pytest.approx(rb.s, abs=1e-12)
+        q = q + T * ra.qd_command
+    assert refreshed > 50  # the rows were there and the structure was kept

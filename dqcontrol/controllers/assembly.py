@@ -33,6 +33,8 @@ __all__ = ["BlockAssembly", "overrides"]
 
 _new_qp = tuple.__new__  # a NamedTuple from all its fields, without the keyword handling
 
+#: The numbers of every new set of values of ``C`` within a structure (unique).
+_VALUES = itertools.count(1)
 #: The structure numbers of every assembly (unique: a backend compares the number only).
 _STRUCTURES = itertools.count(1)
 
@@ -80,6 +82,7 @@ class BlockAssembly:
         self.limits = tuple(limits)
         self.relaxable = any(lim.relaxable for lim in self.limits)
         self.structure = 0
+        self.values = 0
         self._ready = False
         self.conflict = np.zeros(0, dtype=np.int8)
         #: whether a hard bound won a conflict on the applied block at the last build
@@ -241,8 +244,12 @@ class BlockAssembly:
         if sum(r.lower.size for r in rows) != b - a:
             return False
         c_mat = np.vstack([r.C for r in rows])
-        if not np.array_equal(c_mat, self._C[a - nv : b - nv]):
+        current = self._C[a - nv : b - nv]
+        if c_mat.shape != current.shape:
             return False
+        if not np.array_equal(c_mat, current):  # same rows, new values
+            current[...] = c_mat
+            self.values = next(_VALUES)
         lower[a:b] = np.concatenate([r.lower for r in rows])
         upper[a:b] = np.concatenate([r.upper for r in rows])
         return True
@@ -266,7 +273,8 @@ class BlockAssembly:
                 add_residual(hessian, c, term.residual(ctx))
         lower, upper = bounds
         return _new_qp(
-            BlockQP, (hessian, c, self._C, lower, upper, self._fixed, self.structure, warm)
+            BlockQP,
+            (hessian, c, self._C, lower, upper, self._fixed, self.structure, warm, self.values),
         )
 
 

@@ -310,6 +310,10 @@ class BlockQP(NamedTuple):
             structure changes (:class:`~dqcontrol.controllers.assembly.BlockAssembly` draws
             them from one counter, so numbers are never reused).
         warm: a guess of the solution ``(p m,)`` for solvers that take one, or ``None``.
+        values: a number that changes whenever the values of ``C`` change within the same
+            structure (same shapes: limits whose rows move with the state, such as a
+            collision limit's): a backend then refreshes its copy of ``C`` instead of
+            setting up again.
     """
 
     hessian: np.ndarray
@@ -320,6 +324,7 @@ class BlockQP(NamedTuple):
     fixed: tuple[int, ...] = ()
     structure: int = 0
     warm: np.ndarray | None = None
+    values: int = 0
 
     def dense(self) -> DenseQP:
         """The same QP with ``P`` and ``A`` as dense arrays."""

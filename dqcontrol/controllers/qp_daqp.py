@@ -122,6 +122,7 @@ class DaqpQP:
             )
         self.last_method = "daqp"
         self._structure: int | None = None
+        self._values = 0
         self._box = False
         self._model = None
         self._block = 0
@@ -230,6 +231,10 @@ class DaqpQP:
         if qp.structure != self._structure:  # the number names the shapes too
             self._configure_blocks(qp)
             self._structure = qp.structure
+            self._values = qp.values
+        elif qp.values != self._values:  # same shapes, new values of C
+            self._refresh_general(qp.C)
+            self._values = qp.values
         lower, upper = qp.lower, qp.upper
         if self._box:
             state = bounds_state(lower, upper)  # compiled: 0 usable, 1 clamp, -1 refused
@@ -269,6 +274,17 @@ class DaqpQP:
         scatter_blocks(self._h, hessian)  # compiled: the diagonal blocks of H
         x, ok, status, iterations = self._solve_h(qp.c, lower, upper)
         return Solution(ok, status, iterations, perf_counter() - start, x)
+
+    def _refresh_general(self, general: np.ndarray) -> None:
+        """New values of the general rows ``C`` (same shape): the dense copy and the
+        least-distance form's sparse arrays, without setting the workspace up again."""
+        self._a_general = np.ascontiguousarray(general)
+        self._model = None  # the dense form's workspace holds the old rows: set up anew
+        if self._block:
+            rows, cols = np.nonzero(general)
+            self._a_ptr = np.searchsorted(rows, np.arange(general.shape[0] + 1)).astype(np.int64)
+            self._a_idx = cols.astype(np.int64)
+            self._a_val = general[rows, cols].astype(float)
 
     @property
     def form(self) -> str:

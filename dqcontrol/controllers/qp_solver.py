@@ -176,7 +176,7 @@ class OsqpQP:
         """Solve a :class:`~dqcontrol.controllers.problem.BlockQP` (OSQP set up for its
         structure: ``P``'s stored values are the blocks' upper triangles)."""
         p, m, _ = qp.hessian.shape
-        key = (qp.hessian.shape, qp.structure)
+        key = (qp.hessian.shape, qp.structure, qp.values)  # OSQP's A is set up with it
         if key != self._structure:
             block = sp.csc_matrix(np.triu(np.ones((m, m))))
             a_rows = [sp.identity(p * m, format="csc")]
