@@ -137,133 +137,190 @@ def run_loop(
             Otherwise the loop runs as fast as the driver answers (simulated time).
         stale_periods: the run stops (``reason = "stale"``) when the measurement has not
             been renewed for this many periods.
-        brake: after the run, ramp the command to zero within the acceleration limit and
-            hold (not logged; ``meta["stop"]`` says how many periods it took).
+        brake: after the run, ramp the command to zero within the acceleration limit, hold.
         warm_up: step a copy of the controller once before the first command.
 
     Returns:
-        :class:`RunResult`; Ctrl-C, a driver or simulator error, a stale measurement or a
-        missed deadline keep the completed samples (``interrupted=True``, a ``note``). The
-        log's ``meta["stop"]`` says why the run ended and how long it braked, and
-        ``meta["driver_report"]`` holds the driver's ``report()`` where it has one.
+        :class:`RunResult`; Ctrl-C, a driver error, a stale measurement or a missed deadline
+        keep the samples done (``interrupted=True``, a ``note``); ``meta["stop"]`` says why
+        it ended and how long it braked, ``meta["driver_report"]`` the driver's counters.
 
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
-        ParameterError: a bad ``max_time_s``/``stale_periods``, or ``q0`` with a driver that
-            cannot be reset.
+        ParameterError: bad ``max_time_s``/``stale_periods``; ``q0`` for a driver without
+            ``reset``.
     """
     robot = controller.robot
     period = controller.period_s
-    names = tuple(robot.joint_names)
-    perm = joint_map(driver.joint_names, names)
-    inv = None if perm is None else np.argsort(perm)
-    if isinstance(stale_periods, bool) or not isinstance(stale_periods, int | np.integer):
+    order = _JointOrder(driver.joint_names, tuple(robot.joint_names))
+    num = _sample_count(controller, max_time_s, stale_periods)
+    meas = _first_measurement(driver, robot, q0, order)
+    q, qd = order.to_model(meas)
+    controller.reset(q)
+    rec = LogRecorder(robot.nq, _run_info(driver, controller, order.names, q, warm_up, meta))
+    clock = _Clock(period, bool(realtime))
+    run = _Samples(controller, driver, order, rec, clock, meas)
+    run.loop(num, stale_periods, on_sample, on_progress)
+    stop = _stop_and_brake(run, brake)
+    return _result(controller, driver, rec, stop, run)
+
+
+def _sample_count(controller: Controller, max_time_s: float | None, stale_periods) -> int:
+    """The most samples of a run (``max_time_s``, default ``10 T_tot + 1 s``); checks
+    ``stale_periods``."""
+    if (
+        isinstance(stale_periods, bool)
+        or not isinstance(stale_periods, int | np.integer)
+        or stale_periods < 1
+    ):
         raise ParameterError(f"stale_periods must be an integer ≥ 1, got {stale_periods!r}")
-    if stale_periods < 1:
-        raise ParameterError(f"stale_periods must be an integer ≥ 1, got {stale_periods!r}")
-    duration = controller.trajectory.duration
     limit = (
-        10.0 * duration + 1.0
+        10.0 * controller.trajectory.duration + 1.0
         if max_time_s is None
         else check_positive("max_time_s", max_time_s, "s")
     )
+    return int(np.ceil(limit / controller.period_s - 1e-9))
 
-    def to_model(m: Measurement) -> tuple[np.ndarray, np.ndarray]:
-        if perm is None:
+
+def _stop_and_brake(run: _Samples, brake: bool) -> dict:
+    """``meta["stop"]``: why the run ended, the lateness on the wall clock, and the periods
+    of braking (done here, after the last logged sample)."""
+    clock = run.clock
+    stop: dict = {"reason": run.reason or "end", "brake_periods": 0}
+    if clock.realtime and clock.lateness_s:
+        late = np.asarray(clock.lateness_s)
+        stop["lateness_max_ms"] = float(1e3 * late.max())
+        stop["lateness_median_ms"] = float(1e3 * np.median(late))
+    if brake and run.reason != "simulation":
+        stop["brake_periods"] = _brake_and_hold(
+            run.driver, np.array(run.command, dtype=float),
+            _brake_rate(run.controller, run.q), run.order.to_driver, clock,
+        )  # fmt: skip
+    return stop
+
+
+class _JointOrder:
+    """The driver's joint order against the model's (by name; ``perm`` is ``None`` when
+    they are the same)."""
+
+    def __init__(self, driver_names, model_names: tuple[str, ...]) -> None:
+        self.names = model_names
+        self.perm = joint_map(driver_names, model_names)
+        self.inv = None if self.perm is None else np.argsort(self.perm)
+
+    def to_model(self, m: Measurement) -> tuple[np.ndarray, np.ndarray]:
+        if self.perm is None:
             return m.q, m.qd
-        return np.asarray(m.q)[perm], np.asarray(m.qd)[perm]
+        return np.asarray(m.q)[self.perm], np.asarray(m.qd)[self.perm]
 
-    def to_driver(u: np.ndarray) -> np.ndarray:
-        return u if inv is None else u[inv]
+    def to_driver(self, u: np.ndarray) -> np.ndarray:
+        return u if self.inv is None else u[self.inv]
 
-    if q0 is not None:
-        q0 = robot.check_q(q0, "q0")
-        if not hasattr(driver, "reset"):
-            raise ParameterError(
-                f"q0 is given but {type(driver).__name__} cannot be reset (a real arm starts "
-                "where it is: pass q0=None)"
-            )
-        meas = driver.reset(to_driver(q0))
-    else:
-        meas = driver.read()
-    q, qd = to_model(meas)
-    controller.reset(q)
+
+def _first_measurement(driver, robot, q0, order: _JointOrder) -> Measurement:
+    """The driver reset to ``q0`` (model order), or its present measurement."""
+    if q0 is None:
+        return driver.read()
+    q0 = robot.check_q(q0, "q0")
+    if not hasattr(driver, "reset"):
+        raise ParameterError(
+            f"q0 is given but {type(driver).__name__} cannot be reset (a real arm starts "
+            "where it is: pass q0=None)"
+        )
+    return driver.reset(order.to_driver(q0))
+
+
+def _run_info(driver, controller: Controller, names, q, warm_up: bool, meta) -> dict:
+    """The log's ``meta``: simulator, controller, period, the driver's own entries, joint
+    names, the warm-up's note (the controller stepped once, in a copy, where ``warm_up``),
+    then the caller's ``meta``."""
     info = dict(getattr(driver, "meta", {}))
     info = {
         "simulator": info.pop("simulator", type(driver).__name__),
         "controller": controller.name,
-        "period_s": period,
+        "period_s": controller.period_s,
         **info,
         "joint_names": list(names),
     }
     if warm_up:
-        why = _warm_up(controller, np.asarray(q, dtype=float), np.zeros(robot.nq))
+        why = _warm_up(controller, np.asarray(q, dtype=float), np.zeros(controller.robot.nq))
         if why:
             info["warm_up"] = why
     info.update(meta or {})
-    rec = LogRecorder(robot.nq, info)
-    interrupted, note, reason = False, "", ""
-    num = int(np.ceil(limit / period - 1e-9))
-    clock = _Clock(period, bool(realtime))
-    command = np.zeros(robot.nq)
-    newest, unchanged = meas.t_s, 0
-    try:
+    return info
+
+
+class _Samples:
+    """The samples of one run: step, write, read, record, until the task ends or the
+    watchdog (stale measurement, missed deadline), Ctrl-C or a driver error stops it."""
+
+    def __init__(self, controller, driver, order, rec, clock, meas: Measurement) -> None:
+        self.controller, self.driver, self.order = controller, driver, order
+        self.rec, self.clock, self.meas = rec, clock, meas
+        self.q, self.qd = order.to_model(meas)
+        self.command = np.zeros(controller.robot.nq)
+        self.interrupted, self.note, self.reason = False, "", ""
+
+    def loop(self, num: int, stale_periods: int, on_sample, on_progress) -> None:
+        try:
+            self._loop(num, stale_periods, on_sample, on_progress)
+        except KeyboardInterrupt:
+            self._stop("user", f"interrupted by the user after {len(self.rec)} samples")
+        except DQControlError as exc:
+            self._stop("simulation", f"simulation stopped after {len(self.rec)} samples: {exc}")
+
+    def _stop(self, reason: str, note: str) -> None:
+        self.interrupted, self.reason, self.note = True, reason, note
+
+    def _loop(self, num: int, stale_periods: int, on_sample, on_progress) -> None:
+        controller, driver, rec, clock = self.controller, self.driver, self.rec, self.clock
+        duration = controller.trajectory.duration
+        newest, unchanged = self.meas.t_s, 0
         for k in range(num):
             if unchanged >= stale_periods:
-                interrupted, reason = True, "stale"
-                note = (
+                self._stop("stale", (
                     f"stopped after {len(rec)} samples: the measurement (t = {newest:.4f} s) "
                     f"was not renewed for {unchanged} periods"
-                )
-                break
-            result = controller.step(q, qd)
-            command = result.qd_command
-            driver.write(to_driver(command))
+                ))  # fmt: skip
+                return
+            result = controller.step(self.q, self.qd)
+            self.command = result.qd_command
+            driver.write(self.order.to_driver(self.command))
             nxt = driver.read()
-            rec.record(meas.t_s, q, qd, result, nxt.torque, nxt.torque_peak)
+            rec.record(self.meas.t_s, self.q, self.qd, result, nxt.torque, nxt.torque_peak)
             if on_sample is not None:
                 on_sample(k, driver, result)
             if on_progress is not None:
                 on_progress(float(result.sigma_next), duration)
             if controller.done:
-                break
+                return
             if nxt.t_s > newest:
                 newest, unchanged = nxt.t_s, 0
             else:
                 unchanged += 1
-            meas = nxt
-            q, qd = to_model(meas)
+            self.meas = nxt
+            self.q, self.qd = self.order.to_model(nxt)
             if not clock.wait():
-                interrupted, reason = True, "deadline"
-                note = (
+                self._stop("deadline", (
                     f"stopped after {len(rec)} samples: sample {k} ended "
                     f"{1e3 * clock.lateness_s[-1]:.2f} ms after its deadline"
-                )
-                break
-    except KeyboardInterrupt:
-        interrupted, reason = True, "user"
-        note = f"interrupted by the user after {len(rec)} samples"
-    except DQControlError as exc:
-        interrupted, reason = True, "simulation"
-        note = f"simulation stopped after {len(rec)} samples: {exc}"
-    stop: dict = {"reason": reason or "end", "brake_periods": 0}
-    if realtime and clock.lateness_s:
-        late = np.asarray(clock.lateness_s)
-        stop["lateness_max_ms"] = float(1e3 * late.max())
-        stop["lateness_median_ms"] = float(1e3 * np.median(late))
-    if brake and reason != "simulation":
-        stop["brake_periods"] = _brake_and_hold(
-            driver, np.array(command, dtype=float), _brake_rate(controller, q), to_driver, clock
-        )
+                ))  # fmt: skip
+                return
+
+
+def _result(controller, driver, rec: LogRecorder, stop: dict, run: _Samples) -> RunResult:
+    """The run's log (with ``stop``, the driver's report and the note) and its metrics."""
     log = rec.finish()
     log.meta["stop"] = stop
     report = getattr(driver, "report", None)
     if callable(report):  # the driver's own counters (e.g. the bridge's rejected packets)
         log.meta["driver_report"] = report()
-    if note:
-        log.meta["note"] = note
-    metrics = compute_metrics(log, controller.trajectory, bounds_of(controller, log.q), period)
-    return RunResult(log, metrics, interrupted, note, reason)
+    if run.note:
+        log.meta["note"] = run.note
+    metrics = compute_metrics(
+        log, controller.trajectory, bounds_of(controller, log.q), controller.period_s
+    )
+    return RunResult(log, metrics, run.interrupted, run.note, run.reason)
 
 
 def _brake_and_hold(driver, command, rate, to_driver, clock: _Clock) -> int:

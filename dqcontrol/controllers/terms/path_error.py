@@ -26,9 +26,15 @@ _PURE = np.array([1, 2, 3, 5, 6, 7])
 _CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 
+#: ``H+8`` is linear in its argument: ``H+8(x) = Σ_k x_k H+8(e_k)``; the pure rows of each
+#: ``H+8(e_k)`` with the conjugation folded in, ``(8, 6, 8)``.
+_PROJECTOR_BASIS = np.array([_CONJ[k] * hamiplus8(np.eye(8)[k])[_PURE] for k in range(8)])
+
+
 def tangent_projectors(poses: np.ndarray) -> np.ndarray:
-    """``E_i = P_pure H+8(x_i*)`` ``(p, 6, 8)`` for poses ``(p, 8)``."""
-    return np.array([hamiplus8(x * _CONJ)[_PURE] for x in poses])
+    """``E_i = P_pure H+8(x_i*)`` ``(p, 6, 8)`` for poses ``(p, 8)`` (one product for the
+    batch)."""
+    return np.einsum("pk,kab->pab", np.asarray(poses), _PROJECTOR_BASIS)
 
 
 class PathErrorTerm(Term):

@@ -47,11 +47,14 @@ class SingularityDampingTerm(Term):
         self._b = np.zeros(p * n)
         self.weight = 0.0
         self.sigma_min = np.inf
+        self._ctx: StepContext | None = None
 
     def residual(self, ctx: StepContext) -> Residual:
-        tangent = tangent_projectors(ctx.poses[:1])[0] @ ctx.jacobians[0]
-        self.sigma_min = float(np.linalg.svd(tangent, compute_uv=False)[-1])
-        ratio = self.sigma_min / self.threshold
-        lam2 = self.max_damping**2 * (1.0 - ratio * ratio) if ratio < 1.0 else 0.0
-        self.weight = self.scale * lam2
+        if ctx is not self._ctx:  # the same term in several levels: one SVD per step
+            tangent = tangent_projectors(ctx.poses[:1])[0] @ ctx.jacobians[0]
+            self.sigma_min = float(np.linalg.svd(tangent, compute_uv=False)[-1])
+            ratio = self.sigma_min / self.threshold
+            lam2 = self.max_damping**2 * (1.0 - ratio * ratio) if ratio < 1.0 else 0.0
+            self.weight = self.scale * lam2
+            self._ctx = ctx
         return Residual(self.name, self.weight, self._b, blocks=self._blocks, held=False)
