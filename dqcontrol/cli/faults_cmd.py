@@ -68,7 +68,19 @@ def register(subparsers) -> None:
         default="mujoco",
         help="closed loop: MuJoCo dynamics (default) or ideal velocity tracking",
     )
-    parser.add_argument("--workers", type=_workers, default=1, help="worker processes (default: 1)")
+    parser.add_argument(
+        "--workers",
+        type=_workers,
+        default=None,
+        help="processes of the local pool (default: all cores; 1 runs in this process)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed cluster, e.g. tcp://host:8786, or 'local' for a "
+        "cluster of local worker processes (needs dask[distributed])",
+    )
     parser.add_argument(
         "--controllers", type=_csv_list, default=None, help="comma-separated subset"
     )
@@ -89,14 +101,8 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the campaign, write the report, print a summary. Exit code: 0, 1 (``--strict``
     and a QP controller failed a check), 130 (interrupted; the partial report is written)."""
-    from tqdm import tqdm
-
-    from dqcontrol.faults.campaign import (
-        campaign_cases,
-        render_csv,
-        render_markdown,
-        run_campaign,
-    )
+    from dqcontrol.experiments.executor import progress_bar, resolve_executor
+    from dqcontrol.faults.campaign import campaign_cases, render_csv, render_markdown, run_cases
     from dqcontrol.runs.storage import atomic_write_text
 
     cases = campaign_cases(
@@ -104,28 +110,16 @@ def run(args: argparse.Namespace) -> int:
     )
     if not cases:
         raise ParameterError("the selection has no case (check --controllers/--faults)")
-    bar = tqdm(
-        total=len(cases),
-        desc=f"faults ({args.simulator})",
-        unit="case",
-        disable=args.no_progress,
-        file=sys.stderr,
-    )
+    executor = resolve_executor(args.workers, args.scheduler, len(cases))
+    bar = progress_bar(len(cases), f"faults ({args.simulator})", not args.no_progress)
 
     def on_result(row, done, total):
         bar.set_postfix_str(f"{row.fault}/{row.trajectory}/{row.controller}", refresh=False)
         bar.update(1)
 
     try:
-        result = run_campaign(
-            args.controllers,
-            args.trajectories,
-            args.faults,
-            args.simulator,
-            args.quick,
-            workers=args.workers,
-            seed=args.seed,
-            on_result=on_result,
+        result = run_cases(
+            cases, executor, simulator=args.simulator, quick=args.quick, on_result=on_result
         )
     finally:
         bar.close()

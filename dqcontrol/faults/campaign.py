@@ -34,13 +34,11 @@ import contextlib
 import csv
 import io
 import math
-import multiprocessing
 import os
 import sys
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -48,6 +46,7 @@ import numpy as np
 from dqcontrol.controllers.base import Controller
 from dqcontrol.dq.algebra import dq_from_rt, dq_mul, translation
 from dqcontrol.errors import ParameterError
+from dqcontrol.experiments.executor import Executor, resolve_executor, run_jobs
 from dqcontrol.experiments.runner import lbr4p, simulate
 from dqcontrol.experiments.thesis import THESIS_PERIOD_S
 from dqcontrol.faults.qp_faults import ContradictoryBoundsQP, contradictory
@@ -79,6 +78,8 @@ __all__ = [
     "render_markdown",
     "run_campaign",
     "run_case",
+    "run_cases",
+    "run_indexed",
 ]
 
 #: Control period of the campaign [s] (the thesis's).
@@ -499,31 +500,44 @@ def run_campaign(
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"workers must be an integer ≥ 1, got {workers!r}")
     cases = campaign_cases(controllers, trajectories, faults, simulator, quick, seed)
+    executor = resolve_executor(workers, None, len(cases))
+    return run_cases(cases, executor, simulator=simulator, quick=quick, on_result=on_result)
+
+
+def run_indexed(item: tuple[int, CaseSpec]) -> tuple[int, CaseResult]:
+    """``(i, run_case(spec))`` for ``item = (i, spec)``: the job the executors run, so that
+    results arriving in completion order go back to their place."""
+    index, spec = item
+    return index, run_case(spec)
+
+
+def run_cases(
+    cases: Sequence[CaseSpec],
+    executor: Executor,
+    *,
+    simulator: str,
+    quick: bool = False,
+    on_result: Callable[[CaseResult, int, int], None] | None = None,
+) -> CampaignResult:
+    """Run ``cases`` on ``executor`` (:mod:`dqcontrol.experiments.executor`: this process,
+    the local process pool or a Dask cluster) and collect the rows in case order.
+
+    ``simulator`` and ``quick`` label the result. Ctrl-C (or a ``KeyboardInterrupt`` raised
+    by ``on_result``) stops the campaign: the completed rows are kept and ``interrupted``
+    is set.
+    """
     start = time.perf_counter()
     results: dict[int, CaseResult] = {}
+
+    def on_done(item: tuple[int, CaseResult]) -> None:
+        index, row = item
+        results[index] = row
+        if on_result is not None:
+            on_result(row, len(results), len(cases))
+
     interrupted = False
     try:
-        if workers == 1 or len(cases) <= 1:
-            for i, case in enumerate(cases):
-                results[i] = run_case(case)
-                if on_result is not None:
-                    on_result(results[i], len(results), len(cases))
-        else:
-            ctx = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-                pending = {pool.submit(run_case, case): i for i, case in enumerate(cases)}
-                try:
-                    while pending:
-                        done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                        for fut in done:
-                            i = pending.pop(fut)
-                            results[i] = fut.result()
-                            if on_result is not None:
-                                on_result(results[i], len(results), len(cases))
-                except BaseException:
-                    for fut in pending:
-                        fut.cancel()
-                    raise
+        run_jobs(run_indexed, list(enumerate(cases)), executor, on_done)
     except KeyboardInterrupt:
         interrupted = True
     rows = [results[i] for i in sorted(results)]
