@@ -1,0 +1,149 @@
+"""Running a study: its cases on the shared executor, each case's result saved as it
+arrives, and the tables at the end.
+
+Every finished case is written at once to ``<folder>/<name>_cases/<case>.json``, atomically
+(:func:`~dqcontrol.runs.storage.atomic_write_text`): a crash or Ctrl-C loses no case that
+had finished. The tables (``<folder>/<name>.md`` and ``.csv``, as the study's ``formats``
+say) are written atomically at the end, also after an interrupt (with the cases that
+completed, marked as such).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dqcontrol.experiments.executor import progress_bar, resolve_executor, run_jobs
+from dqcontrol.runs.storage import atomic_write_text, jsonable
+from dqcontrol.studies.kinds import RunInfo, experiment_kind
+from dqcontrol.studies.spec import Study
+
+__all__ = ["StudyResult", "run_indexed", "run_study", "study_cases"]
+
+
+@dataclass
+class StudyResult:
+    """What :func:`run_study` produced.
+
+    Attributes:
+        study: the study.
+        results: each finished case's result, in case order (the experiment's own form).
+        records: the same as plain JSON data (the case files' content).
+        files: the tables written, by format.
+        cases_dir: the folder of the case files.
+        wall_time_s: wall time of the cases [s].
+        executor: where they ran.
+        total_cases: the cases of the grid.
+        interrupted: whether Ctrl-C stopped the study before every case finished.
+        texts: the tables' text, by format (every format, written or not).
+    """
+
+    study: Study
+    results: list[Any]
+    records: list[dict]
+    files: dict[str, Path]
+    cases_dir: Path
+    wall_time_s: float
+    executor: str
+    total_cases: int
+    interrupted: bool = False
+    texts: dict[str, str] = field(default_factory=dict)
+
+
+def study_cases(study: Study) -> list:
+    """The study's cases, in the table's order (the experiment's case objects)."""
+    return experiment_kind(study.experiment).cases(study)
+
+
+def run_indexed(item: tuple[int, Any], job) -> tuple[int, Any]:
+    """``(i, job(case))`` for ``item = (i, case)``: results arriving in completion order go
+    back to their place."""
+    index, case = item
+    return index, job(case)
+
+
+def run_study(
+    study: Study,
+    *,
+    out: str | os.PathLike | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool = True,
+    command: str | None = None,
+) -> StudyResult:
+    """Run every case of ``study`` and write its results.
+
+    Args:
+        out: results folder (default: the study's ``[output] folder``).
+        workers: processes of the local pool (default: all cores; 1 runs in this process).
+        scheduler: a Dask scheduler address, or ``"local"`` for a local Dask cluster of
+            ``workers`` single-threaded processes (:mod:`dqcontrol.experiments.executor`).
+        progress: show a progress bar (tqdm, on stderr).
+        command: the command line, quoted in the report.
+
+    Ctrl-C stops the study: the cases that finished are in their files and in the tables,
+    and :attr:`StudyResult.interrupted` is set.
+
+    The pool's workers are started with ``spawn``: a script that calls this function must
+    do so under ``if __name__ == "__main__":``.
+    """
+    import functools
+
+    kind = experiment_kind(study.experiment)
+    cases = kind.cases(study)
+    folder = Path(study.output.folder if out is None else out)
+    cases_dir = folder / f"{study.name}_cases"
+    cases_dir.mkdir(parents=True, exist_ok=True)
+    runs_dir = folder / f"{study.name}_runs" if study.output.save_runs else None
+    save_dir = None if runs_dir is None else str(runs_dir.resolve())
+    executor = resolve_executor(workers, scheduler, len(cases))
+    results: dict[int, Any] = {}
+    bar = progress_bar(len(cases), study.name, progress)
+
+    def on_done(item: tuple[int, Any]) -> None:
+        index, result = item
+        results[index] = result
+        name = kind.case_name(cases[index])
+        text = json.dumps(jsonable(kind.record(result)), indent=1, allow_nan=False)
+        atomic_write_text(cases_dir / f"{name}.json", text + "\n")
+        bar.set_postfix_str(name, refresh=False)
+        bar.update(1)
+
+    # longest cases first: better balance across workers
+    order = sorted(range(len(cases)), key=lambda i: -cases[i].duration_s)
+    job = functools.partial(run_indexed, job=kind.job(study, save_dir))
+    start = time.perf_counter()
+    interrupted = False
+    try:
+        run_jobs(job, [(i, cases[i]) for i in order], executor, on_done)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        bar.close()
+    wall = time.perf_counter() - start
+    finished = [results[i] for i in sorted(results)]
+    info = RunInfo(
+        wall, executor.label, command or f"dqcontrol study {study.source}", interrupted, len(cases)
+    )
+    texts = kind.render(study, finished, info)
+    suffix = {"md": ".md", "csv": ".csv"}
+    files = {
+        fmt: atomic_write_text(folder / f"{study.name}{suffix[fmt]}", texts[fmt])
+        for fmt in study.output.formats
+    }
+    return StudyResult(
+        study=study,
+        results=finished,
+        records=[jsonable(kind.record(r)) for r in finished],
+        files=files,
+        cases_dir=cases_dir,
+        wall_time_s=wall,
+        executor=executor.label,
+        total_cases=len(cases),
+        interrupted=interrupted,
+        texts=texts,
+    )
