@@ -129,5 +129,6 @@ FAULTS_KIND = ExperimentKind(
     job=lambda study, save_dir: campaign.run_case,
     record=lambda row: row.row(),
     render=_render,
+    own_tables=("faults",),
     can_save_runs=False,
 )

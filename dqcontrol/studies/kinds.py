@@ -62,6 +62,8 @@ class ExperimentKind:
         job: ``(study, runs_dir or None) -> callable(case) -> result`` (picklable).
         record: ``result -> dict`` of plain JSON data (the case's result file).
         render: ``(study, results in case order, RunInfo) -> {format: text}``.
+        own_tables: the top-level tables of the file that are its own (``robot``,
+            ``options``, ``table1``, ``faults``).
         save_runs_default, can_save_runs: whether it keeps each run's log by default, and
             whether it can.
     """
@@ -76,6 +78,7 @@ class ExperimentKind:
     job: Callable[..., Callable[[Any], Any]]
     record: Callable[[Any], dict]
     render: Callable[..., dict[str, str]]
+    own_tables: tuple[str, ...] = ()
     save_runs_default: bool = False
     can_save_runs: bool = True
 

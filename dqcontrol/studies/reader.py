@@ -10,12 +10,15 @@ so every message names the file, the table and the key.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from dqcontrol.errors import ParameterError
 
-__all__ = ["KINDS", "REQUIRED", "StudyFileError", "TableReader"]
+__all__ = ["KINDS", "REQUIRED", "TOP_LEVEL", "StudyFileError", "TableReader"]
+
+#: How messages name the file's top level.
+TOP_LEVEL = "at the top level"
 
 
 class StudyFileError(ParameterError):
@@ -82,7 +85,7 @@ class TableReader:
 
     Args:
         data: the table's items.
-        where: how messages name it (``"[grid]"``, ``"the top level"``).
+        where: how messages name it (``"[grid]"``, :data:`TOP_LEVEL`).
         source: the file's name, first in every message.
     """
 
@@ -94,7 +97,10 @@ class TableReader:
 
     def error(self, key: str | None, problem: str) -> StudyFileError:
         """A :class:`StudyFileError` about ``key`` of this table (or the table itself)."""
-        at = f"{self.where} {key}" if key else self.where
+        if self.where == TOP_LEVEL:
+            at = f"[{key}]" if key else TOP_LEVEL
+        else:
+            at = f"{self.where} {key}" if key else self.where
         return StudyFileError(f"{self.source}: {at}: {problem}")
 
     def has(self, key: str) -> bool:
@@ -123,7 +129,7 @@ class TableReader:
     def child(self, key: str, default_empty: bool = True) -> TableReader:
         """The sub-table ``key`` as a reader (an empty one if absent and ``default_empty``)."""
         value = self.take(key, "table", {} if default_empty else REQUIRED)
-        where = f"[{key}]" if self.where == "the top level" else f"{self.where[:-1]}.{key}]"
+        where = f"[{key}]" if self.where == TOP_LEVEL else f"{self.where[:-1]}.{key}]"
         return TableReader(value, where, self.source)
 
     def rest(self) -> dict[str, object]:
@@ -131,16 +137,18 @@ class TableReader:
         taken = set(self.known)
         return {k: v for k, v in self.data.items() if k not in taken}
 
-    def finish(self) -> None:
-        """Refuse the keys that were not taken.
+    def finish(self, known: Sequence[str] | None = None) -> None:
+        """Refuse the keys that were not taken (or, if given, that are not in ``known``).
 
         Raises:
             StudyFileError: naming the unknown keys and listing the known ones.
         """
-        unknown = sorted(set(self.data) - set(self.known))
+        known = self.known if known is None else list(known)
+        unknown = sorted(set(self.data) - set(known))
         if unknown:
             names = ", ".join(repr(k) for k in unknown)
+            where = TOP_LEVEL if self.where == TOP_LEVEL else f"in {self.where}"
             raise StudyFileError(
-                f"{self.source}: unknown key {names} in {self.where}; known keys there: "
-                f"{', '.join(self.known) or 'none'}"
+                f"{self.source}: unknown key {names} {where}; known keys there: "
+                f"{', '.join(known) or 'none'}"
             )

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dqcontrol.studies.reader import StudyFileError, TableReader
+from dqcontrol.studies.reader import TOP_LEVEL, StudyFileError, TableReader
 
 __all__ = [
     "SHIPPED",
@@ -164,7 +164,7 @@ def parse_study(data: dict, *, source: str = "<study>", base_dir: Path | None = 
     taken from ``base_dir`` (default: the working directory)."""
     from dqcontrol.studies.kinds import experiment_kind
 
-    top = TableReader(data, "the top level", source)
+    top = TableReader(data, TOP_LEVEL, source)
     head = top.child("study", default_empty=False)
     name = head.take("name", "str")
     if any(c in name for c in "/\\") or name in (".", ".."):
@@ -173,6 +173,7 @@ def parse_study(data: dict, *, source: str = "<study>", base_dir: Path | None = 
     description = head.take("description", "str", "")
     kind = experiment_kind(experiment, head)
     head.finish()
+    top.finish(("study", "simulator", "grid", "trajectories", *kind.own_tables, "output"))
     sim = top.child("simulator")
     simulator = sim.take("kind", "str", "mujoco")
     if simulator not in SIMULATORS:

@@ -113,5 +113,6 @@ TABLE1_KIND = ExperimentKind(
     job=_job,
     record=lambda result: result,
     render=_render,
+    own_tables=("table1",),
     save_runs_default=True,
 )

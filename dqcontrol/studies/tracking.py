@@ -314,4 +314,5 @@ TRACKING_KIND = ExperimentKind(
     job=_job,
     record=lambda result: result,
     render=_render,
+    own_tables=("robot", "options"),
 )
