@@ -370,3 +370,37 @@ def test_the_user_guide_s_example_study_parses():
     cases = study_cases(study)
     assert len(cases) == 12 and {c.trajectory for c in cases} == {"circle", "turn"}
     assert study.settings.extra("pf") == {"horizon_s": 1.0}
+
+
+@pytest.mark.parametrize(
+    "selection",
+    [
+        {"quick": True},
+        {"periods": [2.0], "controllers": ["local", "path-following"]},
+        {"trajectories": ["sinusoid"], "controllers": ["p6"]},
+        {},
+    ],
+)
+def test_table1_command_selects_its_cases_from_the_shipped_study(selection):
+    from dqcontrol.studies.table1_study import select_table1
+
+    study = select_table1(load_study("table1"), simulator="kinematic", **selection)
+    assert study_cases(study) == t1.table1_cases(**selection)
+    assert study.settings == t1.Table1Settings(simulator="kinematic")
+
+
+@pytest.mark.parametrize(
+    "selection",
+    [
+        {"quick": True},
+        {"controllers": ["local", "proportional"], "faults": ["nominal", "solver_fails"]},
+        {"trajectories": ["sinusoid"], "seed": 3},
+        {},
+    ],
+)
+@pytest.mark.parametrize("simulator", ["kinematic", "mujoco"])
+def test_faults_command_selects_its_cases_from_the_shipped_study(selection, simulator):
+    from dqcontrol.studies.faults_study import select_faults
+
+    study = select_faults(load_study("faults"), simulator=simulator, **selection)
+    assert study_cases(study) == campaign.campaign_cases(simulator=simulator, **selection)

@@ -2,8 +2,10 @@
 
 Every controller on the circle and the sinusoid under measurement noise and delay, model
 mismatch, torque saturation, impossible tasks, awkward starts and failing or contradictory
-QPs (:mod:`dqcontrol.faults`). Both files are written atomically; Ctrl-C writes the cases
-completed so far, marked as incomplete.
+QPs (:mod:`dqcontrol.faults`). The cases are those of the shipped study
+``dqcontrol/studies/faults.toml`` reduced by the options, run by :mod:`dqcontrol.studies` on
+every core (or a Dask cluster). Both files are written atomically, and each case's result
+as it finishes; Ctrl-C writes the cases completed so far, marked as incomplete.
 """
 
 from __future__ import annotations
@@ -11,8 +13,6 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-
-from dqcontrol.errors import ParameterError
 
 __all__ = ["register", "run"]
 
@@ -99,30 +99,21 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the campaign, write the report, print a summary. Exit code: 0, 1 (``--strict``
-    and a QP controller failed a check), 130 (interrupted; the partial report is written)."""
-    from dqcontrol.experiments.executor import progress_bar, resolve_executor
-    from dqcontrol.faults.campaign import campaign_cases, render_csv, render_markdown, run_cases
-    from dqcontrol.runs.storage import atomic_write_text
+    """Run the campaign (the shipped ``faults`` study with the options' selection), write
+    the report, print a summary. Exit code: 0, 1 (``--strict`` and a QP controller failed a
+    check), 130 (interrupted; the partial report is written)."""
+    from dqcontrol.studies import load_study, run_study
+    from dqcontrol.studies.faults_study import campaign_result, select_faults
 
-    cases = campaign_cases(
-        args.controllers, args.trajectories, args.faults, args.simulator, args.quick, args.seed
+    study = select_faults(
+        load_study("faults"),
+        controllers=args.controllers,
+        trajectories=args.trajectories,
+        faults=args.faults,
+        simulator=args.simulator,
+        quick=args.quick,
+        seed=args.seed,
     )
-    if not cases:
-        raise ParameterError("the selection has no case (check --controllers/--faults)")
-    executor = resolve_executor(args.workers, args.scheduler, len(cases))
-    bar = progress_bar(len(cases), f"faults ({args.simulator})", not args.no_progress)
-
-    def on_result(row, done, total):
-        bar.set_postfix_str(f"{row.fault}/{row.trajectory}/{row.controller}", refresh=False)
-        bar.update(1)
-
-    try:
-        result = run_cases(
-            cases, executor, simulator=args.simulator, quick=args.quick, on_result=on_result
-        )
-    finally:
-        bar.close()
     parts = ["dqcontrol faults", f"--simulator {args.simulator}"]
     if args.quick:
         parts.append("--quick")
@@ -130,10 +121,22 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if value:
             parts.append(f"--{name} {','.join(value)}")
-    command = " ".join(parts)
-    out = Path(args.out)
-    md_path = atomic_write_text(out / "faults.md", render_markdown(result, command=command))
-    csv_path = atomic_write_text(out / "faults.csv", render_csv(result))
+    done = run_study(
+        study,
+        out=args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+        command=" ".join(parts),
+    )
+    result = campaign_result(
+        study,
+        done.results,
+        total_cases=done.total_cases,
+        interrupted=done.interrupted,
+        wall_time_s=done.wall_time_s,
+    )
+    md_path, csv_path = done.files["md"], done.files["csv"]
     qp = result.qp_rows
     unsafe = [r for r in qp if not r.safe]
     print(f"wrote {md_path} and {csv_path} ({len(result.rows)} cases, {result.wall_time_s:.0f} s)")

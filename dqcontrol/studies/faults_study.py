@@ -12,17 +12,18 @@ controller or simulator is left out, as in the campaign. Each case runs through
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-from dqcontrol.errors import DQControlError
+from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.faults import campaign, scenarios
 from dqcontrol.registry import ControllerSpec, controller_spec
 from dqcontrol.studies.kinds import ExperimentKind, RunInfo
 from dqcontrol.studies.reader import TableReader
 from dqcontrol.studies.spec import RobotSpec, Study, TrajectoryEntry
 
-__all__ = ["FAULTS_KIND", "FaultSettings"]
+__all__ = ["FAULTS_KIND", "FaultSettings", "campaign_result", "select_faults"]
 
 
 @dataclass(frozen=True)
@@ -101,15 +102,75 @@ def _case_name(case: campaign.CaseSpec) -> str:
     return f"{case.fault.name}_{case.trajectory.name}_T{case.duration_s:g}s_{case.controller.name}"
 
 
-def _render(study: Study, results: list, info: RunInfo) -> dict[str, str]:
-    note = f"interrupted after {len(results)} of {info.total_cases} cases"
-    result = campaign.CampaignResult(
-        rows=list(results),
+def select_faults(
+    study: Study,
+    *,
+    controllers: Sequence[str] | None = None,
+    trajectories: Sequence[str] | None = None,
+    faults: Sequence[str] | None = None,
+    simulator: str | None = None,
+    quick: bool = False,
+    seed: int | None = None,
+) -> Study:
+    """``study`` (a ``faults`` study) with the selection of
+    :func:`~dqcontrol.faults.campaign.campaign_cases` (same arguments, same errors; ``None``
+    keeps the study's, ``quick`` the reduced campaign's controllers, faults and circle).
+
+    Raises:
+        ParameterError: an unknown name, or a selection without a case.
+    """
+    sim = study.simulator if simulator is None else simulator
+    settings: FaultSettings = study.settings
+    if controllers is None:
+        controllers = scenarios.QUICK_CONTROLLERS if quick else study.controllers
+    if faults is None:
+        faults = scenarios.QUICK_FAULTS if quick else settings.names
+    kinds = [e.kind for e in study.trajectories]
+    if trajectories is None:
+        trajectories = ["circle"] if quick else kinds
+    seed = settings.seed if seed is None else seed
+    if not campaign.campaign_cases(controllers, trajectories, faults, sim, quick, seed):
+        raise ParameterError("the selection has no case (check the controllers and faults)")
+    entries = []
+    for name in trajectories:
+        spec = scenarios.TRAJECTORIES[name]
+        given = [e for e in study.trajectories if e.kind == name]
+        durations = given[0].durations_s if given else (spec.duration_s,)
+        entries.append(
+            TrajectoryEntry(name, name, (spec.quick_duration_s,) if quick else durations)
+        )
+    return replace(
+        study,
+        simulator=sim,
+        controllers=tuple(controllers),
+        trajectories=tuple(entries),
+        settings=FaultSettings(tuple(faults), seed),
+    )
+
+
+def campaign_result(
+    study: Study, rows: list, *, total_cases: int, interrupted: bool, wall_time_s: float
+) -> campaign.CampaignResult:
+    """The campaign's result of a study's finished rows (:class:`CaseResult`, case order);
+    a selection smaller than the whole campaign is labelled reduced."""
+    full = campaign.campaign_cases(simulator=study.simulator)
+    return campaign.CampaignResult(
+        rows=list(rows),
         simulator=study.simulator,
-        quick=False,
+        quick=total_cases < len(full),
+        total_cases=total_cases,
+        interrupted=interrupted,
+        note=f"interrupted after {len(rows)} of {total_cases} cases" if interrupted else "",
+        wall_time_s=wall_time_s,
+    )
+
+
+def _render(study: Study, results: list, info: RunInfo) -> dict[str, str]:
+    result = campaign_result(
+        study,
+        results,
         total_cases=info.total_cases,
         interrupted=info.interrupted,
-        note=note if info.interrupted else "",
         wall_time_s=info.wall_time_s,
     )
     return {

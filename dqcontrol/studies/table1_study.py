@@ -14,6 +14,8 @@ same job as ``dqcontrol table1``'s, and the report is the same ``.md`` and ``.cs
 from __future__ import annotations
 
 import functools
+from collections.abc import Iterable
+from dataclasses import replace
 from pathlib import Path
 
 from dqcontrol.errors import DQControlError
@@ -22,7 +24,7 @@ from dqcontrol.studies.kinds import ExperimentKind, RunInfo
 from dqcontrol.studies.reader import TableReader
 from dqcontrol.studies.spec import RobotSpec, Study, TrajectoryEntry
 
-__all__ = ["TABLE1_KIND"]
+__all__ = ["TABLE1_KIND", "select_table1"]
 
 
 def _read_robot(top: TableReader, base_dir: Path) -> RobotSpec:
@@ -86,6 +88,49 @@ def _cases(study: Study) -> list[t1.Table1Case]:
 
 def _job(study: Study, save_dir: str | None):
     return functools.partial(t1.run_case, settings=study.settings, save_dir=save_dir)
+
+
+def select_table1(
+    study: Study,
+    *,
+    quick: bool = False,
+    periods: Iterable[float] | None = None,
+    trajectories: Iterable[str] | None = None,
+    controllers: Iterable[str] | None = None,
+    simulator: str | None = None,
+    bound_samples: int | None = None,
+    save_runs: bool | None = None,
+) -> Study:
+    """``study`` (a ``table1`` study) reduced to a selection of
+    :func:`~dqcontrol.experiments.table1.table1_cases` (same arguments, same errors) and
+    with another simulator, bound resolution or run logs (``None``: the study's).
+
+    Raises:
+        ParameterError: an unknown name or period, or an empty selection.
+    """
+    wanted = t1.table1_cases(
+        quick=quick, periods=periods, trajectories=trajectories, controllers=controllers
+    )
+    cells = {(c.trajectory, c.duration_s) for c in wanted}
+    names = {c.controller for c in wanted}
+    entries = []
+    for entry in study.trajectories:
+        kept = tuple(d for d in entry.durations_s if (entry.kind, d) in cells)
+        if kept:
+            entries.append(replace(entry, durations_s=kept))
+    sim = study.simulator if simulator is None else simulator
+    settings = replace(study.settings, simulator=sim)
+    if bound_samples is not None:
+        settings = replace(settings, bound_samples=bound_samples)
+    output = study.output if save_runs is None else replace(study.output, save_runs=save_runs)
+    return replace(
+        study,
+        simulator=sim,
+        settings=settings,
+        trajectories=tuple(entries),
+        controllers=tuple(c for c in study.controllers if c in names),
+        output=output,
+    )
 
 
 def _render(study: Study, results: list[dict], info: RunInfo) -> dict[str, str]:
