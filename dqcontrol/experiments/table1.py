@@ -892,7 +892,8 @@ def run_table1(
     The pool's workers are started with ``spawn`` (fresh interpreters): a script that calls
     this function must do so under ``if __name__ == "__main__":``.
     """
-    from dqcontrol.experiments.executor import progress_bar, resolve_executor, run_jobs
+    from dqcontrol.experiments.executor import resolve_executor
+    from dqcontrol.experiments.sweep import sweep
     from dqcontrol.runs.storage import atomic_write_text
 
     if settings is None:
@@ -904,27 +905,17 @@ def run_table1(
     out_dir.mkdir(parents=True, exist_ok=True)
     runs_dir = out_dir / "table1_runs" if save_runs else None
     save_dir = None if runs_dir is None else str(runs_dir.resolve())
-    # longest jobs first: better balance across workers
-    ordered = sorted(cases, key=lambda c: -c.cost_estimate())
     executor = resolve_executor(workers, scheduler, len(cases))
-    results: list[dict] = []
-    bar = progress_bar(len(cases), "table1", progress)
-
-    def on_done(res: dict) -> None:
-        results.append(res)
-        bar.set_postfix_str(Table1Case(**res["case"]).name, refresh=False)
-        bar.update(1)
-
-    start = time.perf_counter()
-    interrupted = False
-    try:
-        job = functools.partial(run_case, settings=settings, save_dir=save_dir)
-        run_jobs(job, ordered, executor, on_done, connect_timeout_s=DASK_CONNECT_TIMEOUT_S)
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        bar.close()
-    wall = time.perf_counter() - start
+    outcome = sweep(
+        functools.partial(run_case, settings=settings, save_dir=save_dir),
+        cases,
+        executor,
+        # longest jobs first: better balance across workers
+        order=sorted(range(len(cases)), key=lambda i: -cases[i].cost_estimate()),
+        name=lambda case: case.name,
+        progress="table1" if progress else None,
+    )
+    results, wall, interrupted = outcome.results, outcome.wall_time_s, outcome.interrupted
     rows = table_rows(results)
     markdown = format_markdown(
         rows,

@@ -46,8 +46,9 @@ import numpy as np
 from dqcontrol.controllers.base import Controller
 from dqcontrol.dq.algebra import dq_from_rt, dq_mul, translation
 from dqcontrol.errors import ParameterError
-from dqcontrol.experiments.executor import Executor, resolve_executor, run_jobs
+from dqcontrol.experiments.executor import Executor, resolve_executor
 from dqcontrol.experiments.runner import lbr4p, simulate
+from dqcontrol.experiments.sweep import sweep
 from dqcontrol.experiments.thesis import THESIS_PERIOD_S
 from dqcontrol.faults.qp_faults import ContradictoryBoundsQP, contradictory
 from dqcontrol.faults.scenarios import (
@@ -79,7 +80,6 @@ __all__ = [
     "run_campaign",
     "run_case",
     "run_cases",
-    "run_indexed",
 ]
 
 #: Control period of the campaign [s] (the thesis's).
@@ -504,13 +504,6 @@ def run_campaign(
     return run_cases(cases, executor, simulator=simulator, quick=quick, on_result=on_result)
 
 
-def run_indexed(item: tuple[int, CaseSpec]) -> tuple[int, CaseResult]:
-    """``(i, run_case(spec))`` for ``item = (i, spec)``: the job the executors run, so that
-    results arriving in completion order go back to their place."""
-    index, spec = item
-    return index, run_case(spec)
-
-
 def run_cases(
     cases: Sequence[CaseSpec],
     executor: Executor,
@@ -526,21 +519,16 @@ def run_cases(
     by ``on_result``) stops the campaign: the completed rows are kept and ``interrupted``
     is set.
     """
-    start = time.perf_counter()
-    results: dict[int, CaseResult] = {}
+    finished = 0
 
-    def on_done(item: tuple[int, CaseResult]) -> None:
-        index, row = item
-        results[index] = row
+    def progress(index: int, row: CaseResult) -> None:
+        nonlocal finished
+        finished += 1
         if on_result is not None:
-            on_result(row, len(results), len(cases))
+            on_result(row, finished, len(cases))
 
-    interrupted = False
-    try:
-        run_jobs(run_indexed, list(enumerate(cases)), executor, on_done)
-    except KeyboardInterrupt:
-        interrupted = True
-    rows = [results[i] for i in sorted(results)]
+    outcome = sweep(run_case, cases, executor, on_result=progress)
+    rows, interrupted = outcome.results, outcome.interrupted
     note = f"interrupted after {len(rows)} of {len(cases)} cases" if interrupted else ""
     return CampaignResult(
         rows=rows,
@@ -549,7 +537,7 @@ def run_cases(
         total_cases=len(cases),
         interrupted=interrupted,
         note=note,
-        wall_time_s=time.perf_counter() - start,
+        wall_time_s=outcome.wall_time_s,
     )
 
 

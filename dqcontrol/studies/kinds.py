@@ -62,6 +62,8 @@ class ExperimentKind:
         job: ``(study, runs_dir or None) -> callable(case) -> result`` (picklable).
         record: ``result -> dict`` of plain JSON data (the case's result file).
         render: ``(study, results in case order, RunInfo) -> {format: text}``.
+        cost: ``case -> float``, a rough relative cost: the longest cases are submitted
+            first, which balances the workers (default: ``T_tot``).
         own_tables: the top-level tables of the file that are its own (``robot``,
             ``options``, ``table1``, ``faults``).
         save_runs_default, can_save_runs: whether it keeps each run's log by default, and
@@ -78,6 +80,7 @@ class ExperimentKind:
     job: Callable[..., Callable[[Any], Any]]
     record: Callable[[Any], dict]
     render: Callable[..., dict[str, str]]
+    cost: Callable[[Any], float] = lambda case: case.duration_s
     own_tables: tuple[str, ...] = ()
     save_runs_default: bool = False
     can_save_runs: bool = True

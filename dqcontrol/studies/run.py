@@ -1,5 +1,6 @@
-"""Running a study: its cases on the shared executor, each case's result saved as it
-arrives, and the tables at the end.
+"""Running a study: its cases swept on the shared executor
+(:func:`~dqcontrol.experiments.sweep.sweep`), each case's result saved as it arrives, and
+the tables at the end.
 
 Every finished case is written at once to ``<folder>/<name>_cases/<case>.json``, atomically
 (:func:`~dqcontrol.runs.storage.atomic_write_text`): a crash or Ctrl-C loses no case that
@@ -10,19 +11,18 @@ completed, marked as such).
 
 from __future__ import annotations
 
-import json
 import os
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dqcontrol.experiments.executor import progress_bar, resolve_executor, run_jobs
+from dqcontrol.experiments.executor import resolve_executor
+from dqcontrol.experiments.sweep import sweep
 from dqcontrol.runs.storage import atomic_write_text, jsonable
 from dqcontrol.studies.kinds import RunInfo, experiment_kind
 from dqcontrol.studies.spec import Study
 
-__all__ = ["StudyResult", "run_indexed", "run_study", "study_cases"]
+__all__ = ["StudyResult", "run_study", "study_cases"]
 
 
 @dataclass
@@ -59,13 +59,6 @@ def study_cases(study: Study) -> list:
     return experiment_kind(study.experiment).cases(study)
 
 
-def run_indexed(item: tuple[int, Any], job) -> tuple[int, Any]:
-    """``(i, job(case))`` for ``item = (i, case)``: results arriving in completion order go
-    back to their place."""
-    index, case = item
-    return index, job(case)
-
-
 def run_study(
     study: Study,
     *,
@@ -91,8 +84,6 @@ def run_study(
     The pool's workers are started with ``spawn``: a script that calls this function must
     do so under ``if __name__ == "__main__":``.
     """
-    import functools
-
     kind = experiment_kind(study.experiment)
     cases = kind.cases(study)
     folder = Path(study.output.folder if out is None else out)
@@ -101,31 +92,18 @@ def run_study(
     runs_dir = folder / f"{study.name}_runs" if study.output.save_runs else None
     save_dir = None if runs_dir is None else str(runs_dir.resolve())
     executor = resolve_executor(workers, scheduler, len(cases))
-    results: dict[int, Any] = {}
-    bar = progress_bar(len(cases), study.name, progress)
-
-    def on_done(item: tuple[int, Any]) -> None:
-        index, result = item
-        results[index] = result
-        name = kind.case_name(cases[index])
-        text = json.dumps(jsonable(kind.record(result)), indent=1, allow_nan=False)
-        atomic_write_text(cases_dir / f"{name}.json", text + "\n")
-        bar.set_postfix_str(name, refresh=False)
-        bar.update(1)
-
-    # longest cases first: better balance across workers
-    order = sorted(range(len(cases)), key=lambda i: -cases[i].duration_s)
-    job = functools.partial(run_indexed, job=kind.job(study, save_dir))
-    start = time.perf_counter()
-    interrupted = False
-    try:
-        run_jobs(job, [(i, cases[i]) for i in order], executor, on_done)
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        bar.close()
-    wall = time.perf_counter() - start
-    finished = [results[i] for i in sorted(results)]
+    outcome = sweep(
+        kind.job(study, save_dir),
+        cases,
+        executor,
+        order=sorted(range(len(cases)), key=lambda i: -kind.cost(cases[i])),
+        name=kind.case_name,
+        progress=study.name if progress else None,
+        record=kind.record,
+        record_dir=cases_dir,
+    )
+    wall, interrupted = outcome.wall_time_s, outcome.interrupted
+    finished = outcome.results
     info = RunInfo(
         wall, executor.label, command or f"dqcontrol study {study.source}", interrupted, len(cases)
     )

@@ -158,6 +158,7 @@ TABLE1_KIND = ExperimentKind(
     job=_job,
     record=lambda result: result,
     render=_render,
+    cost=lambda case: case.cost_estimate(),
     own_tables=("table1",),
     save_runs_default=True,
 )
