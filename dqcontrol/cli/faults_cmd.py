@@ -114,20 +114,13 @@ def run(args: argparse.Namespace) -> int:
         quick=args.quick,
         seed=args.seed,
     )
-    parts = ["dqcontrol faults", f"--simulator {args.simulator}"]
-    if args.quick:
-        parts.append("--quick")
-    for name in ("controllers", "trajectories", "faults"):
-        value = getattr(args, name)
-        if value:
-            parts.append(f"--{name} {','.join(value)}")
     done = run_study(
         study,
         out=args.out,
         workers=args.workers,
         scheduler=args.scheduler,
         progress=not args.no_progress,
-        command=" ".join(parts),
+        command=_command_line(args),
     )
     result = campaign_result(
         study,
@@ -145,22 +138,39 @@ def run(args: argparse.Namespace) -> int:
         "exception"
     )
     for r in unsafe:
-        what = []
-        if r.raised:
-            what.append(f"raised {r.raised}")
-        if r.nan_seen:
-            what.append("NaN")
-        if r.velocity_violations or r.acceleration_violations:
-            what.append(f"command violations {r.velocity_violations}/{r.acceleration_violations}")
-        if r.q_violations_true:
-            what.append(
-                f"{r.q_violations_true} joint positions beyond a limit "
-                f"(max {1000 * r.q_excess_true_rad:.2f} mrad)"
-            )
-        if not (r.sigma_monotone and r.s_in_range):
-            what.append("σ decreased or s outside [0, 1]")
-        print(f"  {r.fault}/{r.trajectory}/{r.controller}: {', '.join(what)}")
+        print(f"  {r.fault}/{r.trajectory}/{r.controller}: {_what_failed(r)}")
     if result.interrupted:
         print(f"interrupted: {result.note}; the report holds the completed cases", file=sys.stderr)
         return 130
     return 1 if (args.strict and unsafe) else 0
+
+
+def _command_line(args: argparse.Namespace) -> str:
+    """The options that select the cases, quoted in the report."""
+    parts = ["dqcontrol faults", f"--simulator {args.simulator}"]
+    if args.quick:
+        parts.append("--quick")
+    for name in ("controllers", "trajectories", "faults"):
+        value = getattr(args, name)
+        if value:
+            parts.append(f"--{name} {','.join(value)}")
+    return " ".join(parts)
+
+
+def _what_failed(r) -> str:
+    """The checks a QP controller's row failed, as one line."""
+    what = []
+    if r.raised:
+        what.append(f"raised {r.raised}")
+    if r.nan_seen:
+        what.append("NaN")
+    if r.velocity_violations or r.acceleration_violations:
+        what.append(f"command violations {r.velocity_violations}/{r.acceleration_violations}")
+    if r.q_violations_true:
+        what.append(
+            f"{r.q_violations_true} joint positions beyond a limit "
+            f"(max {1000 * r.q_excess_true_rad:.2f} mrad)"
+        )
+    if not (r.sigma_monotone and r.s_in_range):
+        what.append("σ decreased or s outside [0, 1]")
+    return ", ".join(what)
