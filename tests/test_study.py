@@ -404,3 +404,23 @@ def test_faults_command_selects_its_cases_from_the_shipped_study(selection, simu
 
     study = select_faults(load_study("faults"), simulator=simulator, **selection)
     assert study_cases(study) == campaign.campaign_cases(simulator=simulator, **selection)
+
+
+# ---------------------------------------------------------------------------- executors
+@pytest.mark.parametrize("scheduler", [None, "local"])
+def test_workers_run_one_blas_thread_each(monkeypatch, scheduler):
+    """The pool's and the local Dask cluster's workers see one BLAS/OpenMP thread (the
+    variables are set for the workers only, and restored here)."""
+    import functools
+
+    from dqcontrol.experiments.executor import THREAD_VARIABLES, Executor, run_jobs
+
+    if scheduler:
+        pytest.importorskip("dask.distributed")
+    for variable in THREAD_VARIABLES:
+        monkeypatch.delenv(variable, raising=False)
+    seen = []
+    job = functools.partial(os.getenv, default="unset")
+    run_jobs(job, list(THREAD_VARIABLES), Executor(2, scheduler), seen.append)
+    assert seen == ["1"] * len(THREAD_VARIABLES)
+    assert all(v not in os.environ for v in THREAD_VARIABLES)
