@@ -153,6 +153,11 @@ def test_list_prints_the_cases(capsys):
         ('kind = "kinematic"', 'kind = "gazebo"', ["[simulator] kind", "'mujoco', 'kinematic'"]),
         ("duration_s = [1.0]", "duration_s = []", ["[grid] duration_s", "non-empty list"]),
         ("[grid]", "[grid", ["not a valid TOML file"]),
+        (
+            "acceleration_limit = 10.0",
+            "velocity_limits = [1.0, 2.0]",
+            ["[options]: controller 'local' cannot be built", "shape (7,)"],
+        ),
     ],
     ids=[
         "controller",
@@ -165,6 +170,7 @@ def test_list_prints_the_cases(capsys):
         "simulator",
         "empty",
         "toml",
+        "option value",
     ],
 )
 def test_bad_study_file_is_a_clear_error_with_exit_code_2(tmp_path, capsys, old, new, fragments):

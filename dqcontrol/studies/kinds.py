@@ -55,8 +55,9 @@ class ExperimentKind:
         check_controller: ``(grid, name) -> name``: a controller name it accepts (raises a
             StudyFileError listing the known ones otherwise).
         read_trajectory: ``(reader, durations_s) -> TrajectoryEntry``.
-        read_settings: ``(top, draft) -> settings``: its own tables; ``draft`` holds the
-            simulator, the period and the controllers read so far.
+        read_settings: ``(top, draft) -> settings``: its own tables; ``draft`` holds what
+            was read before (``simulator``, ``period_s``, ``controllers``, ``robot``,
+            ``trajectories``).
         cases: ``study -> [case]``, in the table's order.
         case_name: ``case -> str``, file-name friendly and unique in the study.
         job: ``(study, runs_dir or None) -> callable(case) -> result`` (picklable).

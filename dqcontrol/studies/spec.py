@@ -188,7 +188,13 @@ def parse_study(data: dict, *, source: str = "<study>", base_dir: Path | None = 
     durations = grid.take("duration_s", "positives", None, unit="s")
     grid.finish()
     trajectories = _trajectories(top, durations, kind)
-    draft = {"simulator": simulator, "period_s": period_s, "controllers": controllers}
+    draft = {
+        "simulator": simulator,
+        "period_s": period_s,
+        "controllers": controllers,
+        "robot": robot,
+        "trajectories": trajectories,
+    }
     settings = kind.read_settings(top, draft)
     output = _output(top.child("output"), kind)
     top.finish()

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from dqcontrol.errors import DQControlError
+from dqcontrol.errors import DQControlError, FrameError
 from dqcontrol.experiments.tables import csv_text, markdown_table
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.studies.kinds import ExperimentKind, RunInfo
@@ -116,8 +116,10 @@ def _read_robot(top: TableReader, base_dir: Path) -> RobotSpec:
     spec = RobotSpec(urdf, tool, None if q0 is None else tuple(float(v) for v in q0))
     try:
         robot = load_robot(spec)
+    except FrameError as exc:
+        raise reader.error("tool_frame", str(exc)) from None
     except DQControlError as exc:
-        raise reader.error("urdf" if urdf else None, str(exc)) from None
+        raise reader.error("urdf", str(exc)) from None
     if len(start_configuration(spec)) != robot.nq:
         raise reader.error("q0_rad", f"expected {robot.nq} joint positions, got {len(q0)}")
     return spec
@@ -172,7 +174,30 @@ def _read_settings(top: TableReader, draft: dict) -> TrackingSettings:
         per.append((controller, tuple((k, table.take(k, "any")) for k in accepted if table.has(k))))
         table.finish()
     reader.finish()
-    return TrackingSettings(shared, tuple(per), max_time_s)
+    settings = TrackingSettings(shared, tuple(per), max_time_s)
+    _check_controllers(reader, settings, draft)
+    return settings
+
+
+def _check_controllers(reader: TableReader, settings: TrackingSettings, draft: dict) -> None:
+    """Build every controller once (first trajectory, shortest ``T_tot``), so that a wrong
+    option value stops the study before any case runs."""
+    from dqcontrol.experiments.runner import build_trajectory
+    from dqcontrol.registry import build_controller
+
+    robot = load_robot(draft["robot"])
+    entry = draft["trajectories"][0]
+    trajectory = build_trajectory(entry.metadata(min(entry.durations_s)))
+    for name in draft["controllers"]:
+        try:
+            build_controller(
+                name, robot, trajectory, draft["period_s"],
+                shared=_arrays(dict(settings.shared)), **_arrays(settings.extra(name)),
+            )  # fmt: skip
+        except (DQControlError, TypeError, ValueError) as exc:
+            raise reader.error(
+                None, f"controller {name!r} cannot be built with these options: {exc}"
+            ) from None
 
 
 # ---------------------------------------------------------------------------- running
