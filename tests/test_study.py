@@ -430,3 +430,20 @@ def test_workers_run_one_blas_thread_each(monkeypatch, scheduler):
     run_jobs(job, list(THREAD_VARIABLES), Executor(2, scheduler), seen.append)
     assert seen == ["1"] * len(THREAD_VARIABLES)
     assert all(v not in os.environ for v in THREAD_VARIABLES)
+
+
+def test_a_run_stopped_early_is_exit_code_1(tmp_path, monkeypatch, capsys):
+    real = tracking.run_tracking_case
+
+    def unstable_p10(case, study, save_dir=None):
+        result = real(case, study, save_dir)
+        if case.controller == "p10":
+            result["interrupted"], result["note"] = True, "the physics became unstable"
+        return result
+
+    monkeypatch.setattr(tracking, "run_tracking_case", unstable_p10)
+    path = _write(tmp_path, SMALL)
+    argv = ["study", str(path), "--workers", "1", "--no-progress", "--out", str(tmp_path)]
+    assert main(argv) == 1
+    assert "some runs stopped early: circle_T1s_p10" in capsys.readouterr().err
+    assert "| circle | 1 | p=10 |" in (tmp_path / "small.md").read_text()

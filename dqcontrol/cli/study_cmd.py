@@ -109,6 +109,16 @@ def _run(args: argparse.Namespace) -> int:
     if result.interrupted:
         print("dqcontrol study: interrupted; the tables hold the completed cases", file=sys.stderr)
         return 130
+    cases = study_cases(study)
+    name = experiment_kind(study.experiment).case_name
+    stopped = [
+        name(cases[i])
+        for i, r in zip(result.indices, result.records, strict=True)
+        if r.get("interrupted")
+    ]
+    if stopped:
+        print(f"dqcontrol study: some runs stopped early: {', '.join(stopped)}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -51,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from dqcontrol.errors import ParameterError
+from dqcontrol.experiments.executor import DASK_CONNECT_TIMEOUT_S
 from dqcontrol.experiments.tables import csv_text, format_cell, markdown_table
 from dqcontrol.experiments.thesis import (
     THESIS_ACCELERATION_LIMIT,
@@ -842,10 +843,6 @@ class Table1Result:
     interrupted: bool = False
     runs_dir: Path | None = None
     failures: list[str] = field(default_factory=list)
-
-
-#: How long to wait for a Dask scheduler to answer [s].
-DASK_CONNECT_TIMEOUT_S = 30.0
 
 
 def _run_dask(cases, settings, save_dir, address: str, on_done) -> None:

@@ -33,6 +33,7 @@ class StudyResult:
         study: the study.
         results: each finished case's result, in case order (the experiment's own form).
         records: the same as plain JSON data (the case files' content).
+        indices: their indices in :func:`study_cases`.
         files: the tables written, by format.
         cases_dir: the folder of the case files.
         wall_time_s: wall time of the cases [s].
@@ -45,6 +46,7 @@ class StudyResult:
     study: Study
     results: list[Any]
     records: list[dict]
+    indices: list[int]
     files: dict[str, Path]
     cases_dir: Path
     wall_time_s: float
@@ -117,6 +119,7 @@ def run_study(
         study=study,
         results=finished,
         records=[jsonable(kind.record(r)) for r in finished],
+        indices=outcome.indices,
         files=files,
         cases_dir=cases_dir,
         wall_time_s=wall,
