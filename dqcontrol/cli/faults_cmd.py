@@ -2,8 +2,10 @@
 
 Every controller on the circle and the sinusoid under measurement noise and delay, model
 mismatch, torque saturation, impossible tasks, awkward starts and failing or contradictory
-QPs (:mod:`dqcontrol.faults`). Both files are written atomically; Ctrl-C writes the cases
-completed so far, marked as incomplete.
+QPs (:mod:`dqcontrol.faults`). The cases are those of the shipped study
+``dqcontrol/studies/faults.toml`` reduced by the options, run by :mod:`dqcontrol.studies` on
+every core (or a Dask cluster). Both files are written atomically, and each case's result
+as it finishes; Ctrl-C writes the cases completed so far, marked as incomplete.
 """
 
 from __future__ import annotations
@@ -11,8 +13,6 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-
-from dqcontrol.errors import ParameterError
 
 __all__ = ["register", "run"]
 
@@ -68,7 +68,19 @@ def register(subparsers) -> None:
         default="mujoco",
         help="closed loop: MuJoCo dynamics (default) or ideal velocity tracking",
     )
-    parser.add_argument("--workers", type=_workers, default=1, help="worker processes (default: 1)")
+    parser.add_argument(
+        "--workers",
+        type=_workers,
+        default=None,
+        help="processes of the local pool (default: all cores; 1 runs in this process)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed cluster, e.g. tcp://host:8786, or 'local' for a "
+        "cluster of local worker processes (needs dask[distributed])",
+    )
     parser.add_argument(
         "--controllers", type=_csv_list, default=None, help="comma-separated subset"
     )
@@ -87,59 +99,37 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the campaign, write the report, print a summary. Exit code: 0, 1 (``--strict``
-    and a QP controller failed a check), 130 (interrupted; the partial report is written)."""
-    from tqdm import tqdm
+    """Run the campaign (the shipped ``faults`` study with the options' selection), write
+    the report, print a summary. Exit code: 0, 1 (``--strict`` and a QP controller failed a
+    check), 130 (interrupted; the partial report is written)."""
+    from dqcontrol.studies import load_study, run_study
+    from dqcontrol.studies.faults_study import campaign_result, select_faults
 
-    from dqcontrol.faults.campaign import (
-        campaign_cases,
-        render_csv,
-        render_markdown,
-        run_campaign,
+    study = select_faults(
+        load_study("faults"),
+        controllers=args.controllers,
+        trajectories=args.trajectories,
+        faults=args.faults,
+        simulator=args.simulator,
+        quick=args.quick,
+        seed=args.seed,
     )
-    from dqcontrol.runs.storage import atomic_write_text
-
-    cases = campaign_cases(
-        args.controllers, args.trajectories, args.faults, args.simulator, args.quick, args.seed
+    done = run_study(
+        study,
+        out=args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+        command=_command_line(args),
     )
-    if not cases:
-        raise ParameterError("the selection has no case (check --controllers/--faults)")
-    bar = tqdm(
-        total=len(cases),
-        desc=f"faults ({args.simulator})",
-        unit="case",
-        disable=args.no_progress,
-        file=sys.stderr,
+    result = campaign_result(
+        study,
+        done.results,
+        total_cases=done.total_cases,
+        interrupted=done.interrupted,
+        wall_time_s=done.wall_time_s,
     )
-
-    def on_result(row, done, total):
-        bar.set_postfix_str(f"{row.fault}/{row.trajectory}/{row.controller}", refresh=False)
-        bar.update(1)
-
-    try:
-        result = run_campaign(
-            args.controllers,
-            args.trajectories,
-            args.faults,
-            args.simulator,
-            args.quick,
-            workers=args.workers,
-            seed=args.seed,
-            on_result=on_result,
-        )
-    finally:
-        bar.close()
-    parts = ["dqcontrol faults", f"--simulator {args.simulator}"]
-    if args.quick:
-        parts.append("--quick")
-    for name in ("controllers", "trajectories", "faults"):
-        value = getattr(args, name)
-        if value:
-            parts.append(f"--{name} {','.join(value)}")
-    command = " ".join(parts)
-    out = Path(args.out)
-    md_path = atomic_write_text(out / "faults.md", render_markdown(result, command=command))
-    csv_path = atomic_write_text(out / "faults.csv", render_csv(result))
+    md_path, csv_path = done.files["md"], done.files["csv"]
     qp = result.qp_rows
     unsafe = [r for r in qp if not r.safe]
     print(f"wrote {md_path} and {csv_path} ({len(result.rows)} cases, {result.wall_time_s:.0f} s)")
@@ -148,22 +138,39 @@ def run(args: argparse.Namespace) -> int:
         "exception"
     )
     for r in unsafe:
-        what = []
-        if r.raised:
-            what.append(f"raised {r.raised}")
-        if r.nan_seen:
-            what.append("NaN")
-        if r.velocity_violations or r.acceleration_violations:
-            what.append(f"command violations {r.velocity_violations}/{r.acceleration_violations}")
-        if r.q_violations_true:
-            what.append(
-                f"{r.q_violations_true} joint positions beyond a limit "
-                f"(max {1000 * r.q_excess_true_rad:.2f} mrad)"
-            )
-        if not (r.sigma_monotone and r.s_in_range):
-            what.append("σ decreased or s outside [0, 1]")
-        print(f"  {r.fault}/{r.trajectory}/{r.controller}: {', '.join(what)}")
+        print(f"  {r.fault}/{r.trajectory}/{r.controller}: {_what_failed(r)}")
     if result.interrupted:
         print(f"interrupted: {result.note}; the report holds the completed cases", file=sys.stderr)
         return 130
     return 1 if (args.strict and unsafe) else 0
+
+
+def _command_line(args: argparse.Namespace) -> str:
+    """The options that select the cases, quoted in the report."""
+    parts = ["dqcontrol faults", f"--simulator {args.simulator}"]
+    if args.quick:
+        parts.append("--quick")
+    for name in ("controllers", "trajectories", "faults"):
+        value = getattr(args, name)
+        if value:
+            parts.append(f"--{name} {','.join(value)}")
+    return " ".join(parts)
+
+
+def _what_failed(r) -> str:
+    """The checks a QP controller's row failed, as one line."""
+    what = []
+    if r.raised:
+        what.append(f"raised {r.raised}")
+    if r.nan_seen:
+        what.append("NaN")
+    if r.velocity_violations or r.acceleration_violations:
+        what.append(f"command violations {r.velocity_violations}/{r.acceleration_violations}")
+    if r.q_violations_true:
+        what.append(
+            f"{r.q_violations_true} joint positions beyond a limit "
+            f"(max {1000 * r.q_excess_true_rad:.2f} mrad)"
+        )
+    if not (r.sigma_monotone and r.s_in_range):
+        what.append("σ decreased or s outside [0, 1]")
+    return ", ".join(what)

@@ -23,10 +23,12 @@ installed), execution time / bound, the largest path deviation between the contr
 samples (at every MuJoCo physics step, or along the kinematic loop's joint motion) and the
 peak torque over its limit.
 
-The cases run in parallel on all cores (or on a Dask cluster with --scheduler) with a
-progress bar. Writes OUT/table1.md (settings, machine, wall time, our figures beside the
-thesis's) and OUT/table1.csv, both atomically, and each run's log to OUT/table1_runs/
-(unless --no-save-runs); prints the table at the end."""
+The grid is the shipped study dqcontrol/studies/table1.toml (`dqcontrol study table1`),
+reduced by the options below. The cases run in parallel on all cores (or on a Dask cluster
+with --scheduler) with a progress bar. Writes OUT/table1.md (settings, machine, wall time,
+our figures beside the thesis's) and OUT/table1.csv, both atomically, each case's result to
+OUT/table1_cases/ as it finishes, and each run's log to OUT/table1_runs/ (unless
+--no-save-runs); prints the table at the end."""
 
 _EPILOG = """\
 examples:
@@ -92,8 +94,9 @@ def register(subparsers) -> None:
         "--scheduler",
         default=None,
         metavar="ADDRESS",
-        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs dask[distributed]"
-        "; the run logs are then written on the workers' file system: give a shared --out)",
+        help="run on a Dask distributed cluster, e.g. tcp://host:8786, or 'local' for a cluster "
+        "of local worker processes (needs dask[distributed]; the run logs are then written on "
+        "the workers' file system: give a shared --out)",
     )
     p.add_argument(
         "--no-save-runs",
@@ -134,46 +137,46 @@ def _bound_samples(text: str) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    """The shipped ``table1`` study (:mod:`dqcontrol.studies`) with the options' selection."""
     from dqcontrol.errors import ParameterError
-    from dqcontrol.experiments.table1 import Table1Settings, run_table1
+    from dqcontrol.studies import load_study, run_study
+    from dqcontrol.studies.table1_study import select_table1
 
     if args.workers is not None and args.workers < 1:
         raise ParameterError(f"--workers must be ≥ 1, got {args.workers}")
-    command = _command_line(args)
-    settings = None
-    if args.bound_samples is not None:
-        settings = Table1Settings(simulator=args.simulator, bound_samples=args.bound_samples)
-    try:
-        result = run_table1(
-            args.out,
-            quick=args.quick,
-            periods=args.periods,
-            trajectories=args.trajectories,
-            controllers=args.controllers,
-            simulator=args.simulator,
-            settings=settings,
-            workers=args.workers,
-            scheduler=args.scheduler,
-            save_runs=args.save_runs,
-            progress=args.progress,
-            command=command,
-        )
-    except KeyboardInterrupt:
+    study = select_table1(
+        load_study("table1"),
+        quick=args.quick,
+        periods=args.periods,
+        trajectories=args.trajectories,
+        controllers=args.controllers,
+        simulator=args.simulator,
+        bound_samples=args.bound_samples,
+        save_runs=args.save_runs,
+    )
+    result = run_study(
+        study,
+        out=args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=args.progress,
+        command=_command_line(args),
+    )
+    if result.interrupted:
         print(
             f"dqcontrol table1: interrupted; the completed cases are in {args.out}/table1.md",
             file=sys.stderr,
         )
         return 130
-    print(result.markdown)
-    print(
-        f"wrote {result.md_path} and {result.csv_path}"
-        + (f"; run logs in {result.runs_dir}" if result.runs_dir else "")
-    )
-    if result.failures:
-        print(
-            "dqcontrol table1: some runs stopped early: " + ", ".join(result.failures),
-            file=sys.stderr,
+    print(result.texts["md"])
+    runs = f"; run logs in {args.out}/table1_runs" if study.output.save_runs else ""
+    print(f"wrote {result.files['md']} and {result.files['csv']}{runs}")
+    failures = [r["case"] for r in result.results if r["interrupted"]]
+    if failures:
+        names = ", ".join(
+            f"{c['trajectory']}_T{c['duration_s']:g}s_{c['controller']}" for c in failures
         )
+        print(f"dqcontrol table1: some runs stopped early: {names}", file=sys.stderr)
         return 1
     return 0
 

@@ -38,25 +38,21 @@ the worker's file system, so use a shared folder).
 
 from __future__ import annotations
 
-import csv
-import io
+import functools
 import math
 import os
 import platform
-import sys
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
-from dqcontrol.errors import ConfigurationError, ParameterError
+from dqcontrol.errors import ParameterError
+from dqcontrol.experiments.executor import DASK_CONNECT_TIMEOUT_S
+from dqcontrol.experiments.tables import csv_text, format_cell, markdown_table
 from dqcontrol.experiments.thesis import (
     THESIS_ACCELERATION_LIMIT,
     THESIS_HORIZON_S,
@@ -78,6 +74,7 @@ __all__ = [
     "Table1Case",
     "Table1Result",
     "Table1Settings",
+    "format_csv",
     "format_markdown",
     "run_case",
     "run_table1",
@@ -584,37 +581,17 @@ def _grid_order() -> list[tuple[str, float, str]]:
 
 
 def _fmt(value, spec: str) -> str:
-    if value is None:
-        return "—"
-    if isinstance(value, float) and not math.isfinite(value):
-        return "nan"
-    if spec == "s":
-        return str(value)
-    return format(value, spec)
+    return format_cell(value, spec)
 
 
 def _md_table(rows: list[dict], keys: Sequence[str]) -> str:
-    spec = {k: (h, f) for k, h, f in COLUMNS}
-    lines = [
-        "| " + " | ".join(spec[k][0] for k in keys) + " |",
-        "|" + "|".join("---" for _ in keys) + "|",
-    ]
-    for r in rows:
-        lines.append("| " + " | ".join(_fmt(r[k], spec[k][1]) for k in keys) + " |")
-    return "\n".join(lines)
+    spec = {k: (k, h, f) for k, h, f in COLUMNS}
+    return markdown_table(rows, [spec[k] for k in keys])
 
 
-def _csv_text(rows: list[dict]) -> str:
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow([k for k, _, _ in COLUMNS])
-    for r in rows:
-        out = []
-        for k, _, _ in COLUMNS:
-            v = r[k]
-            out.append("" if v is None else (repr(v) if isinstance(v, float) else str(v)))
-        writer.writerow(out)
-    return buf.getvalue()
+def format_csv(rows: list[dict]) -> str:
+    """``table1.csv``'s text: the keys of :data:`COLUMNS`, floats at full precision."""
+    return csv_text(rows, COLUMNS)
 
 
 #: Relative difference below which p = 10 and Local count as a tie in the claim check.
@@ -868,90 +845,13 @@ class Table1Result:
     failures: list[str] = field(default_factory=list)
 
 
-def _progress(total: int, enabled: bool):
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc="table1", unit="case", disable=not enabled, file=sys.stderr)
-
-
-def _run_serial(cases, settings, save_dir, on_done: Callable[[dict], None]) -> None:
-    for case in cases:
-        on_done(run_case(case, settings, save_dir))
-
-
-#: How long to wait for a Dask scheduler to answer [s].
-DASK_CONNECT_TIMEOUT_S = 30.0
-#: Thread-count variables of the BLAS/OpenMP runtimes, set to 1 in the pool's workers.
-_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-@contextmanager
-def _single_threaded_children() -> Iterator[None]:
-    """Environment for spawning workers: one BLAS/OpenMP thread each (N workers on N cores
-    otherwise oversubscribe the cores), unless the user set these variables."""
-    saved = {k: os.environ.get(k) for k in _THREAD_VARIABLES}
-    for k, v in saved.items():
-        if v is None:
-            os.environ[k] = "1"
-    try:
-        yield
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-
-
-def _run_pool(cases, settings, save_dir, workers: int, on_done) -> None:
-    # spawn: fresh interpreters (no forked Pinocchio/MuJoCo/BLAS state), same on every OS
-    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
-        with _single_threaded_children():  # the workers start at the first submissions
-            futures = [pool.submit(run_case, c, settings, save_dir) for c in cases]
-        try:
-            for fut in as_completed(futures):
-                on_done(fut.result())
-        except BrokenProcessPool as exc:
-            raise ConfigurationError(
-                f"a worker process of the pool died ({exc}). Called from a script? The workers "
-                "are started with 'spawn', which re-imports the main module: put the call under "
-                "\"if __name__ == '__main__':\" (or use workers=1)"
-            ) from None
-        except BaseException:
-            for fut in futures:
-                fut.cancel()
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
-
-
 def _run_dask(cases, settings, save_dir, address: str, on_done) -> None:
-    try:
-        from dask.distributed import Client
-        from dask.distributed import as_completed as dask_as_completed
-    except ImportError as exc:
-        raise ConfigurationError(
-            f"--scheduler needs Dask distributed ({exc}); install it with "
-            "'pip install \"dqcontrol[dask]\"'"
-        ) from None
-    try:
-        client = Client(address, timeout=DASK_CONNECT_TIMEOUT_S)
-    except OSError as exc:
-        raise ConfigurationError(
-            f"cannot connect to the Dask scheduler at {address!r}: {exc}"
-        ) from None
-    with client:
-        futures = client.map(
-            run_case,
-            cases,
-            settings=settings,
-            save_dir=save_dir,
-            pure=False,
-            key=[f"table1-{c.name}-{time.time_ns()}" for c in cases],
-        )
-        try:
-            for fut in dask_as_completed(futures):
-                on_done(fut.result())
-        except BaseException:
-            client.cancel(futures)
-            raise
+    """The cases on the Dask scheduler at ``address`` (the shared executor's Dask path)."""
+    from dqcontrol.experiments.executor import Executor, run_jobs
+
+    job = functools.partial(run_case, settings=settings, save_dir=save_dir)
+    executor = Executor(workers=1, scheduler=address)
+    run_jobs(job, cases, executor, on_done, connect_timeout_s=DASK_CONNECT_TIMEOUT_S)
 
 
 def run_table1(
@@ -989,6 +889,8 @@ def run_table1(
     The pool's workers are started with ``spawn`` (fresh interpreters): a script that calls
     this function must do so under ``if __name__ == "__main__":``.
     """
+    from dqcontrol.experiments.executor import resolve_executor
+    from dqcontrol.experiments.sweep import sweep
     from dqcontrol.runs.storage import atomic_write_text
 
     if settings is None:
@@ -1000,51 +902,29 @@ def run_table1(
     out_dir.mkdir(parents=True, exist_ok=True)
     runs_dir = out_dir / "table1_runs" if save_runs else None
     save_dir = None if runs_dir is None else str(runs_dir.resolve())
-    # longest jobs first: better balance across workers
-    ordered = sorted(cases, key=lambda c: -c.cost_estimate())
-    if scheduler:
-        executor = f"Dask distributed at {scheduler}"
-    else:
-        n = (os.cpu_count() or 1) if workers is None else int(workers)
-        if n < 1:
-            raise ParameterError(f"workers must be ≥ 1, got {workers!r}")
-        n = min(n, len(cases))
-        executor = "in-process (1 worker)" if n == 1 else f"process pool, {n} workers"
-
-    results: list[dict] = []
-    bar = _progress(len(cases), progress)
-
-    def on_done(res: dict) -> None:
-        results.append(res)
-        bar.set_postfix_str(Table1Case(**res["case"]).name, refresh=False)
-        bar.update(1)
-
-    start = time.perf_counter()
-    interrupted = False
-    try:
-        if scheduler:
-            _run_dask(ordered, settings, save_dir, scheduler, on_done)
-        elif n == 1:
-            _run_serial(ordered, settings, save_dir, on_done)
-        else:
-            _run_pool(ordered, settings, save_dir, n, on_done)
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        bar.close()
-    wall = time.perf_counter() - start
+    executor = resolve_executor(workers, scheduler, len(cases))
+    outcome = sweep(
+        functools.partial(run_case, settings=settings, save_dir=save_dir),
+        cases,
+        executor,
+        # longest jobs first: better balance across workers
+        order=sorted(range(len(cases)), key=lambda i: -cases[i].cost_estimate()),
+        name=lambda case: case.name,
+        progress="table1" if progress else None,
+    )
+    results, wall, interrupted = outcome.results, outcome.wall_time_s, outcome.interrupted
     rows = table_rows(results)
     markdown = format_markdown(
         rows,
         settings,
         wall_time_s=wall,
-        executor=executor,
+        executor=executor.label,
         command=command,
         interrupted=interrupted,
         physics_dt_s=next((r["meta"].get("physics_dt_s") for r in results), None),
     )
     md_path = atomic_write_text(out_dir / "table1.md", markdown)
-    csv_path = atomic_write_text(out_dir / "table1.csv", _csv_text(rows))
+    csv_path = atomic_write_text(out_dir / "table1.csv", format_csv(rows))
     if interrupted:
         raise KeyboardInterrupt
     failures = [Table1Case(**r["case"]).name for r in results if r["interrupted"]]
@@ -1055,7 +935,7 @@ def run_table1(
         csv_path=csv_path,
         md_path=md_path,
         wall_time_s=wall,
-        executor=executor,
+        executor=executor.label,
         interrupted=interrupted,
         runs_dir=runs_dir,
         failures=failures,

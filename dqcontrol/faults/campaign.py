@@ -34,13 +34,11 @@ import contextlib
 import csv
 import io
 import math
-import multiprocessing
 import os
 import sys
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -48,7 +46,9 @@ import numpy as np
 from dqcontrol.controllers.base import Controller
 from dqcontrol.dq.algebra import dq_from_rt, dq_mul, translation
 from dqcontrol.errors import ParameterError
+from dqcontrol.experiments.executor import Executor, resolve_executor
 from dqcontrol.experiments.runner import lbr4p, simulate
+from dqcontrol.experiments.sweep import sweep
 from dqcontrol.experiments.thesis import THESIS_PERIOD_S
 from dqcontrol.faults.qp_faults import ContradictoryBoundsQP, contradictory
 from dqcontrol.faults.scenarios import (
@@ -79,6 +79,7 @@ __all__ = [
     "render_markdown",
     "run_campaign",
     "run_case",
+    "run_cases",
 ]
 
 #: Control period of the campaign [s] (the thesis's).
@@ -499,34 +500,35 @@ def run_campaign(
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"workers must be an integer ≥ 1, got {workers!r}")
     cases = campaign_cases(controllers, trajectories, faults, simulator, quick, seed)
-    start = time.perf_counter()
-    results: dict[int, CaseResult] = {}
-    interrupted = False
-    try:
-        if workers == 1 or len(cases) <= 1:
-            for i, case in enumerate(cases):
-                results[i] = run_case(case)
-                if on_result is not None:
-                    on_result(results[i], len(results), len(cases))
-        else:
-            ctx = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-                pending = {pool.submit(run_case, case): i for i, case in enumerate(cases)}
-                try:
-                    while pending:
-                        done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                        for fut in done:
-                            i = pending.pop(fut)
-                            results[i] = fut.result()
-                            if on_result is not None:
-                                on_result(results[i], len(results), len(cases))
-                except BaseException:
-                    for fut in pending:
-                        fut.cancel()
-                    raise
-    except KeyboardInterrupt:
-        interrupted = True
-    rows = [results[i] for i in sorted(results)]
+    executor = resolve_executor(workers, None, len(cases))
+    return run_cases(cases, executor, simulator=simulator, quick=quick, on_result=on_result)
+
+
+def run_cases(
+    cases: Sequence[CaseSpec],
+    executor: Executor,
+    *,
+    simulator: str,
+    quick: bool = False,
+    on_result: Callable[[CaseResult, int, int], None] | None = None,
+) -> CampaignResult:
+    """Run ``cases`` on ``executor`` (:mod:`dqcontrol.experiments.executor`: this process,
+    the local process pool or a Dask cluster) and collect the rows in case order.
+
+    ``simulator`` and ``quick`` label the result. Ctrl-C (or a ``KeyboardInterrupt`` raised
+    by ``on_result``) stops the campaign: the completed rows are kept and ``interrupted``
+    is set.
+    """
+    finished = 0
+
+    def progress(index: int, row: CaseResult) -> None:
+        nonlocal finished
+        finished += 1
+        if on_result is not None:
+            on_result(row, finished, len(cases))
+
+    outcome = sweep(run_case, cases, executor, on_result=progress)
+    rows, interrupted = outcome.results, outcome.interrupted
     note = f"interrupted after {len(rows)} of {len(cases)} cases" if interrupted else ""
     return CampaignResult(
         rows=rows,
@@ -535,7 +537,7 @@ def run_campaign(
         total_cases=len(cases),
         interrupted=interrupted,
         note=note,
-        wall_time_s=time.perf_counter() - start,
+        wall_time_s=outcome.wall_time_s,
     )
 
 

@@ -29,7 +29,14 @@ import numpy as np
 from dqcontrol.errors import ParameterError
 from dqcontrol.runs.log import RunLog
 
-__all__ = ["RUN_FORMAT", "atomic_write_bytes", "atomic_write_text", "load_run", "save_run"]
+__all__ = [
+    "RUN_FORMAT",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "jsonable",
+    "load_run",
+    "save_run",
+]
 
 #: Value of the ``"format"`` key of a run's ``.json``.
 RUN_FORMAT = "dqcontrol-run"
@@ -94,16 +101,16 @@ def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8
     return atomic_write_bytes(path, text.encode(encoding))
 
 
-def _jsonable(value):
+def jsonable(value):
     """``value`` as strict-JSON data: numpy scalars/arrays to Python, non-finite to None."""
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
+        return jsonable(value.tolist())
     if isinstance(value, np.generic):
-        return _jsonable(value.item())
+        return jsonable(value.item())
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, Path):
@@ -138,8 +145,8 @@ def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, Path]:
         "version": _VERSION,
         "name": name,
         "npz": npz_path.name,
-        "meta": _jsonable(log.meta),
-        "metrics": _jsonable(result.metrics.as_dict()),
+        "meta": jsonable(log.meta),
+        "metrics": jsonable(result.metrics.as_dict()),
         "interrupted": bool(result.interrupted),
         "note": str(result.note),
     }
