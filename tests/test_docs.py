@@ -42,7 +42,7 @@ def test_readme_opens_with_the_two_commands():
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     blocks = re.findall(r"^```bash\n(.*?)^```", text, flags=re.MULTILINE | re.DOTALL)
     assert blocks[0].strip() == (
-        "python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/dqcontrol run"
+        "python3 -m venv .venv && .venv/bin/pip install -e '.[sim,viz]' && .venv/bin/dqcontrol run"
     )
     test_command = (
         "python3 -m venv .venv && .venv/bin/pip install -e '.[dev]' && .venv/bin/python -m pytest"

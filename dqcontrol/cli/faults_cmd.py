@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     and a QP controller failed a check), 130 (interrupted; the partial report is written)."""
     from tqdm import tqdm
 
+    from dqcontrol.cli._extras import check_simulator
     from dqcontrol.faults.campaign import (
         campaign_cases,
         render_csv,
@@ -98,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
         run_campaign,
     )
     from dqcontrol.runs.storage import atomic_write_text
+
+    check_simulator(args.simulator)
 
     cases = campaign_cases(
         args.controllers, args.trajectories, args.faults, args.simulator, args.quick, args.seed

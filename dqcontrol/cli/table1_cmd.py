@@ -134,8 +134,11 @@ def _bound_samples(text: str) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from dqcontrol.cli._extras import check_simulator
     from dqcontrol.errors import ParameterError
     from dqcontrol.experiments.table1 import Table1Settings, run_table1
+
+    check_simulator(args.simulator)
 
     if args.workers is not None and args.workers < 1:
         raise ParameterError(f"--workers must be ≥ 1, got {args.workers}")

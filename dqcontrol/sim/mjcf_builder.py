@@ -26,15 +26,17 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
 from dqcontrol.dq.algebra import qfrom_axis_angle, qfrom_matrix, qmul, qto_matrix
 from dqcontrol.errors import ConfigurationError, URDFError
+from dqcontrol.extras import lazy_module
 from dqcontrol.model.collision import Box, Capsule, Cylinder, HalfSpace, Obstacle, Sphere
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.model.urdf_source import URDFSource
+
+mujoco = lazy_module("mujoco", extra="sim", purpose="the MuJoCo model")
 
 __all__ = [
     "MESH_EXTENSIONS",

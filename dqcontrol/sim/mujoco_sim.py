@@ -86,12 +86,12 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
 from dqcontrol.dq.algebra import dq_from_rt, qfrom_matrix
 from dqcontrol.errors import DQControlError, ParameterError, URDFError
+from dqcontrol.extras import lazy_module
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.sim.mjcf_builder import (
     PAYLOAD_BODY,
@@ -99,6 +99,8 @@ from dqcontrol.sim.mjcf_builder import (
     build_spec,
     prepare_urdf_xml,
 )
+
+mujoco = lazy_module("mujoco", extra="sim", purpose="the MuJoCo simulation")
 
 __all__ = [
     "ARMATURE_PER_NM",

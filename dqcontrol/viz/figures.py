@@ -31,13 +31,20 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from dqcontrol.dq.algebra import dq_to_matrix, pose_error, translation
 from dqcontrol.errors import ParameterError
+from dqcontrol.extras import missing_extra
 from dqcontrol.runs.log import RunLog
 from dqcontrol.runs.storage import atomic_write_bytes
 from dqcontrol.trajectories import Trajectory
+
+try:
+    from matplotlib.figure import Figure
+except ImportError as exc:
+    raise missing_extra(
+        "matplotlib", extra="viz", purpose="dqcontrol.viz.figures", reason=str(exc)
+    ) from None
 
 __all__ = ["FIGURES", "path_plane", "plot_comparison", "plot_run"]
 

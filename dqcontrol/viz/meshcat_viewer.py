@@ -49,6 +49,7 @@ import pinocchio as pin
 
 from dqcontrol.dq.algebra import dq_to_matrix, translation
 from dqcontrol.errors import DQControlError, ParameterError
+from dqcontrol.extras import available, missing_extra, require
 from dqcontrol.model.robot import RobotModel
 
 __all__ = [
@@ -114,6 +115,8 @@ class MeshcatServer:
     """
 
     def __init__(self, *, timeout_s: float = SERVER_START_TIMEOUT_S) -> None:
+        if not available("meshcat"):
+            raise missing_extra("meshcat", extra="viz", purpose="the Meshcat server")
         env = dict(os.environ)
         env.pop("PYTHONSTARTUP", None)
         try:
@@ -415,7 +418,7 @@ class MeshcatViewer:
     ) -> None:
         with warnings.catch_warnings():  # meshcat imports pyzmq's deprecated ioloop module
             warnings.simplefilter("ignore", DeprecationWarning)
-            import meshcat
+            meshcat = require("meshcat", extra="viz", purpose="the Meshcat viewer")
             from pinocchio.visualize import MeshcatVisualizer
 
         self.robot = robot
