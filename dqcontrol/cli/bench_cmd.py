@@ -47,6 +47,8 @@ def load_bench() -> ModuleType:
             "'pip install -e .', or run 'python benchmarks/bench.py' there."
         )
     spec = importlib.util.spec_from_file_location(_MODULE, path)
+    if spec is None or spec.loader is None:
+        raise ConfigurationError(f"cannot load {path} as a Python module")
     module = importlib.util.module_from_spec(spec)
     sys.modules[_MODULE] = module
     try:

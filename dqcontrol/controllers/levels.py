@@ -150,9 +150,11 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
             return LevelsResult(best, tuple(per_level), k)
         best = sol
         if k + 1 < len(problem.levels):
+            assert sol.x is not None, "a solved level has its solution"
             rows = held_rows(problem, k, sol.x)
             if rows is not None:
                 held.append(rows)
+    assert best is not None, "a problem has at least one level"
     return LevelsResult(best, tuple(per_level), None)
 
 

@@ -132,6 +132,7 @@ class _PhysicsStepRecorder:
             period.append(meas.q)
             peak = meas.torque_peak if peak is None else np.maximum(peak, meas.torque_peak)
         self.positions.append(period)
+        assert peak is not None, "a period has at least one physics step"
         return Measurement(meas.t_s, meas.q, meas.qd, meas.torque, peak)
 
 
@@ -164,14 +165,16 @@ def simulate(
     start = time.perf_counter()
     recorder = None
     period = controller.period_s
+    driver: SimulationDriver | KinematicDriver
     if simulation is not None:
         driver = SimulationDriver(simulation, period)
     elif simulator == "kinematic":
         driver = KinematicDriver(controller.robot, period)
     else:
-        sim = MujocoSimulation(controller.robot)
+        mujoco_sim = MujocoSimulation(controller.robot)
+        sim: MujocoSimulation | _PhysicsStepRecorder = mujoco_sim
         if between_samples:
-            recorder = sim = _PhysicsStepRecorder(sim)
+            recorder = sim = _PhysicsStepRecorder(mujoco_sim)
         driver = SimulationDriver(sim, period)
     # no brake after the run: a case is judged in the state its last command led to
     result = run_loop(controller, driver, q0=q0, max_time_s=max_time_s, meta=meta, brake=False)

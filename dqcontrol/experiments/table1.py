@@ -639,7 +639,7 @@ def _claim_check(rows: list[dict]) -> str:
         return a / b if b > 0 else float("nan")
 
     lines = []
-    counts = {"e_mean": {}, "path_dev_mean_mm": {}}
+    counts: dict[str, dict[str, int]] = {"e_mean": {}, "path_dev_mean_mm": {}}
     for traj in TRAJECTORIES:
         for d in SHORT_PERIODS[traj]:
             loc = by.get((traj, d, "Local"))

@@ -42,6 +42,7 @@ import traceback
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -232,14 +233,16 @@ def _build_trajectory(spec: CaseSpec, robot: RobotModel, q0: np.ndarray):
     traj = spec.trajectory.build(spec.duration_s, unreachable=spec.fault.unreachable)
     offset = spec.fault.reference_offset_m
     if offset is not None:
-        anchored = traj.anchored_at(robot.pose(q0))
+        reference = traj.anchored_at(robot.pose(q0)).reference
+        assert reference is not None, "an anchored trajectory has its reference"
         shift = dq_from_rt(np.array([1.0, 0.0, 0.0, 0.0]), np.asarray(offset, dtype=float))
-        traj = traj.with_reference(dq_mul(shift, anchored.reference))
+        traj = traj.with_reference(dq_mul(shift, reference))
     return traj
 
 
 def _build_simulation(spec: CaseSpec, robot: RobotModel) -> FaultySimulation:
     f = spec.fault
+    inner: MujocoSimulation | KinematicSimulation
     if spec.simulator == "mujoco":
         inner = MujocoSimulation(
             robot,
@@ -285,7 +288,7 @@ def run_case(
     robot = lbr4p()
     f, ctrl_spec = spec.fault, spec.controller
     nan = float("nan")
-    base = {
+    base: dict[str, Any] = {
         "fault": f.name,
         "group": f.group,
         "trajectory": spec.trajectory.name,

@@ -235,6 +235,7 @@ class SimServer:
                 if status == HOLD:
                     self.driver.hold()
                 else:
+                    assert isinstance(body, np.ndarray), "decode gives a command's floats"
                     self.driver.write(body[: self.n])
                 m = self.driver.read()
             else:

@@ -318,15 +318,17 @@ class VelocityFromPosition:
         return meas
 
     def write(self, qd_command: np.ndarray) -> None:
-        if self._target is None:
-            self.read()
-        self._target = self._target + self.period_s * np.asarray(qd_command, dtype=float)
+        self._target = self._current_target() + self.period_s * np.asarray(qd_command, dtype=float)
         self.inner.write_position(self._target)
 
     def hold(self) -> None:
+        self.inner.write_position(self._current_target())
+
+    def _current_target(self) -> np.ndarray:
+        """The position target [rad]: the measured ``q`` until a command moves it."""
         if self._target is None:
-            self.read()
-        self.inner.write_position(self._target)
+            return np.array(self.read().q, dtype=float)  # read() sets it
+        return self._target
 
     def __repr__(self) -> str:
         return f"VelocityFromPosition({self.inner!r}, T={self.period_s} s)"
@@ -460,6 +462,10 @@ class FaultyDriver:
 
     def reset(self, q0: np.ndarray) -> Measurement:
         """Reset the inner driver, the noise sequence and the delay line."""
+        if not isinstance(self.inner, SimulatedDriver):
+            raise ParameterError(
+                f"only a simulated driver resets; {type(self.inner).__name__} has no reset"
+            )
         first = true_copy(self.inner.reset(q0))
         self.true_measurements = [first]
         self._last = self.faults.restart(first)

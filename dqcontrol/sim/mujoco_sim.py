@@ -84,7 +84,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -100,7 +100,10 @@ from dqcontrol.sim.mjcf_builder import (
     prepare_urdf_xml,
 )
 
-mujoco = lazy_module("mujoco", extra="sim", purpose="the MuJoCo simulation")
+if TYPE_CHECKING:
+    import mujoco
+else:  # imported on first use: the package works without the sim extra
+    mujoco = lazy_module("mujoco", extra="sim", purpose="the MuJoCo simulation")
 
 __all__ = [
     "ARMATURE_PER_NM",

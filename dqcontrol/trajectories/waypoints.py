@@ -36,6 +36,7 @@ The dual quaternion is ``x = r + ε ½ t r`` (eq. 2.23), so
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -225,7 +226,7 @@ class WaypointTrajectory(Trajectory):
         }
 
     def _repr_params(self) -> list[str]:
-        fmt = {"precision": 4, "threshold": 30, "separator": ", "}
+        fmt: dict[str, Any] = {"precision": 4, "threshold": 30, "separator": ", "}
         ori = None if self.orientations is None else np.array2string(self.orientations, **fmt)
         return [
             f"positions_m={np.array2string(self.positions_m, **fmt)}",

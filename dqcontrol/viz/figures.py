@@ -29,6 +29,7 @@ import io
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -60,7 +61,7 @@ FIGURES = (
     "scaling",
 )
 _FORMATS = ("png", "svg")
-_REF_STYLE = {"color": "0.15", "linestyle": "--", "linewidth": 1.2}
+_REF_STYLE: dict[str, Any] = {"color": "0.15", "linestyle": "--", "linewidth": 1.2}
 
 
 # ---------------------------------------------------------------------- helpers
@@ -183,7 +184,8 @@ def _fig_path_3d(log: RunLog, ref: np.ndarray) -> Figure:
 def _fig_elements(log: RunLog, which: str) -> Figure:
     if which == "translation":
         measured, desired = translation(log.pose), translation(log.target)
-        names, unit = ("t_x", "t_y", "t_z"), " [m]"
+        names: tuple[str, ...] = ("t_x", "t_y", "t_z")
+        unit = " [m]"
     else:
         measured, desired = log.pose[:, :4], log.target[:, :4]
         names, unit = ("r_w", "r_x", "r_y", "r_z"), ""

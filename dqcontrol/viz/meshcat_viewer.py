@@ -180,8 +180,9 @@ class MeshcatServer:
                 proc.kill()
                 proc.wait(timeout=3.0)
         for pipe in (proc.stdin, proc.stdout):
-            with contextlib.suppress(OSError):
-                pipe.close()
+            if pipe is not None:
+                with contextlib.suppress(OSError):
+                    pipe.close()
 
     def __enter__(self) -> MeshcatServer:
         return self
@@ -440,7 +441,7 @@ class MeshcatViewer:
         else:
             self.server = None
             self.vis = meshcat.Visualizer(window=OfflineWindow())
-        self.url: str | None = server.web_url if live else None
+        self.url: str | None = self.server.web_url if self.server is not None else None
         self._pin_viz = MeshcatVisualizer(model, None, geom)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # meshcat < 0.4 lacks get_image: irrelevant here
@@ -602,8 +603,8 @@ class MeshcatViewer:
         pts = [base.act(data.oMi[j].translation) for j in range(model.njoints)]
         if points_m is not None and len(points_m):
             pts.extend(np.asarray(points_m, dtype=float).reshape(-1, 3))
-        pts = np.array(pts)
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        points = np.array(pts)
+        lo, hi = points.min(axis=0), points.max(axis=0)
         size = max(float(np.linalg.norm(hi - lo)), 0.5)
         unit = np.asarray(direction, dtype=float)
         unit /= np.linalg.norm(unit)

@@ -64,9 +64,14 @@ class TorqueLimit(Limit):
         lo = np.empty(p * n)
         up = np.empty(p * n)
         fast = ctx.robot.fast
+        plan = pred.warm_qd
         for i in range(p):
             m, _g = fast.mass_gravity(starts[i])
-            velocity = ctx.extras.get("qd_measured", ctx.qd_prev) if i == 0 else pred.warm_qd[i]
+            if i == 0:
+                velocity = ctx.extras.get("qd_measured", ctx.qd_prev)
+            else:
+                assert plan is not None, "the torque limit's prediction carries the plan"
+                velocity = plan[i]
             bias = fast.bias_forces(starts[i], velocity)
             rows = slice(i * n, (i + 1) * n)
             scaled = m / self.steps_s[i]

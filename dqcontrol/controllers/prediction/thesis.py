@@ -76,10 +76,10 @@ class ThesisPrediction(PredictionModel):
                 sigma_hat = sigma + self._w_int @ self.horizon_s
             else:
                 sigma_hat = sigma + self.layout.instants_s
+        warm_qd: np.ndarray | None = None
+        warm_s: np.ndarray | None = None
         if self.warm:
             warm_qd, warm_s = self._shift @ self.horizon_qd, self._shift @ self.horizon_s
-        else:
-            warm_qd = warm_s = None
         return Prediction(q_hat, sigma_hat, q_hat, sigma_hat, self._zero_weights, warm_qd, warm_s)
 
     def commit(self, qd: np.ndarray, s: np.ndarray) -> None:

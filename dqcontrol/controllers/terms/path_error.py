@@ -62,7 +62,7 @@ class PathErrorTerm(Term):
         pj = np.einsum("pab,pbn->pan", proj, ctx.jacobians)  # E_i J_i (p, 6, n)
         pd = np.einsum("pab,pb->pa", proj, ctx.target_derivatives)  # E_i x_d' (p, 6)
         # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -sigma_weights[i, j] E_i x_d' on s_j
-        a = np.empty((p, 6, p, m))
+        a: np.ndarray = np.empty((p, 6, p, m))
         a[:, :, :, :n] = pred.weights[:, None, :, None] * pj[:, :, None, :]
         a[:, :, :, n] = -pred.phase_weights[:, None, :] * pd[:, :, None]
         a = a.reshape(6 * p, p * m)

@@ -60,7 +60,7 @@ class StallDampingTerm(Term):
         return math.ceil(delay_s / period_s - 1e-9)
 
     @property
-    def weight(self) -> float:
+    def weight(self) -> float:  # type: ignore[override]  # computed from the stall state
         """``μ_stall (1 - s / s_stall)`` once ``s`` has stayed below ``s_stall`` for
         ``delay_steps`` steps, else 0."""
         if self.stalled_steps >= self.delay_steps and self.weight_max:
