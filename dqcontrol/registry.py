@@ -238,7 +238,9 @@ def build_controller(
 
     Args:
         name: a name of :func:`controller_spec` or a spec.
-        robot, trajectory, period_s: as for every controller.
+        robot: as for every controller.
+        trajectory: as for every controller.
+        period_s: as for every controller.
         shared: settings of :data:`SHARED_OPTIONS` offered to every controller; only those
             it takes are passed (:meth:`ControllerSpec.options`).
         **extra: keyword arguments passed as they are (override ``shared``).

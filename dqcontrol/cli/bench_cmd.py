@@ -60,6 +60,7 @@ def load_bench() -> ModuleType:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``bench`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         "bench",
         help="time the control step of every controller and the kinematics (needs a source "

@@ -96,10 +96,12 @@ class LevelsResult:
 
     @property
     def iterations(self) -> int:
+        """The solver iterations of every level solved, summed."""
         return sum(s.iterations for s in self.per_level)
 
     @property
     def solve_time_s(self) -> float:
+        """The time [s] inside the solver for every level solved, summed."""
         return sum(s.solve_time_s for s in self.per_level)
 
 

@@ -149,12 +149,15 @@ def simulate(
     """Run ``controller`` from ``q0`` [rad] until the task is done or ``max_time_s``.
 
     Args:
+        controller: the controller to run (reset by the loop).
+        q0: start configuration [rad], shape ``(n,)``.
         simulator: ``"mujoco"`` (the default :class:`~dqcontrol.sim.MujocoSimulation`) or
             ``"kinematic"`` (:class:`~dqcontrol.sim.KinematicDriver`).
         simulation: a simulation object to run instead (any object with MuJoCo's
             ``reset/step/measure/steps_for/model`` members,
             :class:`~dqcontrol.sim.SimulationDriver`).
-        max_time_s, meta: as for the loops.
+        max_time_s: as for the loops (:func:`~dqcontrol.sim.loop.run_loop`).
+        meta: as for the loops.
         between_samples: also measure the path deviation between the control samples
             (:attr:`CaseRun.between_deviation_m`): after every physics step in MuJoCo, at
             :data:`KINEMATIC_SUBSAMPLES` points per period in the kinematic loop (where the

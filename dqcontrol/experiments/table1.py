@@ -632,7 +632,7 @@ def _verdict(ratio: float) -> str:
 
 
 def _claim_check(rows: list[dict]) -> str:
-    """p = 10 against Local at the short periods (the thesis's claim)."""
+    """The predictive p = 10 against Local at the short periods (the thesis's claim)."""
     by = {(r["traj"], r["T_tot_s"], r["controller"]): r for r in rows}
 
     def ratio(a: float, b: float) -> float:
@@ -973,7 +973,11 @@ def run_table1(
 
     Args:
         out: results folder (created if needed).
-        quick, periods, trajectories, controllers: the selection (:func:`table1_cases`).
+        quick: the selection of :func:`table1_cases`, as are ``periods``,
+            ``trajectories`` and ``controllers``.
+        periods: see ``quick``.
+        trajectories: see ``quick``.
+        controllers: see ``quick``.
         simulator: ``"mujoco"`` or ``"kinematic"`` (ignored if ``settings`` is given).
         settings: the shared settings (default: the thesis's, :class:`Table1Settings`).
         workers: processes of the local pool (default: all cores; 1 runs in this process).

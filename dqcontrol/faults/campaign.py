@@ -492,6 +492,12 @@ def run_campaign(
     """Run the fault campaign; see :func:`campaign_cases` for the selection.
 
     Args:
+        controllers: the selection of :func:`campaign_cases`, as are ``trajectories``,
+            ``faults``, ``simulator`` and ``quick``.
+        trajectories: see ``controllers``.
+        faults: see ``controllers``.
+        simulator: see ``controllers``.
+        quick: see ``controllers``.
         workers: worker processes (1 = in this process).
         seed: seed of the measurement noise.
         on_result: called as ``on_result(row, done, total)`` after each case (progress).

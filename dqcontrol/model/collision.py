@@ -152,6 +152,7 @@ class Sphere(Obstacle):
         object.__setattr__(self, "radius_m", _positive_size("radius_m", self.radius_m))
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Sphere(self.radius_m)
 
 
@@ -169,6 +170,7 @@ class Box(Obstacle):
         object.__setattr__(self, "size_m", sizes)
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Box(*self.size_m)
 
 
@@ -186,6 +188,7 @@ class Capsule(Obstacle):
         object.__setattr__(self, "length_m", _positive_size("length_m", self.length_m))
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Capsule(self.radius_m, self.length_m)
 
 
@@ -203,6 +206,7 @@ class Cylinder(Obstacle):
         object.__setattr__(self, "length_m", _positive_size("length_m", self.length_m))
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Cylinder(self.radius_m, self.length_m)
 
 
@@ -226,9 +230,11 @@ class HalfSpace(Obstacle):
         object.__setattr__(self, "offset_m", _finite_vector("offset_m", [self.offset_m], 1)[0])
 
     def placement(self) -> pin.SE3:
+        """The identity: the plane is given by ``normal`` and ``offset_m``."""
         return pin.SE3.Identity()
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Halfspace(np.array(self.normal), self.offset_m)
 
 

@@ -152,12 +152,15 @@ class WaypointTrajectory(Trajectory):
 
     # ------------------------------------------------------------------ evaluation
     def local_pose(self, sigma: float) -> np.ndarray:
+        """``traj(σ)`` on the spline (:meth:`Trajectory.local_pose`)."""
         return self.local_poses(np.array([float(sigma)]))[0][0]
 
     def local_derivative(self, sigma: float) -> np.ndarray:
+        """``dtraj/dσ`` on the spline (:meth:`Trajectory.local_derivative`)."""
         return self.local_poses(np.array([float(sigma)]))[1][0]
 
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorized :meth:`local_pose` and :meth:`local_derivative`."""
         s = np.asarray(sigmas, dtype=float)
         m = s.shape[0]
         spline = self._spline(s)  # (M, 2, 3 + k): [values; slopes] of [t, β]

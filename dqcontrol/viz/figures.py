@@ -336,6 +336,8 @@ def plot_comparison(
         path: file to write; its suffix (``.png`` or ``.svg``) sets the format.
         trajectory: the anchored trajectory (shared by the runs) for the reference path and
             its plane; default: the first run's targets.
+        dpi: resolution of a PNG [dots per inch].
+        title: the figure's title (default: "comparison of controllers").
 
     Returns:
         ``path``.

@@ -238,6 +238,7 @@ class OfflineWindow:
         self.web_url = None
 
     def send(self, command) -> None:
+        """Apply a meshcat command to the recorded scene."""
         import umsgpack
 
         data = command.lower()
@@ -245,6 +246,7 @@ class OfflineWindow:
         self._bridge.handle_zmq(frames)
 
     def get_scene(self) -> str:
+        """The recorded scene as meshcat's static HTML."""
         self._bridge.handle_zmq([b"get_scene"])
         return self._bridge.zmq_socket.reply.decode("utf-8")
 
@@ -782,6 +784,7 @@ class SampleFollower:
         self._last = -math.inf
 
     def __call__(self, k: int, simulation, result) -> None:
+        """Show sample ``k`` of a run (the ``on_sample`` callback), paced to real time."""
         viewer = self.viewer
         if not viewer.active:  # closed or failed: no drawing, no pacing
             return
@@ -828,9 +831,12 @@ def export_replay_html(
     Args:
         robot: the robot the run used (its URDF gives the geometry).
         log: the :class:`~dqcontrol.runs.RunLog`.
+        path: the file to write (``.html``).
         path_points: world positions ``(N, 3)`` [m] of the reference path (e.g.
             ``controller.trajectory.path_positions()``); default: the run's targets.
-        fps, speed, loop: see :meth:`MeshcatViewer.set_animation`.
+        fps: frames per second of the animation (:meth:`MeshcatViewer.set_animation`).
+        speed: playback speed, 1 = real time (:meth:`MeshcatViewer.set_animation`).
+        loop: whether the animation loops (:meth:`MeshcatViewer.set_animation`).
         obstacles: obstacles to draw (:meth:`MeshcatViewer.show_obstacles`).
 
     No server is started and nothing waits for a browser.

@@ -75,6 +75,7 @@ class PredictedPositionLimit(Limit):
         return self._c
 
     def rows(self, ctx: StepContext) -> tuple | None:
+        """The position bounds of the predicted states, or ``None`` when none applies."""
         pred = ctx.prediction
         c = self._matrix(pred.weights)
         base = pred.q_base.ravel()

@@ -55,6 +55,7 @@ class TorqueLimit(Limit):
         self.limit = float(fraction) * np.asarray(effort_max, dtype=float)
 
     def rows(self, ctx: StepContext) -> Inequality:
+        """The torque rows of every interval, linearised at its predicted start."""
         layout = self.layout
         p, n = layout.num_blocks, layout.num_joints
         idx = layout.qd_index()

@@ -55,6 +55,7 @@ class PathErrorTerm(Term):
         self.weight = float(weight)
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The linearised tangent errors of the predicted states, weighted by their time."""
         pred = ctx.prediction
         layout = ctx.layout
         p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
