@@ -10,7 +10,7 @@ is then compiled in memory in every process instead (slower start, same code).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TypeVar
+from typing import TypeVar, cast
 
 from numba import njit
 
@@ -22,6 +22,6 @@ F = TypeVar("F", bound=Callable)
 def compiled(fn: F) -> F:
     """``numba.njit(cache=True)(fn)``, or ``numba.njit(fn)`` without a writable cache."""
     try:
-        return njit(cache=True)(fn)
+        return cast(F, njit(cache=True)(fn))  # a dispatcher, called as fn is
     except RuntimeError:  # "cannot cache function …: no locator available"
-        return njit(fn)
+        return cast(F, njit(fn))

@@ -31,3 +31,8 @@ class ParameterError(DQControlError, ValueError):
 
 class SolverError(DQControlError):
     """A QP solver failed. Raised only outside control loops; loops fall back instead."""
+
+
+class MissingExtraError(DQControlError, ImportError):
+    """An optional dependency is not installed; the message names the extra that brings it
+    (``pip install 'dqcontrol[sim]'``)."""

@@ -29,6 +29,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from typing import Any
 
 from dqcontrol.controllers import (
     LocalController,
@@ -91,7 +92,7 @@ class ControllerSpec:
     @property
     def num_instants(self) -> int:
         """``p``: prediction instants or intervals (1 for the single-instant controllers)."""
-        kw = dict(self.kwargs)
+        kw: dict[str, Any] = dict(self.kwargs)
         return int(kw.get("num_instants", kw.get("num_intervals", 1)))
 
     @property
@@ -108,7 +109,7 @@ class ControllerSpec:
         self, robot: RobotModel, trajectory: Trajectory, period_s: float, **extra
     ) -> Controller:
         """The controller; ``extra`` adds or overrides keyword arguments."""
-        kwargs = dict(self.kwargs)
+        kwargs: dict[str, Any] = dict(self.kwargs)
         kwargs.update(extra)
         return self.cls(robot, trajectory, period_s, **kwargs)
 
@@ -237,7 +238,9 @@ def build_controller(
 
     Args:
         name: a name of :func:`controller_spec` or a spec.
-        robot, trajectory, period_s: as for every controller.
+        robot: as for every controller.
+        trajectory: as for every controller.
+        period_s: as for every controller.
         shared: settings of :data:`SHARED_OPTIONS` offered to every controller; only those
             it takes are passed (:meth:`ControllerSpec.options`).
         **extra: keyword arguments passed as they are (override ``shared``).

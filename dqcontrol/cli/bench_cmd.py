@@ -47,6 +47,8 @@ def load_bench() -> ModuleType:
             "'pip install -e .', or run 'python benchmarks/bench.py' there."
         )
     spec = importlib.util.spec_from_file_location(_MODULE, path)
+    if spec is None or spec.loader is None:
+        raise ConfigurationError(f"cannot load {path} as a Python module")
     module = importlib.util.module_from_spec(spec)
     sys.modules[_MODULE] = module
     try:
@@ -58,6 +60,7 @@ def load_bench() -> ModuleType:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``bench`` subcommand to ``subparsers``."""
     parser = subparsers.add_parser(
         "bench",
         help="time the control step of every controller and the kinematics (needs a source "

@@ -102,9 +102,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the campaign (the shipped ``faults`` study with the options' selection), write
     the report, print a summary. Exit code: 0, 1 (``--strict`` and a QP controller failed a
     check), 130 (interrupted; the partial report is written)."""
+    from dqcontrol.cli._extras import check_simulator
     from dqcontrol.studies import load_study, run_study
     from dqcontrol.studies.faults_study import campaign_result, select_faults
 
+    check_simulator(args.simulator)
     study = select_faults(
         load_study("faults"),
         controllers=args.controllers,

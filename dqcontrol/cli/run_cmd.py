@@ -8,6 +8,9 @@ rebuilt through their own metadata (:meth:`~dqcontrol.trajectories.Trajectory.to
 Everything lands in ``OUT/<robot>_<trajectory>_T<T_tot>s_<simulator>/``:
 per controller its run (``<ctrl>.npz`` + ``.json``), its figures (``<ctrl>_<figure>.png``)
 and its replay (``<ctrl>_replay.html``), and ``comparison.png`` for two or more controllers.
+The figures and replays need the ``viz`` extra; without it the runs are saved, the metrics
+printed, and a note on stderr says what was not written. ``--simulator mujoco`` needs the
+``sim`` extra.
 
 The helpers that turn options into a robot, a trajectory and controllers, and rebuild them
 from a saved run's ``meta``, are shared with ``dqcontrol view``.
@@ -36,7 +39,9 @@ Run one or more controllers on a trajectory, print a table of their metrics, and
 OUT/<robot>_<trajectory>_T<T_tot>s_<simulator>/: each run (.npz + .json, reload with
 'dqcontrol view'), its figures (path in 2-D and 3-D, translation and rotation against the
 phase, joint velocities, angles and torques, s(t) and sigma(t)), a self-contained HTML
-replay that plays in any browser, and a figure comparing the controllers.
+replay that plays in any browser, and a figure comparing the controllers. The figures and
+replays need the [viz] extra (pip install 'dqcontrol[viz]'), MuJoCo the [sim] extra; without
+[viz] the runs and metrics are still written.
 
 Defaults: the LBR4p on the circle (R = 0.1 m) with T_tot = 2 s, the local, the predictive
 (p = 10) and the path-following (p = 10) controllers, T = 0.05 s, tau_p = 1 s, K = 10 1/s,
@@ -617,6 +622,10 @@ def collision_report(label: str, robot, collision, qs) -> str:
 
 
 def _main(args: argparse.Namespace) -> int:
+    from dqcontrol.cli._extras import check_simulator
+
+    if not args.connect:  # with --connect the server simulates
+        check_simulator(args.simulator)
     robot, q0, robot_meta, velocity = _check_options(args)
 
     from dqcontrol.sim import run_kinematic, run_mujoco
@@ -722,11 +731,21 @@ def _write_results(runs, robot, out, args, fmt, dpi, fps, progress, name) -> lis
     """Save each run, its figures and replay, and the comparison figure (with a progress bar)."""
     from tqdm import tqdm
 
+    from dqcontrol.extras import has_extra
     from dqcontrol.runs.storage import save_run
+
+    drawable = [(label, r, traj) for label, r, traj in runs if len(r.log)]
+    if not has_extra("viz"):  # the runs alone, and say what is missing
+        print(
+            "dqcontrol run: figures and replays not written: they need the [viz] extra "
+            "(pip install 'dqcontrol[viz]')",
+            file=sys.stderr,
+        )
+        return [path for label, result, _ in drawable for path in save_run(result, out, label)]
+
     from dqcontrol.viz.figures import plot_comparison, plot_run
     from dqcontrol.viz.meshcat_viewer import export_replay_html
 
-    drawable = [(label, r, traj) for label, r, traj in runs if len(r.log)]
     steps = 3 * len(drawable) + (len(drawable) >= 2)
     written: list[Path] = []
     with tqdm(

@@ -44,10 +44,12 @@ def register(subparsers) -> None:
 
 
 def _main(args: argparse.Namespace) -> int:
+    from dqcontrol.cli._extras import check_simulator
     from dqcontrol.cli.run_cmd import load_robot
     from dqcontrol.sim import MujocoDriver
     from dqcontrol.sim.bridge import SimServer
 
+    check_simulator("mujoco", "the simulation server")
     try:
         robot, _q0, _meta = load_robot(args.robot, args.ee_frame)
     except ValueError as exc:

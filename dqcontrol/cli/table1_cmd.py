@@ -138,9 +138,12 @@ def _bound_samples(text: str) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     """The shipped ``table1`` study (:mod:`dqcontrol.studies`) with the options' selection."""
+    from dqcontrol.cli._extras import check_simulator
     from dqcontrol.errors import ParameterError
     from dqcontrol.studies import load_study, run_study
     from dqcontrol.studies.table1_study import select_table1
+
+    check_simulator(args.simulator)
 
     if args.workers is not None and args.workers < 1:
         raise ParameterError(f"--workers must be ≥ 1, got {args.workers}")

@@ -110,6 +110,7 @@ def _main(args: argparse.Namespace) -> int:
     if args.html:
         from dqcontrol.viz.meshcat_viewer import export_replay_html
 
+        assert robot is not None, "built above for --html"
         written.append(
             export_replay_html(
                 robot, log, out / f"{name}_replay.html", path_points=path_points, speed=args.speed
@@ -120,6 +121,7 @@ def _main(args: argparse.Namespace) -> int:
     if viewer_on:
         from dqcontrol.viz.meshcat_viewer import MeshcatViewer
 
+        assert robot is not None, "built above for the viewer"
         with MeshcatViewer(robot, q=log.q[0]) as viewer:
             points = path_points if path_points is not None else translation(log.target)
             viewer.show_path(points)

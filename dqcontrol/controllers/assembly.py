@@ -55,6 +55,7 @@ def add_residual(hessian: np.ndarray, c: np.ndarray, res: Residual) -> None:
     """Add ``w ‖A z - b‖²``'s Hessian blocks and linear term (block rows) in place."""
     w2 = 2.0 * res.weight
     blocks = res.blocks
+    assert blocks is not None, "a block-diagonal level's residuals are blocks"
     p, r, m = blocks.shape
     bb = res.b.reshape(p, r)
     if res.row_weights is not None:
@@ -128,7 +129,9 @@ class BlockAssembly:
             if limit.constant:
                 template_bounds.extend(i for i in items if isinstance(i, Bounds))
         # the general rows: one slot (a range of rows) per limit, in order
-        c_rows, slots, start = [], {}, nv
+        c_rows: list[np.ndarray] = []
+        slots: dict[int, tuple[int, int]] = {}
+        start = nv
         for limit, item in rows:
             c_rows.append(item.C)
             first = slots.get(id(limit), (start, start))[0]
@@ -142,8 +145,8 @@ class BlockAssembly:
             merge_into(lower, upper, conflict, b)
         for limit, item in rows:
             if limit.constant:
-                a, b = slots[id(limit)]
-                lower[a:b], upper[a:b] = item.lower, item.upper
+                first, stop = slots[id(limit)]
+                lower[first:stop], upper[first:stop] = item.lower, item.upper
         self._bounds0 = np.array([lower, upper])
         self._fixed = tuple(sorted(set(fixed)))
         self._plan(sorted(self.limits, key=lambda lim: lim.hard), slots)  # soft first
@@ -197,9 +200,10 @@ class BlockAssembly:
             conflict.fill(0)
         late: tuple | list = ()
         if self._generic:
-            late = self._generic_bounds(ctx, relaxed, lower, upper, conflict)
-            if late is None:
+            generic = self._generic_bounds(ctx, relaxed, lower, upper, conflict)
+            if generic is None:
                 return None
+            late = generic
         for tighten in self._relaxed_tightens if relaxed else self._all_tightens:
             tighten(ctx, lower, upper, conflict)
         for row_bounds, a, b, relaxable in self._row_bounds:
@@ -263,6 +267,7 @@ class BlockAssembly:
         if bounds is None:  # a limit changed its rows: a new structure
             self.setup(ctx)
             bounds = self._bounds(ctx, relaxed)
+            assert bounds is not None, "a fresh structure holds this step's rows"
         hessian = self._const_h.copy()
         for add in self._fast_terms:
             add(ctx, hessian)

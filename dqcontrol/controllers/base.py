@@ -14,12 +14,15 @@ from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import numpy as np
 
 from dqcontrol.errors import ConfigurationError, ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
+
+_T = TypeVar("_T")
 
 _FLOAT = np.dtype(float)
 
@@ -171,7 +174,7 @@ def check_position_margin(margin_rad: float, q_min: np.ndarray, q_max: np.ndarra
     return m
 
 
-def fast_constructor(cls: type, **required: object) -> Callable[..., object]:
+def fast_constructor(cls: type[_T], **required: object) -> Callable[..., _T]:
     """A constructor of the frozen dataclass ``cls`` that fills the instance's ``__dict__``
     in one update instead of one ``object.__setattr__`` per field: for the results of the
     1 kHz control steps.
@@ -186,8 +189,8 @@ def fast_constructor(cls: type, **required: object) -> Callable[..., object]:
     defaults = dict(vars(template))
     new = object.__new__
 
-    def make(**fields: object) -> object:
-        obj = new(cls)
+    def make(**fields: object) -> _T:
+        obj: _T = new(cls)
         attrs = vars(obj)
         attrs.update(defaults)
         attrs.update(fields)

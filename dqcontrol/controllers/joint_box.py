@@ -55,7 +55,7 @@ def joint_constants(
     ``d ≥ far``; where the check fails, ``far = inf`` (never taken). Beyond ``far`` the
     box of that side is ``qd_max`` exactly, as the full computation gives.
     """
-    rows = []
+    rows: list[tuple[float, ...]] = []
     for v, (at, two_a, at2, step) in zip(qd_max, limits, strict=True):
         reach = period_s * v  # d / T = v
         if braking:  # -a T + sqrt((a T)² + 2 a d) = v

@@ -96,10 +96,12 @@ class LevelsResult:
 
     @property
     def iterations(self) -> int:
+        """The solver iterations of every level solved, summed."""
         return sum(s.iterations for s in self.per_level)
 
     @property
     def solve_time_s(self) -> float:
+        """The time [s] inside the solver for every level solved, summed."""
         return sum(s.solve_time_s for s in self.per_level)
 
 
@@ -150,9 +152,11 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
             return LevelsResult(best, tuple(per_level), k)
         best = sol
         if k + 1 < len(problem.levels):
+            assert sol.x is not None, "a solved level has its solution"
             rows = held_rows(problem, k, sol.x)
             if rows is not None:
                 held.append(rows)
+    assert best is not None, "a problem has at least one level"
     return LevelsResult(best, tuple(per_level), None)
 
 

@@ -370,14 +370,13 @@ class PathFollowingController(Controller):
         true one (tangent units: half-radians and half-metres)."""
         n, layout = self.n, self.layout
         path = problem.levels[0].residuals[0]
-        linear = path.A[:6] @ z - path.b[:6]
+        linear = path.dense(layout)[:6] @ z - path.b[:6]
         qd0, s0 = z[:n], float(z[n])
         x1 = self.robot.fast.pose_and_jacobian(q + self.period_s * qd0)[0]
         xd1 = self.trajectory.target(self.sigma + self.period_s * min(max(s0, 0.0), self.s_max))
         if float(x1 @ xd1) < 0.0:
             x1 = -x1
-        true = tangent_projectors((x1,))[0] @ (x1 - xd1)
-        del layout
+        true = tangent_projectors(x1[None, :])[0] @ (x1 - xd1)
         return float(np.max(np.abs(true - linear)))
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
@@ -395,7 +394,9 @@ class PathFollowingController(Controller):
             if result.failed_level == 0 or done == self.tuning.max_linearisations:
                 break
             z = result.solution.x
+            assert z is not None, "a solved first level has its solution"
             qd_plan, s_plan = self.layout.split(z)
+            assert s_plan is not None, "path following always scales time"
             if poor:
                 if (
                     float(np.max(np.abs(qd_plan - pred.warm_qd)))
@@ -415,6 +416,7 @@ class PathFollowingController(Controller):
         message = "predicted position bounds dropped to regain feasibility" if relaxed else ""
         if result.failed_level != 0:
             qd_plan, s_plan = layout.split(result.solution.x)
+            assert s_plan is not None, "path following always scales time"
             qd_cmd = np.minimum(np.maximum(qd_plan[0], lo0), up0)
             s_plan = np.clip(s_plan, 0.0, self.s_max)
             s_now = float(s_plan[0])

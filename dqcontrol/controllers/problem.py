@@ -139,10 +139,12 @@ class Residual(NamedTuple):
         """``A`` as a dense ``(r, len(z))`` array."""
         if self.A is not None:
             return self.A
-        p, r, m = self.blocks.shape
+        blocks = self.blocks
+        assert blocks is not None, "a residual has A or blocks"
+        p, r, m = blocks.shape
         out = np.zeros((p * r, layout.num_vars))
         for i in range(p):
-            out[i * r : (i + 1) * r, i * m : (i + 1) * m] = self.blocks[i]
+            out[i * r : (i + 1) * r, i * m : (i + 1) * m] = blocks[i]
         return out
 
     def value(self, layout: DecisionLayout, z: np.ndarray) -> np.ndarray:
@@ -161,7 +163,7 @@ class Bounds(NamedTuple):
     """
 
     name: str
-    index: np.ndarray
+    index: np.ndarray  # type: ignore[assignment]  # the field's name hides tuple.index
     lower: np.ndarray
     upper: np.ndarray
     hard: bool = False
@@ -434,8 +436,9 @@ def objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
             diagonal[blocks, :, blocks, :] += w2 * gram
             c -= w2 * lin.ravel()
         else:
-            a_w = r.A if r.row_weights is None else r.A * r.row_weights[:, None]
-            p_mat += w2 * (a_w.T @ r.A)
+            a = r.dense(layout)
+            a_w = a if r.row_weights is None else a * r.row_weights[:, None]
+            p_mat += w2 * (a_w.T @ a)
             c -= w2 * (a_w.T @ r.b)
     return p_mat, c
 

@@ -23,11 +23,17 @@ It never raises from inside a step because a QP failed (docs/theory.md §5).
 from __future__ import annotations
 
 from time import perf_counter
+from typing import cast
 
 import numpy as np
 
 from dqcontrol.controllers.assembly import BlockAssembly, overrides
-from dqcontrol.controllers.backends.base import make_backend, make_block_backend
+from dqcontrol.controllers.backends.base import (
+    Backend,
+    BlockBackend,
+    make_backend,
+    make_block_backend,
+)
 from dqcontrol.controllers.base import (
     Controller,
     StepDiagnostics,
@@ -72,6 +78,7 @@ class QPController(Controller):
     """
 
     name = "qp"
+    qp: BlockBackend | Backend
 
     def __init__(
         self,
@@ -119,8 +126,12 @@ class QPController(Controller):
         self._resets = tuple(t for t in terms if overrides(t, Term, "reset"))
         single = len(self.levels) == 1
         self._assembly = BlockAssembly(self.levels[0].terms, self.limits) if single else None
-        self.qp = (make_block_backend if single else make_backend)(solver, solver_settings)
-        self._dense_backend = None if single else self.qp
+        self.qp = (
+            make_block_backend(solver, solver_settings)
+            if single
+            else make_backend(solver, solver_settings)
+        )
+        self._dense_backend: Backend | None = None if single else cast(Backend, self.qp)
         self._warm_starts = bool(getattr(self.qp, "uses_warm_start", False))
         prediction.warm = self._warm_starts
         self._one_block = self.layout.num_blocks == 1
@@ -262,11 +273,14 @@ class QPController(Controller):
         if assembly is not None:  # one level: its BlockQP, solved by the block backend
             qp = assembly.build(ctx, False, self._warm(ctx) if self._warm_starts else None)
             if qp is not None:
-                sol = self.qp.solve_blocks(qp)
+                backend = cast(BlockBackend, self.qp)  # one level: a block backend
+                sol = backend.solve_blocks(qp)
                 relaxed = False
                 if not sol.ok and assembly.relaxable:  # again without the relaxable limits
-                    sol = self.qp.solve_blocks(assembly.build(ctx, relaxed=True))
-                    relaxed = sol.ok
+                    relaxed_qp = assembly.build(ctx, relaxed=True)
+                    if relaxed_qp is not None:
+                        sol = backend.solve_blocks(relaxed_qp)
+                        relaxed = sol.ok
                 out = (sol, qp.lower, qp.upper, assembly.has_conflict, relaxed)
                 return self._finish(ctx, out, start)
             self._assembly = None  # not block diagonal: the levels' dense path from now on
@@ -334,7 +348,7 @@ class QPController(Controller):
             qd_plan, s_plan = layout.split(z)
             plan_qd = qd_plan.copy()
             plan_qd[0] = qd_cmd
-            if self._scaled():
+            if self._scaled() and s_plan is not None:
                 plan_s = np.minimum(np.maximum(s_plan, 0.0), self.s_max)
             else:
                 plan_s = np.ones(p)

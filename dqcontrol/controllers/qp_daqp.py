@@ -32,7 +32,7 @@ from dqcontrol._compiled import compiled
 from dqcontrol.controllers.problem import BlockQP, Solution
 from dqcontrol.controllers.qp_cost import scatter_blocks, scatter_symmetric
 from dqcontrol.controllers.qp_ldp import block_ldp, ldp_solution
-from dqcontrol.controllers.qp_solver import QPSolution, invalid_bounds
+from dqcontrol.controllers.qp_solver import QPSolution, refused_bounds
 from dqcontrol.errors import ParameterError
 
 __all__ = ["DaqpQP", "daqp_setting_names"]
@@ -200,7 +200,7 @@ class DaqpQP:
         """Update the values and solve (warm start: the previous active set)."""
         start = perf_counter()
         if not (lower <= upper).all():  # also catches NaN
-            return invalid_bounds(lower, upper, start)
+            return refused_bounds(lower, upper, start)
         scatter_symmetric(self._h, self._rows, self._cols, p_values)  # compiled
         x, ok, status, iterations = self._solve_h(c, lower, upper)
         return QPSolution(x, None, ok, status, iterations, perf_counter() - start)
@@ -239,7 +239,7 @@ class DaqpQP:
         if self._box:
             state = bounds_state(lower, upper)  # compiled: 0 usable, 1 clamp, -1 refused
             if state < 0:
-                bad = invalid_bounds(lower, upper, start)
+                bad = refused_bounds(lower, upper, start)
                 return Solution(False, bad.status, 0, bad.solve_time_s)
             if state > 0:
                 lower, upper = np.maximum(lower, -1e30), np.minimum(upper, 1e30)
@@ -269,7 +269,7 @@ class DaqpQP:
                 Solution, (ok, status, iterations, perf_counter() - start, x, None)
             )
         if not (lower <= upper).all():  # also catches NaN
-            bad = invalid_bounds(lower, upper, start)
+            bad = refused_bounds(lower, upper, start)
             return Solution(False, bad.status, 0, bad.solve_time_s)
         scatter_blocks(self._h, hessian)  # compiled: the diagonal blocks of H
         x, ok, status, iterations = self._solve_h(qp.c, lower, upper)
@@ -402,7 +402,7 @@ class DaqpQP:
             self._ldp_model = None
             return None, False, f"error: {exc}", 0
         u, ok, status, iterations = _outcome(u, flag, info)
-        if not ok:
+        if not ok or u is None:  # x is None unless ok
             self._ldp_model = None
             return None, False, status, iterations
         return ldp_solution(self._linv_t, u, self._w), True, status, iterations

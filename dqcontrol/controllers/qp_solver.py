@@ -42,6 +42,7 @@ __all__ = [
     "QPSolution",
     "invalid_bounds",
     "osqp_setting_names",
+    "refused_bounds",
 ]
 
 DEFAULT_OSQP_SETTINGS: dict = {
@@ -79,10 +80,14 @@ def invalid_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> QPSolu
     the return code) and DAQP's ``update`` returns an error code, and both would then solve
     the *previous* problem again and call it solved.
     """
-    bad = ~(lower <= upper)  # True where either side is NaN too
-    if not bad.any():
+    if (lower <= upper).all():  # False where either side is NaN too
         return None
-    rows = np.flatnonzero(bad)
+    return refused_bounds(lower, upper, start)
+
+
+def refused_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> QPSolution:
+    """The failed :class:`QPSolution` of bounds that :func:`invalid_bounds` refuses."""
+    rows = np.flatnonzero(~(lower <= upper))
     return QPSolution(
         None,
         None,
@@ -237,9 +242,11 @@ class OsqpQP:
                 self._setup(p_values, c, lower, upper)
             else:
                 self._solver.update(Px=p_values, q=c, l=lower, u=upper)
+            solver = self._solver
+            assert solver is not None, "set up above"
             if warm_x is not None:
-                self._solver.warm_start(x=warm_x)
-            res = self._solver.solve(raise_error=False)
+                solver.warm_start(x=warm_x)
+            res = solver.solve(raise_error=False)
         except Exception as exc:  # noqa: BLE001 - a solver failure must not stop the loop
             self._solver = None  # rebuild next time
             self._active = None

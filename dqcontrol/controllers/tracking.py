@@ -203,9 +203,9 @@ class TrackingController(QPController):
             robot, trajectory, period_s, measurement_delay_periods=measurement_delay_periods
         )
         period_s = self.period_s
-        solver = default_solver(solver_settings) if solver is None else solver
-        if solver not in ("osqp", "daqp"):
-            raise ParameterError(f"solver must be 'osqp' or 'daqp', got {solver!r}")
+        backend: str = default_solver(solver_settings) if solver is None else solver
+        if backend not in ("osqp", "daqp"):
+            raise ParameterError(f"solver must be 'osqp' or 'daqp', got {backend!r}")
         self._check_weights(gain_per_s, task_weight, scaling_weight, regularization)
         self._check_stall(stall_damping, stall_scaling, stall_delay_s)
         self._check_choices(phase_prediction, priority)
@@ -227,7 +227,7 @@ class TrackingController(QPController):
         limits = self._compose_limits(layout, period_s) + tuple(extra_limits)
         if self.a_const is not None:
             self._a_batch = np.tile(self.a_const, (self.p, 1))
-        self.compose(prediction, levels, limits, solver, solver_settings)
+        self.compose(prediction, levels, limits, backend, solver_settings)
 
     # ------------------------------------------------------------------ settings
     def _check_choices(self, phase_prediction: str, priority: str) -> None:

@@ -336,7 +336,9 @@ def align_sign(
     return x, jacobian
 
 
-def pose_error(x: np.ndarray, x_desired: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def pose_error(
+    x: np.ndarray, x_desired: np.ndarray
+) -> tuple[np.ndarray | float, np.ndarray | float]:
     """Translation error [m] and rotation error [rad] between poses (broadcasts).
 
     Returns ``(‖t_d - t‖, angle(r* r_d))``: the same error as ``‖x_d - x‖`` in units a person

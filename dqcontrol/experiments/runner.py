@@ -132,6 +132,7 @@ class _PhysicsStepRecorder:
             period.append(meas.q)
             peak = meas.torque_peak if peak is None else np.maximum(peak, meas.torque_peak)
         self.positions.append(period)
+        assert peak is not None, "a period has at least one physics step"
         return Measurement(meas.t_s, meas.q, meas.qd, meas.torque, peak)
 
 
@@ -148,12 +149,15 @@ def simulate(
     """Run ``controller`` from ``q0`` [rad] until the task is done or ``max_time_s``.
 
     Args:
+        controller: the controller to run (reset by the loop).
+        q0: start configuration [rad], shape ``(n,)``.
         simulator: ``"mujoco"`` (the default :class:`~dqcontrol.sim.MujocoSimulation`) or
             ``"kinematic"`` (:class:`~dqcontrol.sim.KinematicDriver`).
         simulation: a simulation object to run instead (any object with MuJoCo's
             ``reset/step/measure/steps_for/model`` members,
             :class:`~dqcontrol.sim.SimulationDriver`).
-        max_time_s, meta: as for the loops.
+        max_time_s: as for the loops (:func:`~dqcontrol.sim.loop.run_loop`).
+        meta: as for the loops.
         between_samples: also measure the path deviation between the control samples
             (:attr:`CaseRun.between_deviation_m`): after every physics step in MuJoCo, at
             :data:`KINEMATIC_SUBSAMPLES` points per period in the kinematic loop (where the
@@ -164,14 +168,16 @@ def simulate(
     start = time.perf_counter()
     recorder = None
     period = controller.period_s
+    driver: SimulationDriver | KinematicDriver
     if simulation is not None:
         driver = SimulationDriver(simulation, period)
     elif simulator == "kinematic":
         driver = KinematicDriver(controller.robot, period)
     else:
-        sim = MujocoSimulation(controller.robot)
+        mujoco_sim = MujocoSimulation(controller.robot)
+        sim: MujocoSimulation | _PhysicsStepRecorder = mujoco_sim
         if between_samples:
-            recorder = sim = _PhysicsStepRecorder(sim)
+            recorder = sim = _PhysicsStepRecorder(mujoco_sim)
         driver = SimulationDriver(sim, period)
     # no brake after the run: a case is judged in the state its last command led to
     result = run_loop(controller, driver, q0=q0, max_time_s=max_time_s, meta=meta, brake=False)

@@ -62,13 +62,16 @@ def sweep(
 
     Args:
         job: a picklable callable of one case (see :mod:`dqcontrol.experiments.executor`).
+        cases: the cases, each given to ``job``.
+        executor: where the cases run.
         order: the order in which the cases are submitted (indices; default: as given).
         on_result: called as ``on_result(index, result)`` in this process as each case
             finishes (after its record is saved).
         name: a case's file-name friendly name (progress bar, record files).
         progress: the progress bar's description, or ``None`` for no bar.
-        record, record_dir: with both, each finished case's ``record(result)`` (plain JSON
+        record: with ``record_dir``, each finished case's ``record(result)`` (plain JSON
             data) is written at once, atomically, to ``record_dir/<name(case)>.json``.
+        record_dir: the folder of those files.
 
     A ``KeyboardInterrupt`` stops the sweep: the finished cases are kept and returned with
     ``interrupted`` set; any other exception propagates.
@@ -85,7 +88,7 @@ def sweep(
         index, result = item
         results[index] = result
         label = name(cases[index])
-        if folder is not None:
+        if folder is not None and record is not None:
             text = json.dumps(jsonable(record(result)), indent=1, allow_nan=False)
             atomic_write_text(folder / f"{label}.json", text + "\n")
         bar.set_postfix_str(label, refresh=False)

@@ -609,14 +609,14 @@ def _verdict(ratio: float) -> str:
 
 
 def _claim_check(rows: list[dict]) -> str:
-    """p = 10 against Local at the short periods (the thesis's claim)."""
+    """The predictive p = 10 against Local at the short periods (the thesis's claim)."""
     by = {(r["traj"], r["T_tot_s"], r["controller"]): r for r in rows}
 
     def ratio(a: float, b: float) -> float:
         return a / b if b > 0 else float("nan")
 
     lines = []
-    counts = {"e_mean": {}, "path_dev_mean_mm": {}}
+    counts: dict[str, dict[str, int]] = {"e_mean": {}, "path_dev_mean_mm": {}}
     for traj in TRAJECTORIES:
         for d in SHORT_PERIODS[traj]:
             loc = by.get((traj, d, "Local"))
@@ -873,7 +873,11 @@ def run_table1(
 
     Args:
         out: results folder (created if needed).
-        quick, periods, trajectories, controllers: the selection (:func:`table1_cases`).
+        quick: the selection of :func:`table1_cases`, as are ``periods``,
+            ``trajectories`` and ``controllers``.
+        periods: see ``quick``.
+        trajectories: see ``quick``.
+        controllers: see ``quick``.
         simulator: ``"mujoco"`` or ``"kinematic"`` (ignored if ``settings`` is given).
         settings: the shared settings (default: the thesis's, :class:`Table1Settings`).
         workers: processes of the local pool (default: all cores; 1 runs in this process).

@@ -252,7 +252,8 @@ def time_optimal_bound(
             the refinement of its first interval).
         posture_gain_per_s: ``K_p ≥ 0`` [1/s] of the posture term (0: least-norm joint
             path; 1/s is the path-following controller's default).
-        acceleration_floor, acceleration_cap: clipping range of ``"dynamics"`` [rad/s²].
+        acceleration_floor: lower end of the clipping range of ``"dynamics"`` [rad/s²].
+        acceleration_cap: upper end of the clipping range of ``"dynamics"`` [rad/s²].
         ik_tolerance: bound on ``‖e6‖`` at every sample, in ``(0, 1e-6]``.
 
     Raises:

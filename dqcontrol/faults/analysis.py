@@ -25,6 +25,8 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from dqcontrol.controllers.base import Controller
+from dqcontrol.controllers.proportional import ProportionalController
+from dqcontrol.controllers.tracking import TrackingController
 from dqcontrol.errors import ParameterError
 from dqcontrol.faults.campaign import CaseResult, CaseSpec, run_case
 from dqcontrol.faults.scenarios import CONTROLLERS, TRAJECTORIES, ControllerSpec, fault_by_name
@@ -43,7 +45,13 @@ def compensate_delay(controller: Controller, delay_periods: int) -> Controller:
 
 
 def position_margin(controller: Controller, margin_rad: float) -> Controller:
-    """Set the joint-position margin [rad] of an existing controller (0: none)."""
+    """Set the joint-position margin [rad] of an existing controller (0: none): one with
+    joint-position bounds of its own (a tracking or proportional controller)."""
+    if not isinstance(controller, TrackingController | ProportionalController):
+        raise ParameterError(
+            f"position_margin needs a tracking or proportional controller, got "
+            f"{type(controller).__name__}"
+        )
     lim = controller.robot.limits
     controller.position_margin_rad = float(margin_rad)
     controller.q_min = lim.q_min + margin_rad

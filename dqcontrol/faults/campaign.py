@@ -40,6 +40,7 @@ import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -233,14 +234,16 @@ def _build_trajectory(spec: CaseSpec, robot: RobotModel, q0: np.ndarray):
     traj = spec.trajectory.build(spec.duration_s, unreachable=spec.fault.unreachable)
     offset = spec.fault.reference_offset_m
     if offset is not None:
-        anchored = traj.anchored_at(robot.pose(q0))
+        reference = traj.anchored_at(robot.pose(q0)).reference
+        assert reference is not None, "an anchored trajectory has its reference"
         shift = dq_from_rt(np.array([1.0, 0.0, 0.0, 0.0]), np.asarray(offset, dtype=float))
-        traj = traj.with_reference(dq_mul(shift, anchored.reference))
+        traj = traj.with_reference(dq_mul(shift, reference))
     return traj
 
 
 def _build_simulation(spec: CaseSpec, robot: RobotModel) -> FaultySimulation:
     f = spec.fault
+    inner: MujocoSimulation | KinematicSimulation
     if spec.simulator == "mujoco":
         inner = MujocoSimulation(
             robot,
@@ -286,7 +289,7 @@ def run_case(
     robot = lbr4p()
     f, ctrl_spec = spec.fault, spec.controller
     nan = float("nan")
-    base = {
+    base: dict[str, Any] = {
         "fault": f.name,
         "group": f.group,
         "trajectory": spec.trajectory.name,
@@ -490,6 +493,12 @@ def run_campaign(
     """Run the fault campaign; see :func:`campaign_cases` for the selection.
 
     Args:
+        controllers: the selection of :func:`campaign_cases`, as are ``trajectories``,
+            ``faults``, ``simulator`` and ``quick``.
+        trajectories: see ``controllers``.
+        faults: see ``controllers``.
+        simulator: see ``controllers``.
+        quick: see ``controllers``.
         workers: worker processes (1 = in this process).
         seed: seed of the measurement noise.
         on_result: called as ``on_result(row, done, total)`` after each case (progress).

@@ -18,11 +18,13 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from dqcontrol.dq.algebra import translation
 from dqcontrol.experiments.runner import lbr4p
+from dqcontrol.extras import require
 from dqcontrol.faults.analysis import (
     compensate_delay,
     mitigation_table,
@@ -59,12 +61,16 @@ def _case(fault: str, traj: str, controller: str, simulator: str = "mujoco", hoo
     return run_case(spec, keep_log=True, hook=hook)
 
 
+def _pyplot() -> Any:
+    """``matplotlib.pyplot`` with the Agg backend (files only, no window)."""
+    matplotlib = require("matplotlib", extra="viz", purpose="the fault campaign's figures")
+    matplotlib.use("Agg")
+    return require("matplotlib.pyplot", extra="viz", purpose="the fault campaign's figures")
+
+
 def unreachable_figure(path: Path) -> Path:
     """``faults_unreachable.png`` (see the module docstring)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     robot = lbr4p()
     fig, axes = plt.subplots(2, 2, figsize=(9.0, 6.6))
@@ -110,10 +116,7 @@ def _excess_mrad(r) -> tuple[np.ndarray, np.ndarray]:
 
 def limits_figure(path: Path) -> Path:
     """``faults_limits.png`` (see the module docstring)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     runs = [  # fmt: skip
         (

@@ -152,6 +152,8 @@ def contradictory(base: type[TrackingController]) -> type[TrackingController]:
         raise ParameterError(f"base must be a TrackingController subclass, got {base!r}")
 
     class Contradictory(base):  # type: ignore[misc, valid-type]
+        qp: ContradictoryBoundsQP  # the backend, wrapped
+
         def __init__(
             self,
             *args,

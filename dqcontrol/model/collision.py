@@ -152,6 +152,7 @@ class Sphere(Obstacle):
         object.__setattr__(self, "radius_m", _positive_size("radius_m", self.radius_m))
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Sphere(self.radius_m)
 
 
@@ -169,6 +170,7 @@ class Box(Obstacle):
         object.__setattr__(self, "size_m", sizes)
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Box(*self.size_m)
 
 
@@ -186,6 +188,7 @@ class Capsule(Obstacle):
         object.__setattr__(self, "length_m", _positive_size("length_m", self.length_m))
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Capsule(self.radius_m, self.length_m)
 
 
@@ -203,6 +206,7 @@ class Cylinder(Obstacle):
         object.__setattr__(self, "length_m", _positive_size("length_m", self.length_m))
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Cylinder(self.radius_m, self.length_m)
 
 
@@ -226,9 +230,11 @@ class HalfSpace(Obstacle):
         object.__setattr__(self, "offset_m", _finite_vector("offset_m", [self.offset_m], 1)[0])
 
     def placement(self) -> pin.SE3:
+        """The identity: the plane is given by ``normal`` and ``offset_m``."""
         return pin.SE3.Identity()
 
     def shape(self) -> coal.ShapeBase:
+        """The coal geometry."""
         return coal.Halfspace(np.array(self.normal), self.offset_m)
 
 
@@ -281,12 +287,12 @@ def parse_obstacle(text: str, name: str = "") -> Obstacle:
     except ValueError:
         raise ParameterError(f"obstacle {text!r}: every field must be a number [m]") from None
     if kind == "plane":
-        return HalfSpace(name=name, normal=tuple(values[:3]), offset_m=values[3])
-    position = tuple(values[:3])
+        return HalfSpace(name=name, normal=(values[0], values[1], values[2]), offset_m=values[3])
+    position = (values[0], values[1], values[2])
     if kind == "sphere":
         return Sphere(name=name, position_m=position, radius_m=values[3])
     if kind == "box":
-        return Box(name=name, position_m=position, size_m=tuple(values[3:6]))
+        return Box(name=name, position_m=position, size_m=(values[3], values[4], values[5]))
     cls = Capsule if kind == "capsule" else Cylinder
     return cls(name=name, position_m=position, radius_m=values[3], length_m=values[4])
 
@@ -588,13 +594,13 @@ class CollisionModel:
         if not found:
             return ()
         idx = np.array(found)
-        pa, pb = np.array(pa), np.array(pb)
-        normal = _separation_normals(np.array(dist), pa, pb, np.array(normal))
-        grad = self._gradients(idx, pa, pb, normal)
+        pa_m, pb_m = np.array(pa), np.array(pb)
+        normals = _separation_normals(np.array(dist), pa_m, pb_m, np.array(normal))
+        grad = self._gradients(idx, pa_m, pb_m, normals)
         if failed:
             grad[np.isnan(grad)] = 0.0
         return tuple(
-            PairDistance(int(k), float(dk), pa[i], pb[i], normal[i], grad[i])
+            PairDistance(int(k), float(dk), pa_m[i], pb_m[i], normals[i], grad[i])
             for i, (k, dk) in enumerate(zip(found, dist, strict=True))
         )
 
@@ -748,9 +754,9 @@ class CollisionModel:
         state = np.array(found_state)
         idx = np.array(found)
         distance = np.array(dist)
-        pa, pb = np.array(pa), np.array(pb)
-        normal = _separation_normals(distance, pa, pb, np.array(normal))
-        grad = self._gradients(idx, pa, pb, normal, jac[state])
+        pa_m, pb_m = np.array(pa), np.array(pb)
+        normals = _separation_normals(distance, pa_m, pb_m, np.array(normal))
+        grad = self._gradients(idx, pa_m, pb_m, normals, jac[state])
         grad[~np.isfinite(distance)] = 0.0
         return DistanceBatch(state, idx, distance, grad)
 

@@ -196,7 +196,7 @@ def check_urdf_xml(xml: str, where: str = "<string>") -> None:
                 )
         if child.get("link") in children:
             raise URDFError(f"{jw}: link '{child.get('link')}' is the child of two joints")
-        children.add(child.get("link"))
+        children.add(child.attrib["link"])  # present: checked above
         origin = joint.find("origin")
         if origin is not None:
             _floats(origin.get("xyz"), 3, "origin xyz", jw, MAX_ORIGIN_M)

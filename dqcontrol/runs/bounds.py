@@ -19,18 +19,17 @@ def bounds_of(controller: Controller, q_samples: np.ndarray | None = None) -> Bo
     if a_const is None:
         a_const = getattr(controller, "a_max", None)
     per_sample = None
+    floor = getattr(controller, "acceleration_floor", None)
+    cap = getattr(controller, "acceleration_cap", None)
     if (
         a_const is None
         and getattr(controller, "dynamic_acceleration", False)
         and q_samples is not None
+        and floor is not None
+        and cap is not None
     ):
         per_sample = np.array(
-            [
-                robot._acceleration_limits(
-                    qi, 1.0, controller.acceleration_floor, controller.acceleration_cap
-                )
-                for qi in q_samples
-            ]
+            [robot._acceleration_limits(qi, 1.0, floor, cap) for qi in q_samples]
         ).reshape(len(q_samples), robot.nq)
     return BoundSpec(
         q_min=robot.limits.q_min,

@@ -95,7 +95,7 @@ def compute_metrics(
     )
     err = np.linalg.norm(target - pose, axis=1) if end else np.zeros(0)
     if end:
-        terr, rerr = pose_error(pose, target)
+        terr, rerr = (np.asarray(e) for e in pose_error(pose, target))
         dev = trajectory.path_deviation(translation(pose))
     else:
         terr = rerr = dev = np.zeros(0)

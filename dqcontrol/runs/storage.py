@@ -23,6 +23,7 @@ import math
 import os
 import secrets
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -138,7 +139,8 @@ def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, Path]:
     folder = Path(folder)
     log: RunLog = result.log
     buffer = io.BytesIO()
-    np.savez_compressed(buffer, **log.arrays())
+    arrays: dict[str, Any] = log.arrays()  # as keywords, which numpy's stubs type narrowly
+    np.savez_compressed(buffer, **arrays)
     npz_path = atomic_write_bytes(folder / f"{name}.npz", buffer.getvalue())
     record = {
         "format": RUN_FORMAT,

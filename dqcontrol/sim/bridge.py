@@ -1,4 +1,4 @@
-"""A process bridge: a joint driver served over ZMQ, and the driver that talks to it.
+r"""A process bridge: a joint driver served over ZMQ, and the driver that talks to it.
 
 :class:`SimServer` serves any simulated driver (e.g. :class:`~dqcontrol.sim.MujocoDriver`)
 on a ZMQ ROUTER socket; :class:`BridgeDriver` is a :class:`~dqcontrol.sim.driver.JointDriver`
@@ -12,7 +12,7 @@ Wire format, version 1 (every number little-endian; docs/drivers.md has the tabl
 - header, 12 bytes: ``b"DQ"``, version ``u8`` (1), kind ``u8``, sequence number ``u32``,
   joint count ``n`` ``u16``, status ``u16``;
 - ``HELLO`` (1, client → server): the header only; answered by ``WELCOME`` (2): the
-  period ``f64`` [s] and the joint names, UTF-8, separated by ``\\0``;
+  period ``f64`` [s] and the joint names, UTF-8, separated by ``\0``;
 - ``RESET`` (3): ``q0[n]`` ``f64`` [rad]; answered by ``STATE``;
 - ``COMMAND`` (4): ``qd[n]`` [rad/s], ``s``, ``σ`` [s], all ``f64``; status 0 = track,
   1 = brake, 2 = hold (zero velocity); answered by ``STATE``;
@@ -194,6 +194,7 @@ class SimServer:
         self._stop.set()
 
     def close(self) -> None:
+        """Stop serving and close the socket (idempotent)."""
         self._sock.close(0)
 
     def serve(self, *, max_messages: int | None = None, poll_ms: int = 50) -> None:
@@ -235,6 +236,7 @@ class SimServer:
                 if status == HOLD:
                     self.driver.hold()
                 else:
+                    assert isinstance(body, np.ndarray), "decode gives a command's floats"
                     self.driver.write(body[: self.n])
                 m = self.driver.read()
             else:
@@ -300,6 +302,7 @@ class BridgeDriver:
 
     @property
     def meta(self) -> dict:
+        """``simulator`` (``bridge``) and the server's address, for the run log."""
         return {"simulator": "bridge", "address": self.address}
 
     def report(self) -> dict:
@@ -307,6 +310,7 @@ class BridgeDriver:
         return {"rejected": dict(self.rejected), "timeouts": self.timeouts}
 
     def close(self) -> None:
+        """Close the connection (idempotent)."""
         self._sock.close(0)
 
     def _request(self, packet: bytes, want: int, timeout_s: float):
@@ -361,14 +365,17 @@ class BridgeDriver:
         return self._last
 
     def read(self) -> Measurement:
+        """The latest state the server sent."""
         if self._last is None:
             raise BridgeError(f"no measurement from {self.address} yet (reset first)")
         return self._last
 
     def write(self, qd_command: np.ndarray) -> None:
+        """Send the joint-velocity command [rad/s]; the answer is the next state."""
         self._state(encode_command(self._next(), qd_command, 1.0, 0.0))
 
     def hold(self) -> None:
+        """Ask the server to hold the present position."""
         self._state(encode_command(self._next(), np.zeros(self.n), 0.0, 0.0, HOLD))
 
     def __repr__(self) -> str:

@@ -98,9 +98,11 @@ class PositionInterface(Protocol):
     """An arm that takes joint-position targets only (e.g. a position-controlled servo bus)."""
 
     @property
-    def joint_names(self) -> tuple[str, ...]: ...
+    def joint_names(self) -> tuple[str, ...]:
+        """The driver's joint names, in the order of its arrays."""
 
-    def read(self) -> Measurement: ...
+    def read(self) -> Measurement:
+        """The latest measurement (driver's joint order)."""
 
     def write_position(self, q_target: np.ndarray) -> None:
         """Send joint-position targets [rad] (interface's joint order)."""
@@ -294,6 +296,7 @@ class VelocityFromPosition:
 
     @property
     def meta(self) -> dict:
+        """The inner driver's description, with ``interface: position``."""
         return {**getattr(self.inner, "meta", {}), "interface": "position"}
 
     @property
@@ -312,21 +315,26 @@ class VelocityFromPosition:
         return meas
 
     def read(self) -> Measurement:
+        """The inner driver's measurement."""
         meas = self.inner.read()
         if self._target is None:
             self._target = np.array(meas.q, dtype=float)
         return meas
 
     def write(self, qd_command: np.ndarray) -> None:
-        if self._target is None:
-            self.read()
-        self._target = self._target + self.period_s * np.asarray(qd_command, dtype=float)
+        """Move the position target by ``T qd_command`` and send it."""
+        self._target = self._current_target() + self.period_s * np.asarray(qd_command, dtype=float)
         self.inner.write_position(self._target)
 
     def hold(self) -> None:
+        """Send the present target again."""
+        self.inner.write_position(self._current_target())
+
+    def _current_target(self) -> np.ndarray:
+        """The position target [rad]: the measured ``q`` until a command moves it."""
         if self._target is None:
-            self.read()
-        self.inner.write_position(self._target)
+            return np.array(self.read().q, dtype=float)  # read() sets it
+        return self._target
 
     def __repr__(self) -> str:
         return f"VelocityFromPosition({self.inner!r}, T={self.period_s} s)"
@@ -444,6 +452,7 @@ class FaultyDriver:
 
     @property
     def meta(self) -> dict:
+        """The inner driver's description, with the faults."""
         f = self.faults
         return {
             **getattr(self.inner, "meta", {}),
@@ -460,6 +469,10 @@ class FaultyDriver:
 
     def reset(self, q0: np.ndarray) -> Measurement:
         """Reset the inner driver, the noise sequence and the delay line."""
+        if not isinstance(self.inner, SimulatedDriver):
+            raise ParameterError(
+                f"only a simulated driver resets; {type(self.inner).__name__} has no reset"
+            )
         first = true_copy(self.inner.reset(q0))
         self.true_measurements = [first]
         self._last = self.faults.restart(first)
@@ -471,6 +484,7 @@ class FaultyDriver:
         self._last = self.faults.push(now)
 
     def read(self) -> Measurement:
+        """The faulty measurement (noise and delay on the true one)."""
         if self._last is None:
             first = true_copy(self.inner.read())
             self.true_measurements = [first]
@@ -478,10 +492,12 @@ class FaultyDriver:
         return self._last
 
     def write(self, qd_command: np.ndarray) -> None:
+        """Send the command to the inner driver and advance the faults one period."""
         self.inner.write(qd_command)
         self._advance()
 
     def hold(self) -> None:
+        """Hold the inner driver and advance the faults one period."""
         self.inner.hold()
         self._advance()
 

@@ -25,16 +25,22 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
 from dqcontrol.dq.algebra import qfrom_axis_angle, qfrom_matrix, qmul, qto_matrix
-from dqcontrol.errors import ConfigurationError, URDFError
+from dqcontrol.errors import ConfigurationError, ParameterError, URDFError
+from dqcontrol.extras import lazy_module
 from dqcontrol.model.collision import Box, Capsule, Cylinder, HalfSpace, Obstacle, Sphere
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.model.urdf_source import URDFSource
+
+if TYPE_CHECKING:
+    import mujoco
+else:  # imported on first use: the package works without the sim extra
+    mujoco = lazy_module("mujoco", extra="sim", purpose="the MuJoCo model")
 
 __all__ = [
     "MESH_EXTENSIONS",
@@ -430,6 +436,10 @@ def replay_contacts(
     options = SpecOptions(
         0.001, False, np.zeros(n), None, effort, 0.0, np.zeros(3), tuple(obstacles)
     )
+    if robot.source is None:
+        raise ParameterError(
+            "robot has no URDF source (build it with RobotModel.from_urdf or a loader)"
+        )
     model = build_spec(robot, prepare_urdf_xml(robot.source), options).compile()
     data = mujoco.MjData(model)
     joint = mujoco.mjtObj.mjOBJ_JOINT

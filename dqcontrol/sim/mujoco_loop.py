@@ -36,15 +36,19 @@ def run_mujoco(
     """Run ``controller`` in MuJoCo from ``q0`` until ``σ ≥ T_tot`` or ``max_time_s``.
 
     Args:
+        controller: the controller to run (reset by the loop).
+        q0: start configuration [rad], shape ``(n,)``.
         simulation: an existing simulation of ``controller.robot`` (else one is built with
             ``sim_options``, e.g. ``physics_dt_s``, ``payload_kg``, ``effort_scale``,
             ``motor``).
         max_time_s: stop after this simulated time [s] (default ``10 T_tot + 1 s``).
+        meta: added to the log's ``meta`` (as :func:`~dqcontrol.sim.loop.run_loop`).
         on_sample: optional callback ``f(k, simulation, result)`` after each sample (the
             live viewer uses it).
         on_progress: optional callback ``f(σ_next, T_tot)`` [s] after each sample.
         brake: as :func:`~dqcontrol.sim.loop.run_loop` (off: the simulation is left in the
             state the last command led to).
+        **sim_options: keyword arguments of :class:`~dqcontrol.sim.MujocoSimulation`.
 
     Ctrl-C or a simulation failure stops the run and keeps the completed samples
     (``interrupted=True`` and a ``note`` in the result).

@@ -84,14 +84,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
 from dqcontrol.dq.algebra import dq_from_rt, qfrom_matrix
 from dqcontrol.errors import DQControlError, ParameterError, URDFError
+from dqcontrol.extras import lazy_module
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.sim.mjcf_builder import (
     PAYLOAD_BODY,
@@ -99,6 +99,11 @@ from dqcontrol.sim.mjcf_builder import (
     build_spec,
     prepare_urdf_xml,
 )
+
+if TYPE_CHECKING:
+    import mujoco
+else:  # imported on first use: the package works without the sim extra
+    mujoco = lazy_module("mujoco", extra="sim", purpose="the MuJoCo simulation")
 
 __all__ = [
     "ARMATURE_PER_NM",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 from dqcontrol.errors import ParameterError
 
@@ -53,10 +53,10 @@ KINDS: dict[str, tuple[Callable[[object], bool], str]] = {
     "bool": (lambda v: isinstance(v, bool), "true or false"),
     "int": (lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer"),
     "number": (_is_number, "a finite number"),
-    "positive": (lambda v: _is_number(v) and v > 0, "a finite number > 0"),
+    "positive": (lambda v: _is_number(v) and cast(float, v) > 0, "a finite number > 0"),
     "numbers": (_number_list, "a list of numbers"),
     "positives": (
-        lambda v: _number_list(v) and bool(v) and all(x > 0 for x in v),
+        lambda v: _number_list(v) and bool(v) and all(x > 0 for x in cast(list, v)),
         "a non-empty list of numbers > 0",
     ),
     "strs": (

@@ -73,6 +73,7 @@ def run_study(
     """Run every case of ``study`` and write its results.
 
     Args:
+        study: the study (:func:`~dqcontrol.studies.load_study`).
         out: results folder (default: the study's ``[output] folder``).
         workers: processes of the local pool (default: all cores; 1 runs in this process).
         scheduler: a Dask scheduler address, or ``"local"`` for a local Dask cluster of

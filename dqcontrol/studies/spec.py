@@ -214,7 +214,7 @@ def parse_study(data: dict, *, source: str = "<study>", base_dir: Path | None = 
 
 
 def _trajectories(top: TableReader, durations, kind) -> tuple[TrajectoryEntry, ...]:
-    entries = []
+    entries: list[TrajectoryEntry] = []
     for i, table in enumerate(top.take("trajectories", "tables"), start=1):
         reader = TableReader(table, f"[[trajectories]] #{i}", top.source)
         given = reader.take("duration_s", "positives", durations, unit="s")

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from dqcontrol.errors import DQControlError, FrameError
+from dqcontrol.errors import DQControlError, FrameError, ParameterError
 from dqcontrol.experiments.tables import csv_text, markdown_table
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.studies.kinds import ExperimentKind, RunInfo
@@ -207,6 +207,8 @@ def load_robot(spec: RobotSpec) -> RobotModel:
 
     if spec.urdf is None:
         return lbr4p()
+    if spec.tool_frame is None:
+        raise ParameterError("[robot] tool_frame: required with urdf (a link or joint name)")
     cache = getattr(_LOCAL, "robots", None)
     if cache is None:
         cache = _LOCAL.robots = {}

@@ -50,11 +50,13 @@ class Circle(Trajectory):
         return self._omega
 
     def local_pose(self, sigma: float) -> np.ndarray:
+        """``traj(σ)`` in the reference frame (:meth:`Trajectory.local_pose`)."""
         angle = self._omega * sigma
         h = self._half_r
         return np.array([1.0, 0.0, 0.0, 0.0, 0.0, h * math.cos(angle), h * math.sin(angle), 0.0])
 
     def local_derivative(self, sigma: float) -> np.ndarray:
+        """``dtraj/dσ`` in the reference frame (:meth:`Trajectory.local_derivative`)."""
         angle = self._omega * sigma
         h = self._half_r_omega
         return np.array([0.0, 0.0, 0.0, 0.0, 0.0, -h * math.sin(angle), h * math.cos(angle), 0.0])
@@ -71,6 +73,7 @@ class Circle(Trajectory):
         return buf
 
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorized :meth:`local_pose` and :meth:`local_derivative`."""
         angle = self._omega * np.asarray(sigmas, dtype=float)
         c = np.cos(angle)
         s = np.sin(angle)

@@ -66,9 +66,11 @@ class FunctionTrajectory(Trajectory):
                 raise ParameterError(f"derivative_fn(0) must be finite, got {d0!r}")
 
     def local_pose(self, sigma: float) -> np.ndarray:
+        """``pose_fn(σ)``, checked (:meth:`Trajectory.local_pose`)."""
         return _vec8("pose_fn", self.pose_fn(sigma))
 
     def local_derivative(self, sigma: float) -> np.ndarray:
+        """``derivative_fn(σ)``, checked (:meth:`Trajectory.local_derivative`)."""
         if self.derivative_fn is not None:
             return _vec8("derivative_fn", self.derivative_fn(sigma))
         h = self.fd_step_s

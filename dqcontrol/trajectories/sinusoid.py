@@ -60,11 +60,13 @@ class Sinusoid(Trajectory):
         return self._speed
 
     def local_pose(self, sigma: float) -> np.ndarray:
+        """``traj(σ)`` in the reference frame (:meth:`Trajectory.local_pose`)."""
         x = self._speed * sigma
         z = self._amplitude * math.sin(self._rate * sigma)
         return np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.5 * x, 0.0, 0.5 * z])
 
     def local_derivative(self, sigma: float) -> np.ndarray:
+        """``dtraj/dσ`` in the reference frame (:meth:`Trajectory.local_derivative`)."""
         dz = self._amplitude * self._rate * math.cos(self._rate * sigma)
         return np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5 * self._speed, 0.0, 0.5 * dz])
 
@@ -81,6 +83,7 @@ class Sinusoid(Trajectory):
         return buf
 
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorized :meth:`local_pose` and :meth:`local_derivative`."""
         s = np.asarray(sigmas, dtype=float)
         phase = self._rate * s
         poses = np.zeros((s.shape[0], 8))

@@ -36,6 +36,7 @@ The dual quaternion is ``x = r + ε ½ t r`` (eq. 2.23), so
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -151,12 +152,15 @@ class WaypointTrajectory(Trajectory):
 
     # ------------------------------------------------------------------ evaluation
     def local_pose(self, sigma: float) -> np.ndarray:
+        """``traj(σ)`` on the spline (:meth:`Trajectory.local_pose`)."""
         return self.local_poses(np.array([float(sigma)]))[0][0]
 
     def local_derivative(self, sigma: float) -> np.ndarray:
+        """``dtraj/dσ`` on the spline (:meth:`Trajectory.local_derivative`)."""
         return self.local_poses(np.array([float(sigma)]))[1][0]
 
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Vectorized :meth:`local_pose` and :meth:`local_derivative`."""
         s = np.asarray(sigmas, dtype=float)
         m = s.shape[0]
         spline = self._spline(s)  # (M, 2, 3 + k): [values; slopes] of [t, β]
@@ -225,7 +229,7 @@ class WaypointTrajectory(Trajectory):
         }
 
     def _repr_params(self) -> list[str]:
-        fmt = {"precision": 4, "threshold": 30, "separator": ", "}
+        fmt: dict[str, Any] = {"precision": 4, "threshold": 30, "separator": ", "}
         ori = None if self.orientations is None else np.array2string(self.orientations, **fmt)
         return [
             f"positions_m={np.array2string(self.positions_m, **fmt)}",

@@ -29,15 +29,23 @@ import io
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from dqcontrol.dq.algebra import dq_to_matrix, pose_error, translation
 from dqcontrol.errors import ParameterError
+from dqcontrol.extras import missing_extra
 from dqcontrol.runs.log import RunLog
 from dqcontrol.runs.storage import atomic_write_bytes
 from dqcontrol.trajectories import Trajectory
+
+try:
+    from matplotlib.figure import Figure
+except ImportError as exc:
+    raise missing_extra(
+        "matplotlib", extra="viz", purpose="dqcontrol.viz.figures", reason=str(exc)
+    ) from None
 
 __all__ = ["FIGURES", "path_plane", "plot_comparison", "plot_run"]
 
@@ -53,7 +61,7 @@ FIGURES = (
     "scaling",
 )
 _FORMATS = ("png", "svg")
-_REF_STYLE = {"color": "0.15", "linestyle": "--", "linewidth": 1.2}
+_REF_STYLE: dict[str, Any] = {"color": "0.15", "linestyle": "--", "linewidth": 1.2}
 
 
 # ---------------------------------------------------------------------- helpers
@@ -176,7 +184,8 @@ def _fig_path_3d(log: RunLog, ref: np.ndarray) -> Figure:
 def _fig_elements(log: RunLog, which: str) -> Figure:
     if which == "translation":
         measured, desired = translation(log.pose), translation(log.target)
-        names, unit = ("t_x", "t_y", "t_z"), " [m]"
+        names: tuple[str, ...] = ("t_x", "t_y", "t_z")
+        unit = " [m]"
     else:
         measured, desired = log.pose[:, :4], log.target[:, :4]
         names, unit = ("r_w", "r_x", "r_y", "r_z"), ""
@@ -327,6 +336,8 @@ def plot_comparison(
         path: file to write; its suffix (``.png`` or ``.svg``) sets the format.
         trajectory: the anchored trajectory (shared by the runs) for the reference path and
             its plane; default: the first run's targets.
+        dpi: resolution of a PNG [dots per inch].
+        title: the figure's title (default: "comparison of controllers").
 
     Returns:
         ``path``.

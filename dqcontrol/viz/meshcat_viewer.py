@@ -49,6 +49,7 @@ import pinocchio as pin
 
 from dqcontrol.dq.algebra import dq_to_matrix, translation
 from dqcontrol.errors import DQControlError, ParameterError
+from dqcontrol.extras import available, missing_extra, require
 from dqcontrol.model.robot import RobotModel
 
 __all__ = [
@@ -114,6 +115,8 @@ class MeshcatServer:
     """
 
     def __init__(self, *, timeout_s: float = SERVER_START_TIMEOUT_S) -> None:
+        if not available("meshcat"):
+            raise missing_extra("meshcat", extra="viz", purpose="the Meshcat server")
         env = dict(os.environ)
         env.pop("PYTHONSTARTUP", None)
         try:
@@ -177,8 +180,9 @@ class MeshcatServer:
                 proc.kill()
                 proc.wait(timeout=3.0)
         for pipe in (proc.stdin, proc.stdout):
-            with contextlib.suppress(OSError):
-                pipe.close()
+            if pipe is not None:
+                with contextlib.suppress(OSError):
+                    pipe.close()
 
     def __enter__(self) -> MeshcatServer:
         return self
@@ -234,6 +238,7 @@ class OfflineWindow:
         self.web_url = None
 
     def send(self, command) -> None:
+        """Apply a meshcat command to the recorded scene."""
         import umsgpack
 
         data = command.lower()
@@ -241,6 +246,7 @@ class OfflineWindow:
         self._bridge.handle_zmq(frames)
 
     def get_scene(self) -> str:
+        """The recorded scene as meshcat's static HTML."""
         self._bridge.handle_zmq([b"get_scene"])
         return self._bridge.zmq_socket.reply.decode("utf-8")
 
@@ -415,7 +421,7 @@ class MeshcatViewer:
     ) -> None:
         with warnings.catch_warnings():  # meshcat imports pyzmq's deprecated ioloop module
             warnings.simplefilter("ignore", DeprecationWarning)
-            import meshcat
+            meshcat = require("meshcat", extra="viz", purpose="the Meshcat viewer")
             from pinocchio.visualize import MeshcatVisualizer
 
         self.robot = robot
@@ -437,7 +443,7 @@ class MeshcatViewer:
         else:
             self.server = None
             self.vis = meshcat.Visualizer(window=OfflineWindow())
-        self.url: str | None = server.web_url if live else None
+        self.url: str | None = self.server.web_url if self.server is not None else None
         self._pin_viz = MeshcatVisualizer(model, None, geom)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # meshcat < 0.4 lacks get_image: irrelevant here
@@ -599,8 +605,8 @@ class MeshcatViewer:
         pts = [base.act(data.oMi[j].translation) for j in range(model.njoints)]
         if points_m is not None and len(points_m):
             pts.extend(np.asarray(points_m, dtype=float).reshape(-1, 3))
-        pts = np.array(pts)
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        points = np.array(pts)
+        lo, hi = points.min(axis=0), points.max(axis=0)
         size = max(float(np.linalg.norm(hi - lo)), 0.5)
         unit = np.asarray(direction, dtype=float)
         unit /= np.linalg.norm(unit)
@@ -778,6 +784,7 @@ class SampleFollower:
         self._last = -math.inf
 
     def __call__(self, k: int, simulation, result) -> None:
+        """Show sample ``k`` of a run (the ``on_sample`` callback), paced to real time."""
         viewer = self.viewer
         if not viewer.active:  # closed or failed: no drawing, no pacing
             return
@@ -824,9 +831,12 @@ def export_replay_html(
     Args:
         robot: the robot the run used (its URDF gives the geometry).
         log: the :class:`~dqcontrol.runs.RunLog`.
+        path: the file to write (``.html``).
         path_points: world positions ``(N, 3)`` [m] of the reference path (e.g.
             ``controller.trajectory.path_positions()``); default: the run's targets.
-        fps, speed, loop: see :meth:`MeshcatViewer.set_animation`.
+        fps: frames per second of the animation (:meth:`MeshcatViewer.set_animation`).
+        speed: playback speed, 1 = real time (:meth:`MeshcatViewer.set_animation`).
+        loop: whether the animation loops (:meth:`MeshcatViewer.set_animation`).
         obstacles: obstacles to draw (:meth:`MeshcatViewer.show_obstacles`).
 
     No server is started and nothing waits for a browser.

@@ -26,9 +26,11 @@ class Backend(Protocol):
 
     name: str
 
-    def solve(self, key: object, qp: DenseQP) -> Solution: ...
+    def solve(self, key: object, qp: DenseQP) -> Solution:
+        """Solve the dense QP of the level ``key`` (its workspace kept between steps)."""
 
-    def reset(self) -> None: ...
+    def reset(self) -> None:
+        """Forget the workspaces and warm starts."""
 
 
 class BlockBackend(Protocol):
@@ -45,9 +47,11 @@ class BlockBackend(Protocol):
     name: str
     uses_warm_start: bool
 
-    def solve_blocks(self, qp: BlockQP) -> Solution: ...
+    def solve_blocks(self, qp: BlockQP) -> Solution:
+        """Solve a block-diagonal QP."""
 
-    def reset(self) -> None: ...
+    def reset(self) -> None:
+        """Forget the workspace and the warm start."""
 
 
 def _check_name(name: str | None) -> str:

@@ -42,9 +42,11 @@ class DaqpBackend:
         self._models: dict = {}
 
     def reset(self) -> None:
+        """Forget every level's workspace."""
         self._models.clear()
 
     def solve(self, key: object, qp: DenseQP) -> Solution:
+        """Solve level ``key``'s QP with DAQP (warm start: its previous active set)."""
         start = time.perf_counter()
         if not (qp.lower <= qp.upper).all():
             bad = np.flatnonzero(~(qp.lower <= qp.upper))[:5].tolist()

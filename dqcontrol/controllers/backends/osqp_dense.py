@@ -23,9 +23,11 @@ class OsqpBackend:
         self._qps: dict = {}
 
     def reset(self) -> None:
+        """Forget every level's workspace."""
         self._qps.clear()
 
     def solve(self, key: object, qp: DenseQP) -> Solution:
+        """Solve level ``key``'s QP with OSQP, refined to the exact active set."""
         nv = qp.c.size
         pattern = sp.csc_matrix(np.triu(np.ones((nv, nv))))
         a_sparse = sp.csc_matrix(qp.A)

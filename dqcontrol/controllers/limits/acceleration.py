@@ -80,6 +80,7 @@ class AccelerationLimit(Limit):
         return self._dv
 
     def tighten(self, ctx, lower, upper, conflict) -> bool:
+        """Intersect the first block's acceleration interval into ``lower``/``upper``."""
         key = self._step_key
         step0 = self._step0
         if ctx.a_max is not key[0] or ctx.period_s != key[1]:
@@ -88,12 +89,14 @@ class AccelerationLimit(Limit):
         return True
 
     def row_bounds(self, ctx, lower, upper) -> bool:
+        """Write the coupling rows' bounds ``±h_i a_max,i`` to ``lower``/``upper``."""
         dv = self._coupling(ctx)
         np.negative(dv, out=lower)
         upper[:] = dv
         return True
 
     def rows(self, ctx: StepContext) -> tuple:
+        """The first block's bounds and the coupling rows between consecutive blocks."""
         step0 = ctx.period_s * ctx.a_max[0]
         first = Bounds(
             "acceleration_first",

@@ -36,6 +36,7 @@ class AppliedCommandBox(Limit):
         self.period_s = float(period_s)
 
     def rows(self, ctx: StepContext) -> Bounds:
+        """The bounds of the applied command's block."""
         lo, up = velocity_position_box(
             ctx.q, self.q_min, self.q_max, self.qd_max, self.period_s, ctx.a_max[0]
         )

@@ -111,6 +111,7 @@ class CollisionLimit(Limit):
         self._rows = None
 
     def rows(self, ctx: StepContext) -> Inequality | None:
+        """One row per pair closer than the influence distance, or ``None`` when none is."""
         pred = ctx.prediction
         if ctx.robot.nq != self.collision.robot.nq:
             raise ParameterError(

@@ -43,9 +43,11 @@ class CommandBoxLimit(Limit):
         self.acceleration = acceleration
 
     def rows(self, ctx: StepContext) -> tuple:
+        """The joint box's bounds and the acceleration limit's rows."""
         return (self.box.rows(ctx), *self.acceleration.rows(ctx))
 
     def tighten(self, ctx, lower, upper, conflict) -> bool:
+        """Intersect the command box (joint box and acceleration) into ``lower``/``upper``."""
         box = self.box
         command_box_into(
             ctx.q, ctx.qd_prev, box.values, ctx.a_max, ctx.period_s, box.braking_aware, lower,
@@ -54,4 +56,5 @@ class CommandBoxLimit(Limit):
         return True
 
     def row_bounds(self, ctx, lower, upper) -> bool:
+        """The acceleration limit's row bounds (:meth:`AccelerationLimit.row_bounds`)."""
         return self.acceleration.row_bounds(ctx, lower, upper)

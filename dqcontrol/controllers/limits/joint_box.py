@@ -115,6 +115,7 @@ class JointBoxLimit(Limit):
         return self._brake
 
     def tighten(self, ctx, lower, upper, conflict) -> bool:
+        """Intersect this step's joint boxes into ``lower``/``upper`` (compiled kernel)."""
         key = self._brake_key
         brake = self._brake
         if ctx.a_max is not key[0] or ctx.period_s != key[1]:
@@ -127,6 +128,7 @@ class JointBoxLimit(Limit):
         return True
 
     def rows(self, ctx: StepContext) -> Bounds | None:
+        """The joint boxes as :class:`Bounds`, or ``None`` without joints to bound."""
         size = self._global.size
         if size == 0:
             return None

@@ -27,5 +27,6 @@ class PhaseEndLimit(Limit):
         self._c = c
 
     def rows(self, ctx: StepContext) -> Inequality:
+        """The row that bounds the phase's advance by what is left of ``T_tot``, plus ``T``."""
         room = max(ctx.trajectory.duration - ctx.sigma, 0.0) + ctx.period_s
         return Inequality(self.name, self._c, np.array([-np.inf]), np.array([room]))

@@ -70,9 +70,12 @@ class PredictedPositionLimit(Limit):
                 for j in range(i + 1):
                     c[i * n + np.arange(n), idx[j]] = weights[i, j]
             self._weights, self._c = weights, c
+            return c
+        assert self._c is not None, "cached with the weights"
         return self._c
 
     def rows(self, ctx: StepContext) -> tuple | None:
+        """The position bounds of the predicted states, or ``None`` when none applies."""
         pred = ctx.prediction
         c = self._matrix(pred.weights)
         base = pred.q_base.ravel()

@@ -29,4 +29,5 @@ class ScalingRange(Limit):
         )  # fmt: skip
 
     def rows(self, ctx: StepContext) -> Bounds:
+        """The bounds ``s_min ≤ s_i ≤ s_max`` of every block."""
         return self._rows

@@ -55,6 +55,7 @@ class TorqueLimit(Limit):
         self.limit = float(fraction) * np.asarray(effort_max, dtype=float)
 
     def rows(self, ctx: StepContext) -> Inequality:
+        """The torque rows of every interval, linearised at its predicted start."""
         layout = self.layout
         p, n = layout.num_blocks, layout.num_joints
         idx = layout.qd_index()
@@ -64,9 +65,14 @@ class TorqueLimit(Limit):
         lo = np.empty(p * n)
         up = np.empty(p * n)
         fast = ctx.robot.fast
+        plan = pred.warm_qd
         for i in range(p):
             m, _g = fast.mass_gravity(starts[i])
-            velocity = ctx.extras.get("qd_measured", ctx.qd_prev) if i == 0 else pred.warm_qd[i]
+            if i == 0:
+                velocity = ctx.extras.get("qd_measured", ctx.qd_prev)
+            else:
+                assert plan is not None, "the torque limit's prediction carries the plan"
+                velocity = plan[i]
             bias = fast.bias_forces(starts[i], velocity)
             rows = slice(i * n, (i + 1) * n)
             scaled = m / self.steps_s[i]

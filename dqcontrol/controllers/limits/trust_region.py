@@ -68,6 +68,7 @@ class TrustRegionLimit(Limit):
         return self._cq, self._cs
 
     def rows(self, ctx: StepContext) -> tuple:
+        """The rows that keep the predicted states near their linearisation points."""
         pred = ctx.prediction
         cq, cs = self._matrices(pred.weights, pred.phase_weights)
         out = []

@@ -25,4 +25,5 @@ class VelocityLimit(Limit):
         )
 
     def rows(self, ctx: StepContext) -> Bounds:
+        """The velocity bounds ``±qd_max`` of every block."""
         return self._rows

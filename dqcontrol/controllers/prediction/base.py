@@ -27,8 +27,8 @@ class Prediction(NamedTuple):
     q_base: np.ndarray
     sigma_base: np.ndarray
     weights: np.ndarray
-    warm_qd: np.ndarray
-    warm_s: np.ndarray
+    warm_qd: np.ndarray | None
+    warm_s: np.ndarray | None
     sigma_weights: np.ndarray | None = None
 
     @property
@@ -41,6 +41,9 @@ class PredictionModel(ABC):
     """Memory of the previous plan and the map from it to this step's :class:`Prediction`."""
 
     layout: DecisionLayout
+    #: Whether :meth:`predict` fills ``warm_qd``/``warm_s`` (set by a controller whose
+    #: backend warm-starts).
+    warm: bool = False
 
     @abstractmethod
     def reset(self, q0: np.ndarray, qd0: np.ndarray) -> None:

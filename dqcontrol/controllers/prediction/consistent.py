@@ -120,6 +120,7 @@ class ConsistentPrediction(PredictionModel):
         self.plan_s = np.zeros(p)
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        """Start with the plan ``qd0`` held over the horizon and ``s = 0``."""
         p = self.layout.num_blocks
         self.plan_qd = np.tile(np.asarray(qd0, dtype=float), (p, 1))
         self.plan_s = np.zeros(p)
@@ -153,10 +154,12 @@ class ConsistentPrediction(PredictionModel):
         return self._base(q)[0] + self.weights[0, 0] * qd_0
 
     def predict(self, q: np.ndarray, sigma: float) -> Prediction:
+        """The prediction linearised at the previous plan, shifted by one period."""
         qd_lin = self._shift @ self.plan_qd
         s_lin = np.clip(self._shift @ self.plan_s, 0.0, self.s_max)
         return self.at(q, sigma, qd_lin, s_lin)
 
     def commit(self, qd: np.ndarray, s: np.ndarray) -> None:
+        """Remember the plan ``qd`` ``(p, n)``, ``s`` ``(p,)`` chosen this step."""
         self.plan_qd = np.array(qd, dtype=float)
         self.plan_s = np.array(s, dtype=float)

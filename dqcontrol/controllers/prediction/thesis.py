@@ -62,10 +62,12 @@ class ThesisPrediction(PredictionModel):
         )  # fmt: skip
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        """Start with ``qd0`` over the horizon and ``s = 1``."""
         self.horizon_qd = np.tile(qd0, (self.layout.num_blocks, 1))
         self.horizon_s = np.ones(self.layout.num_blocks)
 
     def predict(self, q: np.ndarray, sigma: float) -> Prediction:
+        """The states from the previous plan (data, ``weights = 0``)."""
         if self.layout.num_blocks == 1:  # the same object, its arrays refilled
             self._q_one[0] = q
             self._sigma_one[0] = sigma
@@ -76,12 +78,13 @@ class ThesisPrediction(PredictionModel):
                 sigma_hat = sigma + self._w_int @ self.horizon_s
             else:
                 sigma_hat = sigma + self.layout.instants_s
+        warm_qd: np.ndarray | None = None
+        warm_s: np.ndarray | None = None
         if self.warm:
             warm_qd, warm_s = self._shift @ self.horizon_qd, self._shift @ self.horizon_s
-        else:
-            warm_qd = warm_s = None
         return Prediction(q_hat, sigma_hat, q_hat, sigma_hat, self._zero_weights, warm_qd, warm_s)
 
     def commit(self, qd: np.ndarray, s: np.ndarray) -> None:
+        """Remember the plan ``qd`` ``(p, n)``, ``s`` ``(p,)`` chosen this step."""
         self.horizon_qd = np.array(qd, dtype=float)
         self.horizon_s = np.array(s, dtype=float)

@@ -41,4 +41,5 @@ class DampingTerm(Term):
         self._b = np.zeros(p * k)
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The rows ``qd_i`` (and ``s_i`` with ``include_scaling``) of every block, ``b = 0``."""
         return Residual(self.name, self.weight, self._b, blocks=self._blocks, held=self.held)

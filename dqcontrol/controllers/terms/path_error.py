@@ -55,6 +55,7 @@ class PathErrorTerm(Term):
         self.weight = float(weight)
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The linearised tangent errors of the predicted states, weighted by their time."""
         pred = ctx.prediction
         layout = ctx.layout
         p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
@@ -62,7 +63,7 @@ class PathErrorTerm(Term):
         pj = np.einsum("pab,pbn->pan", proj, ctx.jacobians)  # E_i J_i (p, 6, n)
         pd = np.einsum("pab,pb->pa", proj, ctx.target_derivatives)  # E_i x_d' (p, 6)
         # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -sigma_weights[i, j] E_i x_d' on s_j
-        a = np.empty((p, 6, p, m))
+        a: np.ndarray = np.empty((p, 6, p, m))
         a[:, :, :, :n] = pred.weights[:, None, :, None] * pj[:, :, None, :]
         a[:, :, :, n] = -pred.phase_weights[:, None, :] * pd[:, :, None]
         a = a.reshape(6 * p, p * m)

@@ -40,6 +40,7 @@ class PostureTerm(Term):
         self.reference: np.ndarray | None = None
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The rows that pull the predicted states towards the posture."""
         ref = ctx.q if self.reference is None else self.reference
         gain = self.gain_per_s * float(ctx.extras.get("posture_scale", 1.0))
         b = gain * (ref - ctx.prediction.q_lin)

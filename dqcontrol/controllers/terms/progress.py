@@ -48,5 +48,6 @@ class ProgressTerm(Term):
         return float(min(self.s_max, 1.0 + max(lag_s, 0.0) / self._horizon))
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The rows that pull the predicted phase towards the reference timing."""
         s_ref = self.reference(float(ctx.extras.get("lag_s", 0.0)))
         return Residual(self.name, self.weight, -self._scale * s_ref, blocks=self._blocks)

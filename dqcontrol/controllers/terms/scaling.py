@@ -35,4 +35,5 @@ class ScalingTerm(Term):
         layout.s_index()  # a layout without s is refused here
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The rows ``s_i - 1`` of every block."""
         return Residual(self.name, self.weight, self._b, blocks=self._blocks)

@@ -33,6 +33,7 @@ class ScalingSmoothnessTerm(Term):
         self._a = a
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The rows ``s_i - s_(i-1)`` (``s_0``: the applied ``s``)."""
         b = np.zeros(self._a.shape[0])
         b[0] = float(ctx.extras.get("s_prev", 0.0))
         return Residual(self.name, self.weight, b, A=self._a)

@@ -50,6 +50,7 @@ class SingularityDampingTerm(Term):
         self._ctx: StepContext | None = None
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The rows ``qd_i`` weighted by the closeness to a singularity."""
         if ctx is not self._ctx:  # the same term in several levels: one SVD per step
             tangent = tangent_projectors(ctx.poses[:1])[0] @ ctx.jacobians[0]
             self.sigma_min = float(np.linalg.svd(tangent, compute_uv=False)[-1])

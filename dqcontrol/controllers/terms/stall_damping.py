@@ -60,7 +60,7 @@ class StallDampingTerm(Term):
         return math.ceil(delay_s / period_s - 1e-9)
 
     @property
-    def weight(self) -> float:
+    def weight(self) -> float:  # type: ignore[override]  # computed from the stall state
         """``μ_stall (1 - s / s_stall)`` once ``s`` has stayed below ``s_stall`` for
         ``delay_steps`` steps, else 0."""
         if self.stalled_steps >= self.delay_steps and self.weight_max:
@@ -68,13 +68,16 @@ class StallDampingTerm(Term):
         return 0.0
 
     def reset(self) -> None:
+        """Forget the stall (``s`` applied 1, no stalled step)."""
         self.s_applied = 1.0
         self.stalled_steps = 0  # consecutive steps with s below stall_scaling
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The rows ``qd_i`` of every block, with the present :attr:`weight`."""
         return Residual(self.name, self.weight, self._b, blocks=self._blocks, held=False)
 
     def add_gram(self, ctx: StepContext, hessian: np.ndarray) -> bool:
+        """Add ``2 weight`` to the joint-speed diagonal of every block while stalled."""
         if self.stalled_steps >= self.delay_steps and self.weight_max:
             weight = self.weight
             if weight:
@@ -83,6 +86,7 @@ class StallDampingTerm(Term):
         return True
 
     def observe(self, z: np.ndarray | None, s_applied: float) -> None:
+        """Count the consecutive steps with ``s`` below ``stall_scaling``."""
         self.s_applied = s_applied
         if s_applied < self.stall_scaling:
             self.stalled_steps += 1

@@ -47,6 +47,7 @@ class TrackingTerm(Term):
         self.tangent = bool(tangent)
 
     def residual(self, ctx: StepContext) -> Residual:
+        """The task rows of every block (docs/theory.md §4)."""
         g = task_matrices(
             ctx.poses, ctx.jacobians, ctx.targets, ctx.target_derivatives, self.gain_per_s
         )
@@ -59,6 +60,7 @@ class TrackingTerm(Term):
         return Residual(self.name, self.weight, g[:, :, n].ravel() * -1.0, blocks=g[:, :, :n])
 
     def add_gram(self, ctx: StepContext, hessian: np.ndarray) -> bool:
+        """Add the task's Gram blocks in place (compiled), for the untangled, scaled task."""
         if self.tangent or not ctx.layout.with_scaling:
             return False
         add_task_grams(
