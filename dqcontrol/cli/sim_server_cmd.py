@@ -45,14 +45,18 @@ def register(subparsers) -> None:
 
 def _main(args: argparse.Namespace) -> int:
     from dqcontrol.cli.run_cmd import load_robot
-    from dqcontrol.sim import MujocoDriver
+    from dqcontrol.sim import MujocoDriver, PayloadDriver
     from dqcontrol.sim.bridge import SimServer
 
     try:
         robot, _q0, _meta = load_robot(args.robot, args.ee_frame)
     except ValueError as exc:
         args._parser.error(str(exc))
-    driver = MujocoDriver(robot, args.period, motor=args.motor, payload_kg=args.payload)
+    if args.payload < 0.0:
+        args._parser.error(f"--payload must be >= 0 kg, got {args.payload}")
+    driver = MujocoDriver(robot, args.period, motor=args.motor)
+    if args.payload > 0.0:
+        driver = PayloadDriver(driver, args.payload)
     with SimServer(driver, f"tcp://{args.host}:{args.port}") as server:
         print(
             f"dqcontrol sim-server: {robot.model.name} ({len(driver.joint_names)} joints, "
