@@ -11,16 +11,26 @@ import numpy as np
 import pytest
 
 from dqcontrol.controllers import LocalController
+from dqcontrol.errors import ParameterError
 from dqcontrol.model.library import LBR4P_Q0
-from dqcontrol.sim import KinematicDriver, MujocoDriver, run_loop
+from dqcontrol.sim import (
+    KinematicDriver,
+    MujocoDriver,
+    PayloadDriver,
+    TorqueLimitDriver,
+    run_loop,
+)
 from dqcontrol.sim.bridge import (
     COMMAND,
+    DESCRIBE,
+    DESCRIPTION,
     HEADER,
     BridgeDriver,
     BridgeError,
     SimServer,
     decode,
     encode_command,
+    run_origin,
 )
 from dqcontrol.trajectories import Circle
 
@@ -236,6 +246,61 @@ def test_a_server_that_disappears(lbr4p):
     assert res.log.meta["driver_report"]["timeouts"] >= 3
 
 
+class Silent(SimServer):
+    """A server that does not know ``DESCRIBE`` (or answers it with a broken description)."""
+
+    def __init__(self, driver, answer: str) -> None:
+        super().__init__(driver)
+        self.answer = answer
+
+    def handle(self, packet: bytes) -> bytes:
+        if len(packet) >= HEADER.size and HEADER.unpack_from(packet)[2] == DESCRIBE:
+            if self.answer == "unknown":
+                return _header(6, 0, 0, 1) + b"unknown kind"
+            return _header(DESCRIPTION, HEADER.unpack_from(packet)[3], self.n) + b"[1, 2]"
+        return super().handle(packet)
+
+
+def test_the_server_describes_what_it_serves(lbr4p):
+    drv = TorqueLimitDriver(PayloadDriver(MujocoDriver(lbr4p, 0.01), 3.0), 0.5)
+    with Served(SimServer(drv, description={"robot": "lbr4p"})) as server:
+        client = BridgeDriver(server.address)
+        client.close()
+    described = client.server
+    assert described["robot"] == "lbr4p" and described["joint_names"] == list(lbr4p.joint_names)
+    assert described["period_s"] == 0.01 and described["simulator"] == "mujoco"
+    assert described["motor"] == "velocity" and described["physics_dt_s"] == 0.001
+    assert described["payload_kg"] == 3.0 and described["effort_scale"] == 0.5
+    assert client.meta["server"] == described and client.report()["timeouts"] == 0
+    origin = run_origin(client.meta)
+    assert origin.startswith("dqcontrol sim-server ") and server.address in origin
+    assert "lbr4p, mujoco, velocity drive, T = 0.01 s, unknown payload 3 kg" in origin
+    assert "torque limits × 0.5" in origin
+    assert run_origin({"simulator": "kinematic"}) == "kinematic in this process"
+
+
+@pytest.mark.parametrize(
+    ("answer", "reason"),
+    [("unknown", "server error: unknown kind"), ("not an object", "bad description")],
+)
+def test_a_server_without_a_description(lbr4p, answer, reason):
+    with Served(Silent(KinematicDriver(lbr4p, 0.05), answer)) as server:
+        start = time.perf_counter()
+        client = BridgeDriver(server.address, timeout_s=0.2, hello_timeout_s=1.0)
+        took = time.perf_counter() - start
+        res = run_loop(LocalController(lbr4p, Circle(0.5), 0.05), client, q0=LBR4P_Q0)
+        client.close()
+    assert res.log.meta["server"] == {} and res.metrics.completed
+    assert res.log.meta["driver_report"]["rejected"] == {reason: 1}
+    assert took < (0.9 if answer == "unknown" else 2.0)  # an error ends the wait at once
+    assert "(it gave no description)" in run_origin(res.log.meta)
+
+
+def test_a_description_must_be_json(lbr4p):
+    with pytest.raises(ParameterError, match="description must be JSON values"):
+        SimServer(KinematicDriver(lbr4p, 0.05), description={"robot": object()})
+
+
 def test_no_server_is_a_clear_error():
     with pytest.raises(BridgeError, match="no answer from a dqcontrol sim-server"):
         BridgeDriver("tcp://127.0.0.1:9", hello_timeout_s=0.2)
@@ -250,7 +315,7 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
     codes = []
 
     def serve():
-        codes.append(main(["sim-server", "--port", str(port), "--max-messages", "40"]))
+        codes.append(main(["sim-server", "--port", str(port), "--max-messages", "45"]))
         done.set()
 
     thread = threading.Thread(target=serve, daemon=True)
@@ -258,10 +323,14 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
     client = BridgeDriver(f"tcp://127.0.0.1:{port}", hello_timeout_s=10.0)
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
     client.close()
-    sent = 2 + len(res.log) + res.log.meta["stop"]["brake_periods"] + 1  # hello, reset, hold
-    assert res.metrics.completed and sent < 40
+    server = res.log.meta["server"]
+    assert server["robot"] == "lbr4p" and server["robot_spec"] == "lbr4p"
+    assert server["motor"] == "velocity" and server["simulator"] == "mujoco"
+    # hello, describe, reset, the samples, the brake, hold
+    sent = 3 + len(res.log) + res.log.meta["stop"]["brake_periods"] + 1
+    assert res.metrics.completed and sent < 45
     sock = _raw(f"tcp://127.0.0.1:{port}")
-    for _ in range(40 - sent):  # the server stops after its 40th message
+    for _ in range(45 - sent):  # the server stops after its 45th message
         sock.send(_header(1, 0, 0))
         assert sock.poll(5000)
         sock.recv()
