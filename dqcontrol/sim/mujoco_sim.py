@@ -378,7 +378,7 @@ class MujocoSimulation:
             raise URDFError(f"MuJoCo could not compile the robot model: {exc}") from None
         data = mujoco.MjData(model)
         old = getattr(self, "_data", None)
-        if old is not None:  # the same joints at the same addresses: no body moved
+        if old is not None:  # a payload has no joint: qpos and qvel keep their layout
             data.qpos[:], data.qvel[:], data.time = old.qpos, old.qvel, old.time
             mujoco.mj_forward(model, data)
         #: The edited :class:`mujoco.MjSpec` the model was compiled from.
@@ -408,7 +408,8 @@ class MujocoSimulation:
     def set_payload(self, mass_kg: float, offset_m: np.ndarray | None = None) -> None:
         """Carry ``mass_kg`` [kg] (0: none) centred at ``offset_m`` [m] in the end-effector
         frame, unknown to the drives' model. The model is rebuilt; the joint state, the
-        time and the drives' state are kept.
+        time and the drives' state are kept, and :attr:`model` and :attr:`data` are new
+        objects (a viewer of the old ones must take them again).
 
         Raises:
             ParameterError: a negative or non-finite mass, an offset that is not 3 finite
