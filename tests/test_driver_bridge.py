@@ -381,7 +381,9 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
     codes = []
 
     def serve():
-        codes.append(main(["sim-server", "--port", str(port), "--max-messages", "45"]))
+        codes.append(
+            main(["sim-server", "--port", str(port), "--max-messages", "45", "--payload", "3"])
+        )
         done.set()
 
     thread = threading.Thread(target=serve, daemon=True)
@@ -392,6 +394,7 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
     server = res.log.meta["server"]
     assert server["robot"] == "lbr4p" and server["robot_spec"] == "lbr4p"
     assert server["motor"] == "velocity" and server["simulator"] == "mujoco"
+    assert server["payload_kg"] == 3.0  # through PayloadDriver
     # hello, describe, reset, the samples, the brake, hold
     sent = 3 + len(res.log) + res.log.meta["stop"]["brake_periods"] + 1
     assert res.metrics.completed and sent < 45
@@ -418,3 +421,11 @@ class socket_port:
 
     def __exit__(self, *exc) -> None:
         self.sock.close()
+
+
+def test_the_sim_server_refuses_a_negative_payload(capsys):
+    from dqcontrol.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["sim-server", "--port", "0", "--payload", "-1", "--max-messages", "1"])
+    assert info.value.code == 2 and "--payload must be >= 0 kg" in capsys.readouterr().err
