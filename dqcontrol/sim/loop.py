@@ -147,16 +147,19 @@ def _sleep_until(deadline: float) -> None:
 @contextlib.contextmanager
 def _young_gc_only(enabled: bool) -> Iterator[None]:
     """While the block runs, the garbage collector sees only objects made in it: a full
-    collection first, then every existing object frozen (``gc.freeze``), unfrozen after."""
+    collection first, then every existing object frozen (``gc.freeze``), unfrozen after
+    (unless the caller had frozen objects already: ``gc.unfreeze`` would free theirs too)."""
     if not enabled:
         yield
         return
+    frozen_before = gc.get_freeze_count()
     gc.collect()
     gc.freeze()
     try:
         yield
     finally:
-        gc.unfreeze()
+        if frozen_before == 0:
+            gc.unfreeze()
 
 
 def run_loop(
