@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from dqcontrol.experiments.table1 import Table1Case, Table1Settings
-from dqcontrol.sim import MujocoDriver, run_loop
+from dqcontrol.sim import MujocoDriver, PayloadDriver, run_loop
 
 CASES = (("circle", 1.0), ("sinusoid", 2.0))
 CONTROLLERS = ("local", "p10", "pf")
@@ -26,7 +26,9 @@ def run(trajectory: str, duration: float, controller: str, motor: str, payload: 
     settings = Table1Settings()
     case = Table1Case(trajectory, duration, controller)
     robot, ctrl = case.build(settings)
-    driver = MujocoDriver(robot, settings.period_s, motor=motor, payload_kg=payload)
+    driver = MujocoDriver(robot, settings.period_s, motor=motor)
+    if payload > 0.0:
+        driver = PayloadDriver(driver, payload)
     result = run_loop(ctrl, driver, q0=settings.start_configuration(), brake=False)
     log = result.log
     err = log.qd_measured[1:] - log.qd_command[:-1]

@@ -9,10 +9,8 @@ import numpy as np
 import pytest
 
 from dqcontrol.errors import ConfigurationError, ParameterError
-from dqcontrol.faults.simulation import FaultySimulation, KinematicSimulation
 from dqcontrol.model.library import LBR4P_Q0
 from dqcontrol.sim.driver import (
-    FaultyDriver,
     JointDriver,
     JointMismatchError,
     KinematicDriver,
@@ -23,6 +21,7 @@ from dqcontrol.sim.driver import (
     VelocityFromPosition,
     joint_map,
 )
+from dqcontrol.sim.measurement_faults import FaultyDriver
 from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation
 
 NAMES = tuple(f"j{i}" for i in range(1, 8))
@@ -109,20 +108,22 @@ def test_velocity_from_position_starts_at_the_first_measurement_when_written_fir
 
 
 @pytest.mark.parametrize("delay", [0, 2])
-def test_faulty_driver_sees_what_the_faulty_simulation_sees(lbr4p, delay):
+def test_faulty_driver_observes_the_delayed_state_plus_seeded_noise(lbr4p, delay):
+    """Observation k is true state ``max(0, k - d)`` plus the k-th draws of
+    ``default_rng(seed)``: q's noise, then qd's."""
     opts = {"q_noise_rad": 1e-3, "qd_noise_rad_s": 0.01, "delay_periods": delay, "seed": 3}
     drv = FaultyDriver(KinematicDriver(lbr4p, 0.05), **opts)
-    sim = FaultySimulation(KinematicSimulation(lbr4p, 0.05), **opts)
-    seen_drv, seen_sim = [drv.reset(LBR4P_Q0)], [sim.reset(LBR4P_Q0)]
+    seen = [drv.reset(LBR4P_Q0)]
     for k in range(8):
-        u = np.full(7, 0.1 * (k + 1))
-        drv.write(u)
-        seen_drv.append(drv.read())
-        seen_sim.append(sim.step(u, 0.05))
-    for a, b in zip(seen_drv, seen_sim, strict=True):
-        np.testing.assert_array_equal(a.q, b.q)
-        np.testing.assert_array_equal(a.qd, b.qd)
-    np.testing.assert_allclose(drv.true_q, sim.true_q, atol=1e-15)
+        drv.write(np.full(7, 0.1 * (k + 1)))
+        seen.append(drv.read())
+    rng = np.random.default_rng(3)
+    for k, m in enumerate(seen):
+        old = drv.true_measurements[max(0, k - delay)]
+        np.testing.assert_array_equal(m.q, old.q + rng.normal(0.0, 1e-3, 7))
+        np.testing.assert_array_equal(m.qd, old.qd + rng.normal(0.0, 0.01, 7))
+        assert m.t_s == drv.true_measurements[k].t_s  # stamped with the present time
+    np.testing.assert_array_equal(drv.true_qd[-1], np.full(7, 0.1 * 8))
     assert drv.meta["delay_periods"] == delay
 
 

@@ -1,4 +1,4 @@
-"""Hard bounds under faults (issue 6): property tests of the bounds and the fallback, the
+"""Hard bounds under faults: property tests of the bounds and the fallback, the
 fault-injection wrappers, a reduced fault campaign, and ``dqcontrol faults``.
 
 ``tests/test_controllers.py`` already checks three steps of the QP controllers from random
@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -30,9 +31,8 @@ from dqcontrol.controllers import (
 from dqcontrol.errors import ParameterError
 from dqcontrol.faults import (
     ContradictoryBoundsQP,
-    FaultySimulation,
-    KinematicSimulation,
     contradictory,
+    fault_driver,
     render_csv,
     render_markdown,
     run_campaign,
@@ -47,7 +47,16 @@ from dqcontrol.faults.scenarios import (
     fault_by_name,
 )
 from dqcontrol.model import LBR4P_Q0
-from dqcontrol.sim import MujocoSimulation, run_mujoco
+from dqcontrol.sim import (
+    FaultyDriver,
+    KinematicDriver,
+    MujocoDriver,
+    NotASimulatorError,
+    PayloadDriver,
+    TorqueLimitDriver,
+    run_loop,
+    run_mujoco,
+)
 from dqcontrol.trajectories import Circle, Sinusoid
 
 TOL = 1e-9
@@ -177,42 +186,34 @@ def test_no_command_crosses_a_bound_under_random_parameters_and_noisy_states(
 
 
 # =========================================================================== wrappers
-def test_kinematic_simulation_integrates_the_command(lbr4p):
-    sim = KinematicSimulation(lbr4p, 0.05)
-    m0 = sim.reset(LBR4P_Q0)
-    u = np.linspace(-0.5, 0.5, 7)
-    m = sim.step(u, 0.1)
-    np.testing.assert_allclose(m.q, m0.q + 0.1 * u, atol=1e-15)
-    np.testing.assert_allclose(m.qd, u)
-    assert m.t_s == pytest.approx(0.1) and np.isnan(m.torque).all()
-    assert sim.steps_for(0.15) == 3 and sim.model.opt.timestep == 0.05
-    with pytest.raises(ParameterError, match="whole number"):
-        sim.steps_for(0.07)
-
-
 @pytest.mark.parametrize("delay", [0, 1, 2, 3])
 def test_delay_returns_the_measurement_of_d_periods_ago(lbr4p, delay):
-    sim = FaultySimulation(KinematicSimulation(lbr4p, 0.05), delay_periods=delay)
-    seen = [sim.reset(LBR4P_Q0).q]
+    drv = FaultyDriver(KinematicDriver(lbr4p, 0.05), delay_periods=delay)
+    seen = [drv.reset(LBR4P_Q0).q]
     for k in range(6):
-        seen.append(sim.step(np.full(7, 0.1 * (k + 1)), 0.05).q)
-    true = sim.true_q
+        drv.write(np.full(7, 0.1 * (k + 1)))
+        seen.append(drv.read().q)
+    true = drv.true_q
     for k, q in enumerate(seen):
         np.testing.assert_array_equal(q, true[max(0, k - delay)])
-    assert sim.measure().t_s == pytest.approx(6 * 0.05)  # the clock itself is not delayed
-    assert sim.measure() is not None and np.array_equal(sim.measure().q, seen[-1])
+    assert drv.read().t_s == pytest.approx(6 * 0.05)  # the clock itself is not delayed
 
 
 def test_noise_is_seeded_gaussian_and_restarts_at_reset(lbr4p):
-    sim = FaultySimulation(
-        KinematicSimulation(lbr4p, 0.05), q_noise_rad=2e-3, qd_noise_rad_s=0.02, seed=7
-    )
-    first = [sim.reset(LBR4P_Q0).q] + [sim.step(np.zeros(7), 0.05).q for _ in range(400)]
-    again = [sim.reset(LBR4P_Q0).q] + [sim.step(np.zeros(7), 0.05).q for _ in range(400)]
+    drv = FaultyDriver(KinematicDriver(lbr4p, 0.05), q_noise_rad=2e-3, qd_noise_rad_s=0.02, seed=7)
+
+    def run() -> list[np.ndarray]:
+        seen = [drv.reset(LBR4P_Q0).q]
+        for _ in range(400):
+            drv.hold()
+            seen.append(drv.read().q)
+        return seen
+
+    first, again = run(), run()
     np.testing.assert_array_equal(first, again)
     err = np.array(first) - LBR4P_Q0
     assert abs(err.mean()) < 2e-4 and err.std() == pytest.approx(2e-3, rel=0.05)
-    np.testing.assert_array_equal(sim.true_q[-1], LBR4P_Q0)  # the arm itself did not move
+    np.testing.assert_array_equal(drv.true_q[-1], LBR4P_Q0)  # the arm itself did not move
 
 
 @pytest.mark.parametrize(
@@ -227,13 +228,44 @@ def test_noise_is_seeded_gaussian_and_restarts_at_reset(lbr4p):
 )
 def test_bad_fault_parameters(lbr4p, kwargs, fragment):
     with pytest.raises(ParameterError) as info:
-        FaultySimulation(KinematicSimulation(lbr4p, 0.05), **kwargs)
+        FaultyDriver(KinematicDriver(lbr4p, 0.05), **kwargs)
     assert fragment in str(info.value)
 
 
-def test_wrapping_something_that_is_not_a_simulation():
-    with pytest.raises(ParameterError, match="has no 'reset'"):
-        FaultySimulation(object())
+def test_a_case_driver_wraps_the_arm_in_its_faults(lbr4p):
+    fault = fault_by_name("payload_3kg_torque_half")
+    drv = fault_driver(fault, "mujoco", lbr4p, 0.05, seed=4)
+    assert isinstance(drv, FaultyDriver) and drv.faults.seed == 4
+    assert isinstance(drv.inner, TorqueLimitDriver)
+    assert isinstance(drv.inner.inner, PayloadDriver)
+    assert isinstance(drv.inner.inner.inner, MujocoDriver)
+    assert drv.simulation.payload_kg == 3.0 and drv.simulation.effort_scale == 0.5
+    assert drv.meta["payload_kg"] == 3.0 and drv.meta["effort_scale"] == 0.5
+    plain = fault_driver(fault_by_name("noise"), "kinematic", lbr4p, 0.05)
+    assert isinstance(plain.inner, KinematicDriver) and plain.faults.q_noise_rad == 2e-3
+    with pytest.raises(NotASimulatorError, match="KinematicDriver cannot"):
+        fault_driver(fault, "kinematic", lbr4p, 0.05)
+    with pytest.raises(ParameterError, match="simulator must be one of"):
+        fault_driver(fault, "gazebo", lbr4p, 0.05)
+
+
+def test_a_model_fault_case_equals_the_simulation_built_with_it(lbr4p):
+    """The campaign's wrappers give the arm the simulator would have been built with."""
+    spec = CaseSpec(
+        CONTROLLERS["local"], TRAJECTORIES["circle"], fault_by_name("payload_3kg_torque_half"),
+        "mujoco", 1.0,
+    )  # fmt: skip
+    row = run_case(spec, keep_log=True)
+    ctrl = CONTROLLERS["local"].build(lbr4p, TRAJECTORIES["circle"].build(1.0), 0.05)
+    ref = run_mujoco(
+        ctrl, spec.fault.start_configuration(lbr4p), max_time_s=spec.max_time_s,
+        payload_kg=3.0, payload_offset_m=np.array([0.0, 0.0, 0.05]), effort_scale=0.5,
+    )  # fmt: skip
+    assert len(row.log) == len(ref.log) > 10
+    for name in ("q", "qd_measured", "qd_command", "torque", "torque_peak", "sigma"):
+        np.testing.assert_array_equal(getattr(row.log, name), getattr(ref.log, name))
+    nominal = run_case(replace(spec, fault=fault_by_name("nominal")), keep_log=True)
+    assert not np.array_equal(nominal.log.torque, row.log.torque)  # the fault is felt
 
 
 def test_contradictory_bounds_reach_the_solver(lbr4p):
@@ -407,13 +439,14 @@ def test_delay_near_the_limits_overshoots_by_at_most_d_periods_of_motion(lbr4p, 
     assert 0.0 < r.q_excess_true_rad <= delay * 0.05 * lbr4p.limits.qd_max.max() + 1e-9
 
 
-def test_run_mujoco_accepts_the_faulty_simulation(lbr4p):
-    sim = FaultySimulation(MujocoSimulation(lbr4p), q_noise_rad=1e-3, delay_periods=1)
+def test_the_loop_sees_the_faulty_measurements_of_a_mujoco_arm(lbr4p):
+    drv = FaultyDriver(MujocoDriver(lbr4p, 0.05), q_noise_rad=1e-3, delay_periods=1)
     ctrl = LocalController(lbr4p, Circle(1.0), 0.05)
-    res = run_mujoco(ctrl, LBR4P_Q0, simulation=sim, max_time_s=0.5)
-    assert len(res.log) == 10 and sim.true_q.shape == (11, 7)
+    res = run_loop(ctrl, drv, q0=LBR4P_Q0, max_time_s=0.5, brake=False)
+    assert len(res.log) == 10 and drv.true_q.shape == (11, 7)
     # the log holds what the controller measured: one period late and noisy
-    assert np.abs(res.log.q[1:] - sim.true_q[:-2]).max() < 6e-3  # [k] is true [k - 1]
+    assert np.abs(res.log.q[1:] - drv.true_q[:-2]).max() < 6e-3  # [k] is true [k - 1]
+    assert np.abs(res.log.q[1:] - drv.true_q[:-2]).max() > 0.0
 
 
 # =========================================================================== the command

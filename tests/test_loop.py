@@ -218,22 +218,56 @@ def test_a_missed_deadline_stops_the_wall_clock_loop(lbr4p):
     )
     assert res.reason == "deadline" and len(res.log) == 4 and "after its deadline" in res.note
     assert res.log.meta["stop"]["lateness_max_ms"] > 10.0
+    assert res.log.meta["stop"]["missed_deadlines"] == 1
 
 
 def test_the_wall_clock_loop_keeps_its_period(lbr4p):
+    import gc
     import time
+
+    starts, frozen = [], []
+
+    def record(_k, _driver, _result):
+        starts.append(time.perf_counter())
+        frozen.append(gc.get_freeze_count())
 
     start = time.perf_counter()
     res = run_loop(
         LocalController(lbr4p, Circle(0.4), 0.1),
         KinematicDriver(lbr4p, 0.1),
         q0=LBR4P_Q0,
+        on_sample=record,
         realtime=True,
         brake=False,
     )
     assert not res.interrupted and res.metrics.completed
     assert time.perf_counter() - start >= 0.1 * (len(res.log) - 1)
-    assert res.log.meta["stop"]["lateness_max_ms"] < 0.0
+    stop = res.log.meta["stop"]
+    assert stop["lateness_max_ms"] < 0.0 and stop["missed_deadlines"] == 0
+    assert 0.0 <= stop["jitter_median_ms"] <= stop["jitter_p99_ms"] <= stop["jitter_max_ms"]
+    assert len(starts) == len(res.log)
+    # the collector saw only the run's own objects, and everything again after it
+    assert min(frozen) > 0 and gc.get_freeze_count() == 0
+
+
+def test_a_wait_never_ends_before_its_deadline():
+    import time
+
+    from dqcontrol.sim.loop import SPIN_S, _sleep_until
+
+    ends = []
+    for k in range(20):
+        deadline = time.perf_counter() + (k % 4) * 1e-3 + (SPIN_S if k % 2 else 0.0)
+        _sleep_until(deadline)
+        ends.append(time.perf_counter() - deadline)
+    assert min(ends) >= 0.0
+
+
+def test_a_stepped_run_has_no_wall_clock_entries(lbr4p):
+    res = run_loop(
+        LocalController(lbr4p, Circle(0.4), 0.1), KinematicDriver(lbr4p, 0.1), q0=LBR4P_Q0
+    )
+    assert not {"jitter_max_ms", "lateness_max_ms", "missed_deadlines"} & set(res.log.meta["stop"])
 
 
 def test_progress_goes_through_the_callback(lbr4p):

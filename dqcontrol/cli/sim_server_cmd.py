@@ -12,8 +12,10 @@ _DESCRIPTION = """\
 Serve a robot in MuJoCo on a ZMQ socket (loopback by default). A client — the
 dqcontrol.sim.bridge.BridgeDriver with run_loop, or any program that speaks the wire
 format of docs/drivers.md — sends a reset, then one velocity command per control period;
-the server steps the simulation one period per command and answers with the state.
-Bad packets are answered with an error and counted, never fatal. Ctrl-C stops it."""
+the server steps the simulation one period per command and answers with the state. It
+describes itself (robot, joints, period, drive, payload, versions) to a client that asks;
+dqcontrol run --connect records that in the run log (meta "server"). Bad packets are
+answered with an error and counted, never fatal. Ctrl-C stops it."""
 
 _EPILOG = """\
 examples:
@@ -46,7 +48,7 @@ def register(subparsers) -> None:
 def _main(args: argparse.Namespace) -> int:
     from dqcontrol.cli._extras import check_simulator
     from dqcontrol.cli.run_cmd import load_robot
-    from dqcontrol.sim import MujocoDriver
+    from dqcontrol.sim import JointDriver, MujocoDriver, PayloadDriver
     from dqcontrol.sim.bridge import SimServer
 
     check_simulator("mujoco", "the simulation server")
@@ -54,8 +56,13 @@ def _main(args: argparse.Namespace) -> int:
         robot, _q0, _meta = load_robot(args.robot, args.ee_frame)
     except ValueError as exc:
         args._parser.error(str(exc))
-    driver = MujocoDriver(robot, args.period, motor=args.motor, payload_kg=args.payload)
-    with SimServer(driver, f"tcp://{args.host}:{args.port}") as server:
+    if args.payload < 0.0:
+        args._parser.error(f"--payload must be >= 0 kg, got {args.payload}")
+    driver: JointDriver = MujocoDriver(robot, args.period, motor=args.motor)
+    if args.payload > 0.0:
+        driver = PayloadDriver(driver, args.payload)
+    description = {"robot": robot.model.name, "robot_spec": args.robot, "ee_frame": robot.ee_frame}
+    with SimServer(driver, f"tcp://{args.host}:{args.port}", description) as server:
         print(
             f"dqcontrol sim-server: {robot.model.name} ({len(driver.joint_names)} joints, "
             f"T = {args.period:g} s, {args.motor} drive) on {server.address}",

@@ -86,6 +86,7 @@ def _main(args: argparse.Namespace) -> int:
     from dqcontrol.dq.algebra import translation
     from dqcontrol.errors import ParameterError
     from dqcontrol.runs.storage import load_run
+    from dqcontrol.sim.bridge import run_origin
 
     try:
         log, record = load_run(json_path)
@@ -94,6 +95,7 @@ def _main(args: argparse.Namespace) -> int:
     if len(log) == 0:
         raise ParameterError(f"the run {json_path} has no samples")
     meta = log.meta
+    print(f"run {stem.name}: states from {run_origin(meta)}", flush=True)
     trajectory = trajectory_from_meta(meta, log)
     path_points = trajectory.path_positions(1000) if trajectory is not None else None
     out = Path(args.out) if args.out else json_path.parent

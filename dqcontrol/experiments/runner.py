@@ -1,16 +1,16 @@
 """One experiment case: the robot, the trajectory and the controller built from names and
 numbers, run in the chosen closed loop, and measured.
 
-Table 1 (:mod:`dqcontrol.experiments.table1`) and the fault campaign
-(:mod:`dqcontrol.faults.campaign`) run every case through here:
+Table 1 (:mod:`dqcontrol.experiments.table1`) and the studies run their cases through
+here (the fault campaign builds its own faulty drivers, :mod:`dqcontrol.faults.simulation`,
+and shares the robot and trajectories):
 
 - :func:`lbr4p` — the experiments' robot, loaded once per thread;
 - :func:`build_trajectory` — a trajectory from its metadata
   (:func:`~dqcontrol.trajectories.trajectory_from_metadata`);
 - :func:`~dqcontrol.registry.build_controller` — a controller by name (re-exported);
 - :func:`simulate` — the closed loop (:func:`~dqcontrol.sim.run_loop` with the kinematic or
-  the MuJoCo driver, or any simulation object such as the campaign's
-  :class:`~dqcontrol.faults.simulation.FaultySimulation`), with the metrics
+  the MuJoCo driver, or any simulation object), with the metrics
   of docs/theory.md §9 and, on request, the path deviation *between* the control samples:
   along MuJoCo's physics steps, or along the straight joint-space motion of the kinematic
   loop;

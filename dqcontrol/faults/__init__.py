@@ -2,8 +2,9 @@
 noise and delay, model mismatch, torque saturation, impossible tasks, awkward starts and
 failing or contradictory QPs.
 
-- :mod:`~dqcontrol.faults.simulation` — :class:`FaultySimulation` (noise, delay, true-state
-  record) around any simulation, and :class:`KinematicSimulation`;
+- :mod:`~dqcontrol.faults.simulation` — :func:`fault_driver`, a case's arm with its faults
+  as driver wrappers (:class:`~dqcontrol.sim.FaultyDriver`,
+  :class:`~dqcontrol.sim.PayloadDriver`, :class:`~dqcontrol.sim.TorqueLimitDriver`);
 - :mod:`~dqcontrol.faults.qp_faults` — QPs with contradictory bounds (:func:`contradictory`);
 - :mod:`~dqcontrol.faults.scenarios` — the controllers, trajectories and faults by name;
 - :mod:`~dqcontrol.faults.campaign` — :func:`run_campaign`, :func:`run_case` and the report.
@@ -21,7 +22,7 @@ from dqcontrol.faults.campaign import (
 )
 from dqcontrol.faults.qp_faults import ContradictoryBoundsQP, contradictory
 from dqcontrol.faults.scenarios import CONTROLLERS, FAULTS, TRAJECTORIES, Fault, fault_by_name
-from dqcontrol.faults.simulation import FaultySimulation, KinematicSimulation
+from dqcontrol.faults.simulation import fault_driver
 
 __all__ = [
     "CONTROLLERS",
@@ -32,11 +33,10 @@ __all__ = [
     "CaseSpec",
     "ContradictoryBoundsQP",
     "Fault",
-    "FaultySimulation",
-    "KinematicSimulation",
     "campaign_cases",
     "contradictory",
     "fault_by_name",
+    "fault_driver",
     "render_csv",
     "render_markdown",
     "run_campaign",

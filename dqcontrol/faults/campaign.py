@@ -1,12 +1,9 @@
 """The fault campaign: every controller on every task under every fault, and its report.
 
-One case is one closed-loop run of the case runner (:func:`dqcontrol.experiments.runner.
-simulate`, the same as Table 1's) through :func:`~dqcontrol.sim.run_mujoco` (the loop
-itself is not touched): the simulation is a :class:`~dqcontrol.sim.MujocoSimulation` (with
-the model faults as its options) or a
-:class:`~dqcontrol.faults.simulation.KinematicSimulation`, always wrapped in a
-:class:`~dqcontrol.faults.simulation.FaultySimulation` (measurement faults, and a record of
-the *true* state). What is judged:
+One case is one closed-loop run (:func:`~dqcontrol.sim.run_loop`, the loop of every run)
+against the driver of :func:`~dqcontrol.faults.simulation.fault_driver`: a MuJoCo or a
+kinematic arm, the model faults (payload, torque limits) and the measurement faults (noise,
+delay) as wrappers around it, the outermost recording the *true* state. What is judged:
 
 - **status**: ``completed`` (σ reached ``T_tot``), ``stopped`` (not completed, but the arm
   is at rest at the end: every true joint speed and every command below
@@ -48,7 +45,7 @@ from dqcontrol.controllers.base import Controller
 from dqcontrol.dq.algebra import dq_from_rt, dq_mul, translation
 from dqcontrol.errors import ParameterError
 from dqcontrol.experiments.executor import Executor, resolve_executor
-from dqcontrol.experiments.runner import lbr4p, simulate
+from dqcontrol.experiments.runner import lbr4p
 from dqcontrol.experiments.sweep import sweep
 from dqcontrol.experiments.thesis import THESIS_PERIOD_S
 from dqcontrol.faults.qp_faults import ContradictoryBoundsQP, contradictory
@@ -63,11 +60,11 @@ from dqcontrol.faults.scenarios import (
     TrajectorySpec,
     fault_by_name,
 )
-from dqcontrol.faults.simulation import FaultySimulation, KinematicSimulation
+from dqcontrol.faults.simulation import fault_driver
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.runs.metrics import VIOLATION_TOL
 from dqcontrol.sim.kinematic import RunResult
-from dqcontrol.sim.mujoco_sim import MujocoSimulation
+from dqcontrol.sim.loop import run_loop
 
 __all__ = [
     "PERIOD_S",
@@ -241,29 +238,6 @@ def _build_trajectory(spec: CaseSpec, robot: RobotModel, q0: np.ndarray):
     return traj
 
 
-def _build_simulation(spec: CaseSpec, robot: RobotModel) -> FaultySimulation:
-    f = spec.fault
-    inner: MujocoSimulation | KinematicSimulation
-    if spec.simulator == "mujoco":
-        inner = MujocoSimulation(
-            robot,
-            payload_kg=f.payload_kg,
-            payload_offset_m=np.asarray(f.payload_offset_m, dtype=float),
-            effort_scale=f.effort_scale,
-        )
-    elif spec.simulator == "kinematic":
-        inner = KinematicSimulation(robot, spec.period_s)
-    else:
-        raise ParameterError(f"simulator must be one of {SIMULATORS}, got {spec.simulator!r}")
-    return FaultySimulation(
-        inner,
-        q_noise_rad=f.q_noise_rad,
-        qd_noise_rad_s=f.qd_noise_rad_s,
-        delay_periods=f.delay_periods,
-        seed=spec.seed,
-    )
-
-
 def _position_excess(q: np.ndarray, robot: RobotModel) -> tuple[int, float]:
     if q.size == 0:
         return 0, 0.0
@@ -299,23 +273,23 @@ def run_case(
         "duration_s": spec.duration_s,
     }
     controller = None
-    sim = None
     try:
         q0 = f.start_configuration(robot)
         traj = _build_trajectory(spec, robot, q0)
         controller = _build_controller(spec, robot, traj)
         if hook is not None:
             hook(controller)
-        sim = _build_simulation(spec, robot)
+        driver = fault_driver(f, spec.simulator, robot, spec.period_s, spec.seed)
         with _quiet_c_stdout(f.contradiction is not None):
-            result: RunResult = simulate(
+            # no brake after the run: a case is judged in the state its last command led to
+            result: RunResult = run_loop(
                 controller,
-                q0,
-                spec.simulator,
-                simulation=sim,
+                driver,
+                q0=q0,
                 max_time_s=spec.max_time_s,
                 meta={"simulator": spec.simulator, "fault": f.name},
-            ).result
+                brake=False,
+            )
     except Exception as exc:  # noqa: BLE001 - the campaign reports, it does not stop
         tb = traceback.format_exception_only(type(exc), exc)[-1].strip()
         return CaseResult(
@@ -334,8 +308,8 @@ def run_case(
     log, m = result.log, result.metrics
     k = len(log)
     end = m.samples  # samples counted by the metrics (until σ reached T_tot)
-    true_q = sim.true_q  # (k + 1, n): after reset and after every held command
-    true_qd = sim.true_qd
+    true_q = driver.true_q  # (k + 1, n): after reset and after every held command
+    true_qd = driver.true_qd
     anchored = controller.trajectory
     # judged on the true state: samples 0..end-1, and the state the last command led to
     states = true_q[: end + 1]

@@ -1,14 +1,15 @@
 """The fault campaign's ingredients: controllers, trajectories and faults, by name.
 
-Every fault is a plain, picklable description (:class:`Fault`); turning it into a
-simulation, a start configuration, a trajectory or a controller happens in
-:mod:`dqcontrol.faults.campaign`. The controllers are :mod:`dqcontrol.registry`'s, the
-trajectories are described by their metadata. Faults are grouped by what they corrupt:
+Every fault is a plain, picklable description (:class:`Fault`); turning it into a driver
+(:func:`~dqcontrol.faults.simulation.fault_driver`), a start configuration, a trajectory or
+a controller happens in :mod:`dqcontrol.faults.campaign`. The controllers are
+:mod:`dqcontrol.registry`'s, the trajectories are described by their metadata. Faults are
+grouped by what they corrupt:
 
 - *measurement*: noise on ``q`` and ``qd``, a delay of one or two control periods
-  (:class:`~dqcontrol.faults.simulation.FaultySimulation`);
+  (:class:`~dqcontrol.sim.FaultyDriver`);
 - *model* (MuJoCo only): an unknown payload at the flange, torque limits halved
-  (:class:`~dqcontrol.sim.MujocoSimulation` options);
+  (:class:`~dqcontrol.sim.PayloadDriver`, :class:`~dqcontrol.sim.TorqueLimitDriver`);
 - *task*: a path partly outside the workspace, a start far from the path, a start at a
   singular configuration, a start within a degree of the joint limits;
 - *solver* (QP controllers only): contradictory bounds

@@ -1,15 +1,14 @@
 """Closed loops: one control loop (:func:`run_loop`) against a joint driver — ideal kinematic,
-MuJoCo, a position-only interface, a faulty wrapper or a simulation in another process
+MuJoCo, a position-only interface, fault wrappers (measurement noise and delay, an unknown
+payload, lower torque limits) or a simulation in another process
 (:class:`BridgeDriver`, :class:`SimServer`) — and its thin names for the kinematic loop and
 the MuJoCo simulation."""
 
 from dqcontrol.sim.bridge import BridgeDriver, SimServer
 from dqcontrol.sim.driver import (
-    FaultyDriver,
     JointDriver,
     JointMismatchError,
     KinematicDriver,
-    MeasurementFaults,
     MujocoDriver,
     PositionInterface,
     SimulatedDriver,
@@ -19,11 +18,19 @@ from dqcontrol.sim.driver import (
 )
 from dqcontrol.sim.kinematic import run_kinematic
 from dqcontrol.sim.loop import RunResult, run_loop
+from dqcontrol.sim.measurement_faults import FaultyDriver, MeasurementFaults
+from dqcontrol.sim.model_faults import (
+    DynamicSimulation,
+    NotASimulatorError,
+    PayloadDriver,
+    TorqueLimitDriver,
+)
 from dqcontrol.sim.mujoco_loop import run_mujoco
 from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation, ServoGains
 
 __all__ = [
     "BridgeDriver",
+    "DynamicSimulation",
     "FaultyDriver",
     "JointDriver",
     "JointMismatchError",
@@ -32,12 +39,15 @@ __all__ = [
     "MeasurementFaults",
     "MujocoDriver",
     "MujocoSimulation",
+    "NotASimulatorError",
+    "PayloadDriver",
     "PositionInterface",
     "RunResult",
     "ServoGains",
     "SimServer",
     "SimulatedDriver",
     "SimulationDriver",
+    "TorqueLimitDriver",
     "VelocityFromPosition",
     "joint_map",
     "run_kinematic",

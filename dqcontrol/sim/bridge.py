@@ -18,7 +18,11 @@ Wire format, version 1 (every number little-endian; docs/drivers.md has the tabl
   1 = brake, 2 = hold (zero velocity); answered by ``STATE``;
 - ``STATE`` (5, server → client): ``t`` [s], ``q[n]``, ``qd[n]``, ``torque[n]``,
   ``torque_peak[n]``, all ``f64``; its sequence number is that of the message it answers;
-- ``ERROR`` (6, server → client): the reason, UTF-8; status: the reason's code.
+- ``ERROR`` (6, server → client): the reason, UTF-8; status: the reason's code;
+- ``DESCRIBE`` (7, client → server): the header only; answered by ``DESCRIPTION`` (8): a
+  JSON object, UTF-8, describing what is served (:meth:`SimServer.describe`: robot, joints,
+  period, simulator, drive, faults, server and protocol versions). A server that does not
+  know ``DESCRIBE`` answers ``ERROR``; the client then records no description.
 
 Both ends reject a packet of the wrong length, magic, version, kind or joint count, with a
 non-finite number, or (client) with a sequence number other than the one awaited (a
@@ -29,6 +33,7 @@ with the same state, without stepping again.
 
 from __future__ import annotations
 
+import json
 import struct
 import threading
 import time
@@ -48,15 +53,16 @@ __all__ = [
     "decode",
     "encode_command",
     "encode_state",
+    "run_origin",
 ]
 
 PROTOCOL_VERSION = 1
 MAGIC = b"DQ"
 #: magic, version, kind, sequence number, joint count, status.
 HEADER = struct.Struct("<2sBBIHH")
-HELLO, WELCOME, RESET, COMMAND, STATE, ERROR = 1, 2, 3, 4, 5, 6
+HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION = 1, 2, 3, 4, 5, 6, 7, 8
 TRACK, BRAKE, HOLD = 0, 1, 2
-_KINDS = {HELLO, WELCOME, RESET, COMMAND, STATE, ERROR}
+_KINDS = {HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION}
 
 
 class BridgeError(DQControlError):
@@ -94,6 +100,7 @@ def encode_state(seq: int, m: Measurement, status: int = 0) -> bytes:
 def _body_size(kind: int, n: int) -> int | None:
     return {
         HELLO: 0,
+        DESCRIBE: 0,
         RESET: 8 * n,
         COMMAND: 8 * (n + 2),
         STATE: 8 * (1 + 4 * n),
@@ -102,8 +109,8 @@ def _body_size(kind: int, n: int) -> int | None:
 
 def decode(packet: bytes, n_expected: int | None = None) -> tuple[int, int, int, object]:
     """``(kind, seq, status, body)`` of a packet; ``body``: the float array (``RESET``,
-    ``COMMAND``, ``STATE``), ``(period, names)`` (``WELCOME``), the text (``ERROR``) or
-    ``None`` (``HELLO``).
+    ``COMMAND``, ``STATE``), ``(period, names)`` (``WELCOME``), the text (``ERROR``), a dict
+    (``DESCRIPTION``) or ``None`` (``HELLO``, ``DESCRIBE``).
 
     Raises:
         PacketError: the packet is malformed (its ``reason`` says how).
@@ -128,17 +135,30 @@ def decode(packet: bytes, n_expected: int | None = None) -> tuple[int, int, int,
         if len(names) != n or not (np.isfinite(period) and period > 0):
             raise PacketError("bad welcome")
         return kind, seq, status, (period, names)
+    if kind == DESCRIPTION:
+        return kind, seq, status, _description(body)
     if n_expected is not None and kind != HELLO and n != n_expected:
         raise PacketError("wrong joint count")
     size = _body_size(kind, n)
     if size is None or len(body) != size:
         raise PacketError("wrong length")
-    if kind == HELLO:
+    if kind in (HELLO, DESCRIBE):
         return kind, seq, status, None
     values = np.frombuffer(body, dtype="<f8").astype(float)
     if not np.isfinite(values[: None if kind != STATE else 1 + 2 * n]).all():
         raise PacketError("non-finite value")
     return kind, seq, status, values
+
+
+def _description(body: bytes) -> dict:
+    """A ``DESCRIPTION`` body: a JSON object (PacketError ``"bad description"`` if not)."""
+    try:
+        value = json.loads(body.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError):
+        raise PacketError("bad description") from None
+    if not isinstance(value, dict):
+        raise PacketError("bad description")
+    return value
 
 
 def _zmq():
@@ -162,16 +182,25 @@ class SimServer:
         driver: a simulated driver (``reset``, ``write``, ``hold``, ``read``, ``period_s``).
         address: ``tcp://127.0.0.1:PORT``; port 0 picks a free port (:attr:`address`
             says which).
+        description: entries added to :meth:`describe` (e.g. the robot's name); JSON
+            values.
+
+    Raises:
+        ParameterError: a description that JSON cannot carry.
 
     :meth:`serve` answers messages until :meth:`stop` (or ``max_messages``); every
     rejected packet is counted in :attr:`rejected` by reason and answered with ``ERROR``.
     """
 
-    def __init__(self, driver, address: str = "tcp://127.0.0.1:0") -> None:
+    def __init__(
+        self, driver, address: str = "tcp://127.0.0.1:0", description: dict | None = None
+    ) -> None:
         zmq = _zmq()
         self.driver = driver
         self.joint_names = tuple(driver.joint_names)
         self.n = len(self.joint_names)
+        self._description = dict(description or {})
+        self._described = self._encode_description()
         self._ctx = zmq.Context.instance()
         self._sock = self._ctx.socket(zmq.ROUTER)
         self._sock.setsockopt(zmq.LINGER, 0)
@@ -188,6 +217,33 @@ class SimServer:
         self._stop = threading.Event()
         self._last_seq: int | None = None
         self._last_state: bytes | None = None
+
+    def describe(self) -> dict:
+        """What is served, for the client's run log: ``server``, ``dqcontrol_version``,
+        ``protocol_version``, ``period_s``, ``joint_names``, the driver's ``meta``
+        (``simulator``, ``physics_dt_s``, ``motor``, fault settings ...) and the entries
+        given as ``description``."""
+        from dqcontrol import __version__
+
+        return {
+            "server": "dqcontrol sim-server",
+            "dqcontrol_version": __version__,
+            "protocol_version": PROTOCOL_VERSION,
+            "period_s": float(self.driver.period_s),
+            "joint_names": list(self.joint_names),
+            **dict(getattr(self.driver, "meta", {})),
+            **self._description,
+        }
+
+    def _encode_description(self) -> bytes:
+        description = self.describe()
+        try:
+            text = json.dumps(description, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise ParameterError(
+                f"the server's description must be JSON values: {exc} (in {description!r})"
+            ) from None
+        return _header(DESCRIPTION, 0, self.n) + text.encode("utf-8")
 
     def stop(self) -> None:
         """Ask :meth:`serve` to return (from another thread)."""
@@ -227,6 +283,8 @@ class SimServer:
                 return (
                     _header(WELCOME, seq, self.n) + struct.pack("<d", self.driver.period_s) + names
                 )
+            if kind == DESCRIBE:
+                return _header(DESCRIPTION, seq, self.n) + self._described[HEADER.size :]
             if kind == RESET:
                 m = self.driver.reset(body)
             elif kind == COMMAND:
@@ -272,6 +330,8 @@ class BridgeDriver:
         BridgeError: no ``WELCOME`` within ``hello_timeout_s``.
 
     Attributes:
+        server: the server's description (:meth:`SimServer.describe`), ``{}`` if it gave
+            none; the run log's ``meta["server"]``.
         rejected: received packets rejected, by reason (``"stale sequence"`` for
             duplicated, reordered or late replies, ``"wrong length"``, ``"wrong version"``,
             ``"non-finite value"``, ``"wrong joint count"``, ``"server error: …"`` ...).
@@ -299,11 +359,18 @@ class BridgeDriver:
             raise BridgeError(f"no answer from a dqcontrol sim-server at {self.address}")
         self.period_s, self.joint_names = body
         self.n = len(self.joint_names)
+        self.server = self._describe(hello_timeout_s)
+
+    def _describe(self, timeout_s: float) -> dict:
+        """The server's ``DESCRIPTION`` (``{}`` if it answers ``ERROR`` or nothing)."""
+        packet = _header(DESCRIBE, self._next(), self.n)
+        body = self._request(packet, DESCRIPTION, timeout_s, error_ends=True)
+        return {} if body is None else body
 
     @property
     def meta(self) -> dict:
-        """``simulator`` (``bridge``) and the server's address, for the run log."""
-        return {"simulator": "bridge", "address": self.address}
+        """``simulator`` (``"bridge"``), ``address`` and the server's description."""
+        return {"simulator": "bridge", "address": self.address, "server": dict(self.server)}
 
     def report(self) -> dict:
         """Counters for the run log: rejected packets by reason, timeouts."""
@@ -313,9 +380,10 @@ class BridgeDriver:
         """Close the connection (idempotent)."""
         self._sock.close(0)
 
-    def _request(self, packet: bytes, want: int, timeout_s: float):
+    def _request(self, packet: bytes, want: int, timeout_s: float, error_ends: bool = False):
         """Send ``packet`` and wait for the answer of kind ``want`` carrying its sequence
-        number; returns its body, or ``None`` after ``timeout_s``."""
+        number; returns its body, or ``None`` after ``timeout_s`` (or at an ``ERROR`` if
+        ``error_ends``)."""
         seq = HEADER.unpack_from(packet)[3]
         self._sock.send(packet)
         deadline = time.perf_counter() + timeout_s
@@ -331,6 +399,8 @@ class BridgeDriver:
                 continue
             if kind == ERROR:
                 self.rejected[f"server error: {body}"] += 1
+                if error_ends:
+                    return None
                 continue
             if kind != want:
                 self.rejected["unexpected kind"] += 1
@@ -380,3 +450,26 @@ class BridgeDriver:
 
     def __repr__(self) -> str:
         return f"BridgeDriver({self.address!r}, n={self.n})"
+
+
+def run_origin(meta: dict) -> str:
+    """Where a run's states came from, in one line, from its log's ``meta``: the simulator
+    in this process, or the sim-server (address, version, robot, drive, period, payload)
+    of a bridged run."""
+    if meta.get("simulator") != "bridge":
+        return f"{meta.get('simulator', 'an unknown simulator')} in this process"
+    address = meta.get("address", "an unknown address")
+    server = meta.get("server") or {}
+    if not server:
+        return f"a sim-server at {address} (it gave no description)"
+    details = [str(server[key]) for key in ("robot", "simulator") if server.get(key) is not None]
+    if server.get("motor"):
+        details.append(f"{server['motor']} drive")
+    if server.get("period_s"):
+        details.append(f"T = {server['period_s']:g} s")
+    if server.get("payload_kg"):
+        details.append(f"unknown payload {server['payload_kg']:g} kg")
+    if server.get("effort_scale", 1.0) != 1.0:
+        details.append(f"torque limits × {server['effort_scale']:g}")
+    name = f"{server.get('server', 'a sim-server')} {server.get('dqcontrol_version', '')}"
+    return f"{name.strip()} at {address}: {', '.join(details) or 'no details'}"

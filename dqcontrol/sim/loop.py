@@ -10,19 +10,23 @@ Before the first command the loop checks the driver's joints against the model's
 (:func:`~dqcontrol.sim.driver.joint_map`) and runs one step of a copy of the controller, so
 that the compiled kernels are loaded before the clock starts.
 
-A watchdog ends the run on a stale measurement (no newer sample for ``stale_periods``
-periods), a missed deadline (wall-clock mode), the end of the task or the time limit, or
-Ctrl-C; with ``brake=True`` it then brings the command to zero within the controller's
-acceleration limit (``|Δu| ≤ a_max T`` per period) and holds. Braking happens after the
-last logged sample: the log and the metrics are those of the task.
+In wall-clock mode each sample starts on the grid ``start + k T`` (a sleep, then a short
+poll of the clock) and its deadline is the end of its period; the garbage collector sees
+only the run's own objects. A watchdog ends the run on a stale measurement (no newer sample
+for ``stale_periods`` periods), a missed deadline (wall-clock mode), the end of the task or
+the time limit, or Ctrl-C; with ``brake=True`` it then brings the command to zero within
+the controller's acceleration limit (``|Δu| ≤ a_max T`` per period) and holds. Braking
+happens after the last logged sample: the log and the metrics are those of the task.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import gc
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +43,9 @@ __all__ = ["RunResult", "run_loop"]
 
 #: Longest brake [periods]; a command that cannot reach zero by then is set to zero.
 MAX_BRAKE_PERIODS = 10_000
+#: Wall-clock mode: the last part of each wait [s] polls the clock instead of sleeping (a
+#: sleep ends 0.1-0.3 ms after its target on a Linux host; a poll within a microsecond).
+SPIN_S = 0.0005
 
 
 @dataclass(frozen=True)
@@ -79,19 +86,25 @@ def _brake_rate(controller: Controller, q: np.ndarray) -> np.ndarray:
 
 
 class _Clock:
-    """Pacing of the wall-clock mode (none in stepped mode)."""
+    """Pacing of the wall-clock mode (none in stepped mode): sample k starts at
+    ``start + k T`` and must end by ``start + (k + 1) T``, its deadline.
+
+    ``lateness_s``: end of each sample's work minus its deadline (> 0: missed);
+    ``jitter_s``: start of each sample after the first minus its scheduled start.
+    """
 
     def __init__(self, period_s: float, realtime: bool) -> None:
         self.period_s, self.realtime = period_s, realtime
         self.start = time.perf_counter()
         self.k = 0
         self.lateness_s: list[float] = []
+        self.jitter_s: list[float] = []
 
     def restart(self) -> None:
         self.start, self.k = time.perf_counter(), 0
 
     def wait(self) -> bool:
-        """End of a period: sleep until its deadline; ``False`` if it was already missed."""
+        """End of a period: wait for its deadline; ``False`` if it was already missed."""
         self.k += 1
         if not self.realtime:
             return True
@@ -100,8 +113,53 @@ class _Clock:
         self.lateness_s.append(late)
         if late > 0.0:
             return False
-        time.sleep(-late)
+        _sleep_until(deadline)
+        self.jitter_s.append(time.perf_counter() - deadline)
         return True
+
+    def report(self) -> dict:
+        """``meta["stop"]``'s timing entries [ms]: lateness (max, median: negative is the
+        slack left), start jitter (median, p99, max) and the missed deadlines."""
+        if not (self.realtime and self.lateness_s):
+            return {}
+        late = 1e3 * np.asarray(self.lateness_s)
+        jitter = 1e3 * np.asarray(self.jitter_s or [0.0])
+        return {
+            "lateness_max_ms": float(late.max()),
+            "lateness_median_ms": float(np.median(late)),
+            "jitter_median_ms": float(np.median(jitter)),
+            "jitter_p99_ms": float(np.percentile(jitter, 99)),
+            "jitter_max_ms": float(jitter.max()),
+            "missed_deadlines": int(np.count_nonzero(late > 0.0)),
+        }
+
+
+def _sleep_until(deadline: float) -> None:
+    """Sleep until ``SPIN_S`` before ``deadline`` (``time.perf_counter`` seconds), then
+    poll the clock until it passes."""
+    left = deadline - time.perf_counter() - SPIN_S
+    if left > 0.0:
+        time.sleep(left)
+    while time.perf_counter() < deadline:
+        pass
+
+
+@contextlib.contextmanager
+def _young_gc_only(enabled: bool) -> Iterator[None]:
+    """While the block runs, the garbage collector sees only objects made in it: a full
+    collection first, then every existing object frozen (``gc.freeze``), unfrozen after
+    (unless the caller had frozen objects already: ``gc.unfreeze`` would free theirs too)."""
+    if not enabled:
+        yield
+        return
+    frozen_before = gc.get_freeze_count()
+    gc.collect()
+    gc.freeze()
+    try:
+        yield
+    finally:
+        if frozen_before == 0:
+            gc.unfreeze()
 
 
 def run_loop(
@@ -132,9 +190,12 @@ def run_loop(
             ``period_s``, the driver's own entries and ``joint_names``).
         on_sample: ``f(k, driver, result)`` after each sample.
         on_progress: ``f(σ_next, T_tot)`` [s] after each sample (e.g. a progress bar).
-        realtime: pace the loop on the wall clock (one sample per ``T``); a step that
-            ends after its period's deadline stops the run (``reason = "deadline"``).
-            Otherwise the loop runs as fast as the driver answers (simulated time).
+        realtime: pace the loop on the wall clock: sample k starts at ``start + k T``
+            (a sleep, then the last :data:`SPIN_S` polling the clock) and must end by
+            ``start + (k + 1) T``; one that ends later stops the run
+            (``reason = "deadline"``). The garbage collector meanwhile sees only the
+            objects made during the run (``gc.freeze``). Otherwise the loop runs as fast as
+            the driver answers (simulated time).
         stale_periods: the run stops (``reason = "stale"``) when the measurement has not
             been renewed for this many periods.
         brake: after the run, ramp the command to zero within the acceleration limit, hold.
@@ -143,7 +204,9 @@ def run_loop(
     Returns:
         :class:`RunResult`; Ctrl-C, a driver error, a stale measurement or a missed deadline
         keep the samples done (``interrupted=True``, a ``note``); ``meta["stop"]`` says why
-        it ended and how long it braked, ``meta["driver_report"]`` the driver's counters.
+        it ended, how long it braked and, on the wall clock, the lateness, start jitter and
+        missed deadlines [ms] (:meth:`_Clock.report`); ``meta["driver_report"]`` has the
+        driver's counters.
 
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
@@ -160,7 +223,9 @@ def run_loop(
     rec = LogRecorder(robot.nq, _run_info(driver, controller, order.names, q, warm_up, meta))
     clock = _Clock(period, bool(realtime))
     run = _Samples(controller, driver, order, rec, clock, meas)
-    run.loop(num, stale_periods, on_sample, on_progress)
+    with _young_gc_only(clock.realtime):
+        clock.restart()
+        run.loop(num, stale_periods, on_sample, on_progress)
     stop = _stop_and_brake(run, brake)
     return _result(controller, driver, rec, stop, run)
 
@@ -183,14 +248,11 @@ def _sample_count(controller: Controller, max_time_s: float | None, stale_period
 
 
 def _stop_and_brake(run: _Samples, brake: bool) -> dict:
-    """``meta["stop"]``: why the run ended, the lateness on the wall clock, and the periods
-    of braking (done here, after the last logged sample)."""
+    """``meta["stop"]``: why the run ended, the timing on the wall clock
+    (:meth:`_Clock.report`), and the periods of braking (done here, after the last logged
+    sample)."""
     clock = run.clock
-    stop: dict = {"reason": run.reason or "end", "brake_periods": 0}
-    if clock.realtime and clock.lateness_s:
-        late = np.asarray(clock.lateness_s)
-        stop["lateness_max_ms"] = float(1e3 * late.max())
-        stop["lateness_median_ms"] = float(1e3 * np.median(late))
+    stop: dict = {"reason": run.reason or "end", "brake_periods": 0, **clock.report()}
     if brake and run.reason != "simulation":
         stop["brake_periods"] = _brake_and_hold(
             run.driver, np.array(run.command, dtype=float),

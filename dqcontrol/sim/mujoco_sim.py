@@ -83,7 +83,7 @@ Physical defaults (documented choices, not identified values)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -187,6 +187,28 @@ def _per_joint(name: str, value, n: int, unit: str) -> np.ndarray:
     return arr
 
 
+def _payload_offset(value) -> np.ndarray:
+    """The payload's centre in the end-effector frame [m]: 3 finite numbers (``None``: 0)."""
+    try:
+        offset = np.zeros(3) if value is None else np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        offset = np.full(1, np.nan)
+    if offset.shape != (3,) or not np.isfinite(offset).all():
+        raise ParameterError(f"payload_offset_m must be 3 finite numbers [m], got {value!r}")
+    return offset.copy()
+
+
+def _effort_limits(robot: RobotModel) -> np.ndarray:
+    """The URDF's effort limit of every controlled joint [N·m] (each must be > 0)."""
+    effort = np.asarray(robot.limits.effort_max, dtype=float)
+    if not (np.isfinite(effort).all() and (effort > 0.0).all()):
+        raise ParameterError(
+            f"every controlled joint needs a positive URDF effort limit, got {effort} for "
+            f"{robot.joint_names}"
+        )
+    return effort
+
+
 class MujocoSimulation:
     """A robot in MuJoCo whose joints track velocity commands through torque-limited servos.
 
@@ -266,22 +288,8 @@ class MujocoSimulation:
         n = robot.nq
         scale = _positive("effort_scale", effort_scale, "-")
         payload = _positive("payload_kg", payload_kg, "kg", allow_zero=True)
-        try:
-            offset = (
-                np.zeros(3) if payload_offset_m is None else np.asarray(payload_offset_m, float)
-            )
-        except (TypeError, ValueError):
-            offset = np.full(1, np.nan)
-        if offset.shape != (3,) or not np.isfinite(offset).all():
-            raise ParameterError(
-                f"payload_offset_m must be 3 finite numbers [m], got {payload_offset_m!r}"
-            )
-        effort = np.asarray(robot.limits.effort_max, dtype=float)
-        if not (np.isfinite(effort).all() and (effort > 0.0).all()):
-            raise ParameterError(
-                f"every controlled joint needs a positive URDF effort limit, got {effort} for "
-                f"{robot.joint_names}"
-            )
+        offset = _payload_offset(payload_offset_m)
+        effort = _effort_limits(robot)
         arm = (
             ARMATURE_PER_NM * effort
             if armature is None
@@ -302,43 +310,15 @@ class MujocoSimulation:
         )
         self.servo_time_constant_s = tau_v
         self.integral_time_constant_s = tau_i
-        self.effort_scale = scale
-        self.payload_kg = payload
         self.gravity_feedforward = bool(gravity_feedforward)
-        #: Torque limit of each joint's drive [N·m] (``effort_scale`` × URDF effort).
-        self.torque_limit = scale * effort
         #: Reflected rotor inertia of each joint [kg·m²].
         self.armature = arm.copy()
 
-        prepared = prepare_urdf_xml(robot.source)
+        self._prepared = prepare_urdf_xml(robot.source)
         #: Visual meshes MuJoCo could not read and that were left out (path and reason).
-        self.dropped_visuals = prepared.dropped_visuals
-        options = SpecOptions(
-            physics_dt_s=dt,
-            gravity=bool(gravity),
-            armature_kg_m2=arm,
-            damping_nms_rad=damping,
-            effort_limit_nm=self.torque_limit,
-            payload_kg=payload,
-            payload_offset_m=offset,
-            obstacles=tuple(obstacles),
-        )
+        self.dropped_visuals = self._prepared.dropped_visuals
         #: Static obstacles in the world (they collide with the robot's geometry).
         self.obstacles = tuple(obstacles)
-        #: The edited :class:`mujoco.MjSpec` the model was compiled from.
-        self.spec = build_spec(robot, prepared, options)
-        try:
-            self._model = self.spec.compile()
-        except ValueError as exc:
-            raise URDFError(f"MuJoCo could not compile the robot model: {exc}") from None
-        self._data = mujoco.MjData(self._model)
-        m = self._model
-        #: Viscous damping of each joint in the simulation [N·m·s/rad].
-        self.joint_damping = np.array([m.joint(j).damping[0] for j in robot.joint_names])
-        self._qpos_idx = np.array([m.joint(j).qposadr[0] for j in robot.joint_names])
-        self._dof_idx = np.array([m.joint(j).dofadr[0] for j in robot.joint_names])
-        self._site = m.site(robot.ee_frame).id
-        self._payload_body = m.body(PAYLOAD_BODY).id if payload > 0.0 else -1
         w = mujoco.mjtWarning
         self._bad = np.array(
             [
@@ -348,6 +328,19 @@ class MujocoSimulation:
                 int(w.mjWARN_BADCTRL),
             ]
         )
+        self._compile(
+            SpecOptions(
+                physics_dt_s=dt,
+                gravity=bool(gravity),
+                armature_kg_m2=arm,
+                damping_nms_rad=damping,
+                effort_limit_nm=scale * effort,
+                payload_kg=payload,
+                payload_offset_m=offset,
+                obstacles=self.obstacles,
+            )
+        )
+        self.effort_scale = scale
 
         # the drives' nominal model: the controller's, plus rotor inertia; gravity only as
         # feed-forward
@@ -377,6 +370,71 @@ class MujocoSimulation:
         self._ramp_done = 0
         self._warnings = 0
         self.reset(np.clip(np.zeros(n), robot.limits.q_min, robot.limits.q_max))
+
+    # ------------------------------------------------------------------ the model
+    def _compile(self, options: SpecOptions) -> None:
+        """Build and compile the MuJoCo model of ``options``. A simulation that is already
+        running keeps its joint state and time (and the drives theirs)."""
+        robot = self.robot
+        spec = build_spec(robot, self._prepared, options)
+        try:
+            model = spec.compile()
+        except ValueError as exc:
+            raise URDFError(f"MuJoCo could not compile the robot model: {exc}") from None
+        data = mujoco.MjData(model)
+        old = getattr(self, "_data", None)
+        if old is not None:  # a payload has no joint: qpos and qvel keep their layout
+            data.qpos[:], data.qvel[:], data.time = old.qpos, old.qvel, old.time
+            mujoco.mj_forward(model, data)
+        #: The edited :class:`mujoco.MjSpec` the model was compiled from.
+        self.spec = spec
+        self._options, self._model, self._data = options, model, data
+        #: Torque limit of each joint's drive [N·m] (``effort_scale`` × URDF effort).
+        self.torque_limit = np.array(options.effort_limit_nm, dtype=float)
+        #: Viscous damping of each joint in the simulation [N·m·s/rad].
+        self.joint_damping = np.array([model.joint(j).damping[0] for j in robot.joint_names])
+        self._qpos_idx = np.array([model.joint(j).qposadr[0] for j in robot.joint_names])
+        self._dof_idx = np.array([model.joint(j).dofadr[0] for j in robot.joint_names])
+        self._site = model.site(robot.ee_frame).id
+        self._payload_body = model.body(PAYLOAD_BODY).id if options.payload_kg > 0.0 else -1
+        self._warnings = self._bad_count()
+
+    @property
+    def payload_kg(self) -> float:
+        """Mass at the end-effector that the drives' and the controller's models do not
+        know [kg] (0: none)."""
+        return float(self._options.payload_kg)
+
+    @property
+    def payload_offset_m(self) -> np.ndarray:
+        """The payload's centre in the end-effector frame [m] (a copy)."""
+        return np.array(self._options.payload_offset_m, dtype=float)
+
+    def set_payload(self, mass_kg: float, offset_m: np.ndarray | None = None) -> None:
+        """Carry ``mass_kg`` [kg] (0: none) centred at ``offset_m`` [m] in the end-effector
+        frame, unknown to the drives' model. The model is rebuilt; the joint state, the
+        time and the drives' state are kept, and :attr:`model` and :attr:`data` are new
+        objects (a viewer of the old ones must take them again).
+
+        Raises:
+            ParameterError: a negative or non-finite mass, an offset that is not 3 finite
+                numbers.
+        """
+        mass = _positive("payload_kg", mass_kg, "kg", allow_zero=True)
+        offset = _payload_offset(offset_m)
+        self._compile(replace(self._options, payload_kg=mass, payload_offset_m=offset))
+
+    def set_effort_scale(self, scale: float) -> None:
+        """Limit every drive's torque to ``scale`` × the URDF's effort limit (``scale`` > 0;
+        0.5 halves them). The model is rebuilt; the state is kept (as :meth:`set_payload`).
+
+        Raises:
+            ParameterError: ``scale`` is not finite and > 0.
+        """
+        value = _positive("effort_scale", scale, "-")
+        limits = value * _effort_limits(self.robot)
+        self._compile(replace(self._options, effort_limit_nm=limits))
+        self.effort_scale = value
 
     # ------------------------------------------------------------------ properties
     @property

@@ -12,7 +12,9 @@ and the study's tables. Three are known:
 - ``faults`` (:mod:`dqcontrol.studies.faults_study`) — the cases of
   :mod:`dqcontrol.faults.campaign`, with its faults and report.
 
-Every job runs its case through :func:`dqcontrol.experiments.runner.simulate`.
+Every job runs its case through :func:`~dqcontrol.sim.run_loop`: ``tracking`` and
+``table1`` through :func:`dqcontrol.experiments.runner.simulate`, ``faults`` with the
+campaign's faulty drivers.
 """
 
 from __future__ import annotations
