@@ -267,21 +267,23 @@ def test_blown_up_state_raises(lbr4p):
         sim.step(np.zeros(7), 0.01)
 
 
-def test_missing_collision_mesh_raises(tmp_path):
+def test_collision_mesh_mujoco_cannot_read_raises(tmp_path):
     urdf = """<robot name="r">
       <link name="base"/>
       <link name="l1">
         <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
           ixy="0" ixz="0" iyz="0"/></inertial>
-        <collision><geometry><mesh filename="package://nowhere/l1.stl"/></geometry></collision>
+        <collision><geometry><mesh filename="meshes/l1.dae"/></geometry></collision>
       </link>
       <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
         <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
     </robot>"""
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "l1.dae").write_text("<COLLADA/>")
     path = tmp_path / "r.urdf"
     path.write_text(urdf)
     robot = dqcontrol.RobotModel.from_urdf(path, "l1")
-    with pytest.raises(URDFError, match="l1.stl"):
+    with pytest.raises(URDFError, match=r"l1\.dae.*cannot read '\.dae'"):
         MujocoSimulation(robot)
 
 

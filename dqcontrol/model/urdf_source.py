@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dqcontrol.errors import URDFError
+from dqcontrol.model.meshes import check_meshes
 
 #: A URDF larger than this is refused before parsing [bytes] (robot descriptions are kB).
 MAX_URDF_BYTES = 20_000_000
@@ -32,7 +33,7 @@ class URDFSource:
     Attributes:
         xml: the URDF document.
         path: the file it was read from, or ``None`` when given as a string.
-        package_dirs: folders searched for ``package://`` mesh paths (viewer, simulator).
+        package_dirs: folders searched for ``package://`` mesh URIs.
     """
 
     xml: str
@@ -51,10 +52,18 @@ def read_urdf(
     """Read a URDF from a file path or an XML string, check it, and return its source.
 
     A string whose first non-blank character is ``<`` is taken as XML; anything else as a
-    path. Raises :class:`URDFError` for a missing file, an oversize file, malformed XML or
-    invalid values (see :func:`check_urdf_xml`).
+    path. Raises :class:`URDFError` for a missing file, an oversize file, malformed XML,
+    invalid values (see :func:`check_urdf_xml`), a package folder that does not exist, or a
+    mesh file that cannot be found or lies outside its folder
+    (:func:`~dqcontrol.model.meshes.check_meshes`).
     """
-    dirs = tuple(Path(p) for p in (package_dirs or []))
+    dirs = tuple(Path(p).expanduser() for p in (package_dirs or []))
+    for folder in dirs:
+        if not folder.is_dir():
+            raise URDFError(
+                f"package folder '{folder}' does not exist (or is not a folder); package_dirs "
+                "must name existing folders that hold the packages of package:// URIs"
+            )
     if isinstance(urdf, bytes | bytearray):
         if len(urdf) > MAX_URDF_BYTES:
             raise URDFError(f"URDF text is {len(urdf)} bytes; refusing over {MAX_URDF_BYTES}")
@@ -88,7 +97,9 @@ def read_urdf(
             raise URDFError(f"cannot read URDF file '{path}': {exc.strerror or exc}") from None
     if len(xml) > MAX_URDF_BYTES:
         raise URDFError(f"URDF text is {len(xml)} characters; refusing over {MAX_URDF_BYTES}")
-    check_urdf_xml(xml, where=str(path) if path else "<string>")
+    where = str(path) if path else "<string>"
+    check_urdf_xml(xml, where=where)
+    check_meshes(ET.fromstring(xml), dirs, None if path is None else path.parent, where)
     return URDFSource(xml=xml, path=path, package_dirs=dirs)
 
 
