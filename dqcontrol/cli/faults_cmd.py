@@ -12,6 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from dqcontrol.cli.common import add_out_option, add_progress_option
 from dqcontrol.errors import ParameterError
 
 __all__ = ["register", "run"]
@@ -54,9 +55,7 @@ def register(subparsers) -> None:
             f"faults: {', '.join(f.name for f in FAULTS)}."
         ),
     )
-    parser.add_argument(
-        "--out", default="results", type=Path, help="output folder (default: results)"
-    )
+    add_out_option(parser, "results", "results folder")
     parser.add_argument(
         "--quick",
         action="store_true",
@@ -82,7 +81,7 @@ def register(subparsers) -> None:
         action="store_true",
         help="exit with code 1 if a QP controller violated a bound, saw NaN or raised",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(parser)
     parser.set_defaults(func=run)
 
 
@@ -108,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         total=len(cases),
         desc=f"faults ({args.simulator})",
         unit="case",
-        disable=args.no_progress,
+        disable=not args.progress,
         file=sys.stderr,
     )
 
