@@ -212,3 +212,14 @@ def test_mujoco_hinge_of_a_continuous_joint_is_unlimited(arm, lbr4p):
     assert dqcontrol.sim.MujocoSimulation(lbr4p).model.jnt_limited.all()
     state = sim.reset(np.r_[4.0, LBR4P_Q0[1:]])  # an angle beyond π is a state like any other
     np.testing.assert_allclose(state.q[0], 4.0)
+
+
+def test_collision_distances_equal_the_revolute_arm(arm, lbr4p):
+    from dqcontrol.model.collision import CollisionModel, parse_obstacle
+
+    sphere = parse_obstacle("sphere:0.4,-0.3,0.7,0.05", name="ball")
+    model = CollisionModel(arm, [sphere], self_collision=True)
+    reference = CollisionModel(lbr4p, [sphere], self_collision=True)
+    assert model.num_pairs == reference.num_pairs > 0
+    for q in _configurations(5, seed=8):
+        assert model.min_distance(q) == pytest.approx(reference.min_distance(q), abs=1e-9)
