@@ -78,6 +78,13 @@ def test_kinematics_equal_pinocchios_cos_sin_model(urdf_continuous, arm):
         np.testing.assert_allclose(x * np.sign(x_ref @ x), x_ref, rtol=0, atol=1e-12)
 
 
+def test_a_pinocchio_model_with_cos_sin_joints_is_taken_as_angles(urdf_continuous, arm):
+    robot = RobotModel(pin.buildModelFromUrdf(str(urdf_continuous)), "lbr4p_flange")
+    assert robot.nq == robot.model.nq == 7 and robot.limits.q_max[0] == np.inf
+    q = _configurations(1, seed=9)[0]
+    np.testing.assert_allclose(robot.pose(q), arm.pose(q), rtol=0, atol=1e-12)
+
+
 def test_jacobian_matches_finite_differences(arm):
     step = 1e-6
     for q in _configurations(10, seed=4):

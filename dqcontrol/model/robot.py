@@ -30,7 +30,7 @@ from dqcontrol.dq.kernels import pose_jacobian_batch, pose_jacobian_from_xyzquat
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
 from dqcontrol.model.fast import UncheckedModel
-from dqcontrol.model.pinocchio_model import build_angle_model, lock_joints
+from dqcontrol.model.pinocchio_model import angle_model, build_angle_model, lock_joints
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
 
 __all__ = ["JointLimits", "RobotModel"]
@@ -59,7 +59,9 @@ class RobotModel:
     """A fixed-base robot from a URDF, with its end-effector pose as a unit dual quaternion.
 
     Build with :meth:`from_urdf`. All quantities are in the world frame of the model (the
-    URDF's root link, moved by ``base`` if one is given).
+    URDF's root link, moved by ``base`` if one is given). A Pinocchio model given directly
+    may hold unbounded revolute joints (``(cos θ, sin θ)``); they become angle-coordinate
+    joints (:func:`~dqcontrol.model.pinocchio_model.angle_model`).
 
     Attributes:
         model, data: the Pinocchio model and its workspace (the model may be reduced).
@@ -84,6 +86,7 @@ class RobotModel:
         locked_joints: dict[str, float] | None = None,
         tool_placement: pin.SE3 | None = None,
     ) -> None:
+        model = angle_model(model)  # continuous joints: one angle each
         if model.nq != model.nv:
             bad = [
                 model.names[j]
