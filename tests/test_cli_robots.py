@@ -115,6 +115,50 @@ def test_run_a_urdf_with_a_continuous_joint_and_meshes(tmp_path, capsys, no_figu
     assert robot_from_meta(log.meta).limits.q_max[0] == np.inf
 
 
+@pytest.mark.parametrize(
+    ("element", "messages"),
+    [
+        (
+            '<visual><geometry><mesh filename="package://../../../../etc/passwd"/></geometry>'
+            "</visual>",
+            ["climbs out of its package folder", "Folders searched: ['"],
+        ),
+        (
+            '<collision><geometry><mesh filename="meshes/base.dae"/></geometry></collision>',
+            ["'meshes/base.dae'", "accepted collision mesh formats: ['.obj', '.stl']"],
+        ),
+    ],
+)
+def test_run_a_urdf_with_a_bad_mesh_stops_before_the_run(
+    tmp_path, capsys, monkeypatch, element, messages
+):
+    """An escaping package path or a mesh format the simulator cannot read: exit code 2 with
+    the link and the file named, and nothing run (no simulation started, no output folder)."""
+    import dqcontrol.sim as sim
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("a run started")
+
+    monkeypatch.setattr(sim, "run_mujoco", no_run)
+    monkeypatch.setattr(sim, "run_kinematic", no_run)
+    xml = lbr4p_urdf_path().read_text()
+    xml = xml.replace('<link name="lbr4p_link_0">', f'<link name="lbr4p_link_0">{element}', 1)
+    assert element in xml
+    (tmp_path / "arm" / "meshes").mkdir(parents=True)
+    (tmp_path / "arm" / "meshes" / "base.dae").write_text("<COLLADA/>")
+    urdf = tmp_path / "arm" / "my_arm.urdf"
+    urdf.write_text(xml)
+    out = tmp_path / "out"
+    argv = [
+        "run", "--robot", str(urdf), "--ee-frame", "lbr4p_flange", "--simulator", "mujoco",
+        "--short", "--controllers", "local", "--duration", "1", "--out", str(out),
+    ]  # fmt: skip
+    err = _bad(argv, capsys)
+    assert "link 'lbr4p_link_0'" in err and str(urdf) in err
+    assert all(m in err for m in messages), err
+    assert not out.exists()
+
+
 # ---------------------------------------------------------------------- bad input
 @pytest.mark.parametrize(
     ("argv", "messages"),

@@ -1,5 +1,7 @@
-"""Mesh files are checked when a URDF is loaded: each must exist, inside the package or URDF
-folder it is looked up in; the error names the link, the file and the folders searched."""
+"""Mesh files are checked when a URDF is loaded: each must exist (a ``package://`` path inside
+its package folder, a relative path against the URDF's folder, wherever it lands) and be of a
+format its element's readers read; the error names the link, the file and the folders
+searched or the formats accepted."""
 
 from __future__ import annotations
 
@@ -9,24 +11,42 @@ import pytest
 
 from dqcontrol.errors import URDFError
 from dqcontrol.model import RobotModel
-from dqcontrol.model.meshes import find_mesh
+from dqcontrol.model.collision import _robot_geometry
+from dqcontrol.model.meshes import COLLISION_FORMATS, VISUAL_FORMATS, find_mesh
 from dqcontrol.sim.mjcf_builder import resolve_mesh_path
+from dqcontrol.viz.meshcat_viewer import robot_visual_models
 
 _URDF = """<robot name="r">
   <link name="base"/>
   <link name="forearm">
     <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
       ixy="0" ixz="0" iyz="0"/></inertial>
-    <visual><geometry><mesh filename="{mesh}"/></geometry></visual>
+    <{kind}><geometry><mesh filename="{mesh}"/></geometry></{kind}>
   </link>
   <joint name="j1" type="revolute"><parent link="base"/><child link="forearm"/>
     <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
 </robot>"""
 
 
-def _write(folder, mesh: str):
+_FACETS = ((0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3))
+_CORNERS = ((0, 0, 0), (0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1))
+#: An ASCII STL tetrahedron (a valid mesh with a convex hull, for the geometry readers).
+_STL = (
+    "solid t\n"
+    + "".join(
+        "facet normal 0 0 0\nouter loop\n"
+        + "".join("vertex {} {} {}\n".format(*_CORNERS[i]) for i in facet)
+        + "endloop\nendfacet\n"
+        for facet in _FACETS
+    )
+    + "endsolid t\n"
+)
+
+
+def _write(folder, mesh: str, kind: str = "visual"):
+    folder.mkdir(parents=True, exist_ok=True)
     path = folder / "robot.urdf"
-    path.write_text(_URDF.format(mesh=mesh))
+    path.write_text(_URDF.format(mesh=mesh, kind=kind))
     return path
 
 
@@ -36,11 +56,11 @@ def layout(tmp_path):
     outside both, ``tmp/secret.stl``."""
     share = tmp_path / "share"
     (share / "my_arm" / "meshes").mkdir(parents=True)
-    (share / "my_arm" / "meshes" / "forearm.stl").write_text("solid s\nendsolid s\n")
+    (share / "my_arm" / "meshes" / "forearm.stl").write_text(_STL)
     robot = tmp_path / "robot"
     (robot / "meshes").mkdir(parents=True)
-    (robot / "meshes" / "forearm.stl").write_text("solid s\nendsolid s\n")
-    (tmp_path / "secret.stl").write_text("solid s\nendsolid s\n")
+    (robot / "meshes" / "forearm.stl").write_text(_STL)
+    (tmp_path / "secret.stl").write_text(_STL)
     return tmp_path
 
 
@@ -74,22 +94,35 @@ def test_missing_package_mesh_lists_the_package_dirs(layout):
 
 
 @pytest.mark.parametrize(
-    "mesh", ["package://my_arm/../../secret.stl", "package://my_arm/meshes/../../../secret.stl"]
+    "mesh",
+    [
+        "package://my_arm/../../secret.stl",
+        "package://my_arm/meshes/../../../secret.stl",
+        "package://../secret.stl",
+        "package://../../../../etc/passwd",
+    ],
 )
-def test_package_path_leaving_its_folder_is_refused(layout, mesh):
+def test_package_path_climbing_out_of_its_folder_is_refused(layout, mesh):
     urdf = _write(layout / "robot", mesh)
-    with pytest.raises(URDFError, match="leaves the folder") as info:
+    with pytest.raises(URDFError, match="climbs out of its package folder") as info:
         RobotModel.from_urdf(urdf, "forearm", package_dirs=[layout / "share"])
-    assert "link 'forearm'" in str(info.value) and mesh in str(info.value)
+    message = str(info.value)
+    assert "link 'forearm'" in message and f"mesh '{mesh}'" in message
+    assert f"Folders searched: ['{layout / 'share'}" in message
+    assert find_mesh(mesh, (layout / "share",), layout / "robot").path is None
 
 
-def test_relative_path_leaving_the_urdf_folder_is_refused(layout):
-    assert (layout / "secret.stl").is_file()  # it exists, and is still refused
-    urdf = _write(layout / "robot", "../secret.stl")
-    with pytest.raises(URDFError, match="leaves the folder") as info:
-        RobotModel.from_urdf(urdf, "forearm")
-    assert str(layout / "secret.stl") in str(info.value)
-    assert find_mesh("../secret.stl", (), layout / "robot").path is None
+def test_relative_path_is_resolved_against_the_urdf_folder_wherever_it_lands(layout):
+    """The usual layout of a description: ``robot/urdf/robot.urdf`` and ``robot/meshes/``;
+    the viewer and the collision model read the very file found at load."""
+    urdf = _write(layout / "robot" / "urdf", "../meshes/forearm.stl", kind="collision")
+    robot = RobotModel.from_urdf(urdf, "forearm")
+    found = str((layout / "robot" / "meshes" / "forearm.stl").resolve())
+    assert f'filename="{found}"' in robot.source.xml_with_mesh_paths()
+    assert [g.meshPath for g in _robot_geometry(robot).geometryObjects] == [found]
+    outside = _write(layout / "robot" / "urdf", "../../secret.stl")
+    _, visual = robot_visual_models(RobotModel.from_urdf(outside, "forearm"))
+    assert [g.meshPath for g in visual.geometryObjects] == [str(layout / "secret.stl")]
 
 
 def test_dot_dot_that_stays_inside_is_accepted(layout):
@@ -110,7 +143,41 @@ def test_missing_package_dir_is_refused(layout):
 
 
 def test_urdf_text_resolves_relative_meshes_in_the_package_dirs(layout):
-    xml = _URDF.format(mesh="my_arm/meshes/forearm.stl")
+    xml = _URDF.format(mesh="my_arm/meshes/forearm.stl", kind="visual")
     with pytest.raises(URDFError, match="my_arm/meshes/forearm.stl"):
         RobotModel.from_urdf(xml, "forearm")
     assert RobotModel.from_urdf(xml, "forearm", package_dirs=[layout / "share"]).nq == 1
+
+
+def _mesh_file(layout, name: str) -> str:
+    (layout / "robot" / "meshes" / name).write_text(_STL)
+    return f"meshes/{name}"
+
+
+@pytest.mark.parametrize(
+    ("kind", "name"),
+    [
+        ("collision", "forearm.dae"),  # MuJoCo has no COLLADA reader
+        ("collision", "forearm.msh"),  # coal (collision model) has no .msh reader
+        ("visual", "forearm.msh"),  # nor has the viewer
+        ("visual", "forearm.txt"),
+        ("collision", "forearm"),
+    ],
+)
+def test_mesh_format_no_reader_of_its_element_reads_is_refused(layout, kind, name):
+    urdf = _write(layout / "robot", _mesh_file(layout, name), kind)
+    with pytest.raises(URDFError, match=f"accepted {kind} mesh formats") as info:
+        RobotModel.from_urdf(urdf, "forearm")
+    message = str(info.value)
+    assert "link 'forearm'" in message and f"mesh 'meshes/{name}'" in message
+    accepted = VISUAL_FORMATS if kind == "visual" else COLLISION_FORMATS
+    assert str(sorted(accepted)) in message
+
+
+@pytest.mark.parametrize(
+    ("kind", "name"),
+    [("visual", "forearm.dae"), ("visual", "forearm.OBJ"), ("collision", "forearm.STL")],
+)
+def test_mesh_formats_every_reader_of_its_element_reads_load(layout, kind, name):
+    urdf = _write(layout / "robot", _mesh_file(layout, name), kind)
+    assert RobotModel.from_urdf(urdf, "forearm").nq == 1

@@ -787,13 +787,10 @@ def _robot_geometry(robot: RobotModel) -> pin.GeometryModel:
     source = robot.source
     if source is None:
         raise ParameterError("the robot has no URDF source to read collision geometry from")
-    dirs = [str(p) for p in source.package_dirs]
-    if source.directory is not None:
-        dirs.append(str(source.directory))
     full = build_angle_model(source.xml)
-    try:
+    try:  # the meshes as the files found and checked at load
         geometry = pin.buildGeomFromUrdfString(
-            full, source.xml, pin.GeometryType.COLLISION, package_dirs=dirs
+            full, source.xml_with_mesh_paths(), pin.GeometryType.COLLISION
         )
     except (ValueError, RuntimeError) as exc:
         raise ParameterError(f"could not read the URDF's collision geometry: {exc}") from None

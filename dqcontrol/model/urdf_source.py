@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dqcontrol.errors import URDFError
-from dqcontrol.model.meshes import check_meshes
+from dqcontrol.model.meshes import absolute_mesh_xml, check_meshes
 
 #: A URDF larger than this is refused before parsing [bytes] (robot descriptions are kB).
 MAX_URDF_BYTES = 20_000_000
@@ -45,6 +45,13 @@ class URDFSource:
         """Folder of the URDF file (relative mesh paths are resolved from it)."""
         return None if self.path is None else self.path.parent
 
+    def xml_with_mesh_paths(self) -> str:
+        """The URDF text with every visual and collision mesh as the absolute path of the
+        file found (and checked) at load, so that every reader of the meshes (viewer,
+        collision model, simulator) reads those very files
+        (:func:`~dqcontrol.model.meshes.absolute_mesh_xml`)."""
+        return absolute_mesh_xml(ET.fromstring(self.xml), self.package_dirs, self.directory)
+
 
 def read_urdf(
     urdf: str | os.PathLike, package_dirs: list[str | os.PathLike] | None = None
@@ -54,8 +61,8 @@ def read_urdf(
     A string whose first non-blank character is ``<`` is taken as XML; anything else as a
     path. Raises :class:`URDFError` for a missing file, an oversize file, malformed XML,
     invalid values (see :func:`check_urdf_xml`), a package folder that does not exist, or a
-    mesh file that cannot be found or lies outside its folder
-    (:func:`~dqcontrol.model.meshes.check_meshes`).
+    mesh file that cannot be found, climbs out of its package folder or has a format the
+    viewer or simulator cannot read (:func:`~dqcontrol.model.meshes.check_meshes`).
     """
     dirs = tuple(Path(p).expanduser() for p in (package_dirs or []))
     for folder in dirs:

@@ -117,8 +117,8 @@ class SpecOptions:
 
 # ----------------------------------------------------------------------------- URDF text
 def resolve_mesh_path(filename: str, source: URDFSource) -> Path | None:
-    """Absolute path of a URDF mesh ``filename``, or ``None`` if no such file exists (or
-    its path leaves the folder it is looked up in); the search is
+    """Absolute path of a URDF mesh ``filename``, or ``None`` if no such file exists (or a
+    ``package://`` path climbs out of its package folder); the search is
     :func:`dqcontrol.model.meshes.find_mesh`'s."""
     return find_mesh(filename, source.package_dirs, source.directory).path
 
@@ -128,7 +128,9 @@ def prepare_urdf_xml(source: URDFSource) -> PreparedURDF:
 
     Raises:
         URDFError: a collision mesh cannot be found or has a type MuJoCo cannot read (the
-            simulation would silently lose that link's collision geometry).
+            simulation would silently lose that link's collision geometry). A source from
+            :func:`~dqcontrol.model.urdf_source.read_urdf` was already checked for both
+            (:mod:`dqcontrol.model.meshes`); this guards a hand-made one.
     """
     try:
         root = ET.fromstring(source.xml)

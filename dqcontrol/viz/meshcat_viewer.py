@@ -253,7 +253,7 @@ class OfflineWindow:
 def robot_visual_models(robot: RobotModel) -> tuple[pin.Model, pin.GeometryModel]:
     """Pinocchio model and visual ``GeometryModel`` of ``robot``, from its own URDF.
 
-    The URDF file (or text) of ``robot.source`` is read with the same ``package_dirs``, and
+    The URDF of ``robot.source`` is read with its meshes as the files found at load, and
     the model is reduced by the same locked joints, with the same angle coordinate for
     continuous joints, so ``q`` of the robot is ``q`` of the returned model. The base
     placement is *not* applied (the viewer places the robot's root node instead).
@@ -266,17 +266,11 @@ def robot_visual_models(robot: RobotModel) -> tuple[pin.Model, pin.GeometryModel
         raise ParameterError(
             "the robot has no URDF source; build it with RobotModel.from_urdf or a loader"
         )
-    dirs = [str(p) for p in src.package_dirs]
-    if src.directory is not None:
-        dirs.append(str(src.directory))
     visual = pin.GeometryType.VISUAL
     model = build_angle_model(src.xml)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        if src.path is not None:
-            geom = pin.buildGeomFromUrdf(model, str(src.path), visual, package_dirs=dirs)
-        else:
-            geom = pin.buildGeomFromUrdfString(model, src.xml, visual, package_dirs=dirs)
+        geom = pin.buildGeomFromUrdfString(model, src.xml_with_mesh_paths(), visual)
     model, geom = lock_joints(model, robot.locked_joints, geom)
     names = [model.names[j] for j in range(1, model.njoints)]
     if names != robot.joint_names:
