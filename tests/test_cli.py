@@ -146,7 +146,7 @@ def test_every_subcommand_has_help(capsys):
         (["run", "--duration", "two"], "expected a number"),
         (["run", "--trajectory", "square"], "invalid choice: 'square'"),
         (["run", "--simulator", "bullet"], "invalid choice: 'bullet'"),
-        (["run", "--robot", "/no/such/robot.urdf"], "neither lbr4p, panda nor"),
+        (["run", "--robot", "/no/such/robot.urdf"], "neither lbr4p, panda, erd:NAME nor"),
         (["run", "--ee-frame", "hand"], "unknown end-effector frame 'hand'"),
         (["run", "--q0", "0,1"], "the robot has 7 joints"),
         (["run", "--velocity-limits", "1,2,3"], "give 1 or 7 values"),

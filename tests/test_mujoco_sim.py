@@ -267,22 +267,44 @@ def test_blown_up_state_raises(lbr4p):
         sim.step(np.zeros(7), 0.01)
 
 
-def test_missing_collision_mesh_raises(tmp_path):
-    urdf = """<robot name="r">
-      <link name="base"/>
-      <link name="l1">
-        <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
-          ixy="0" ixz="0" iyz="0"/></inertial>
-        <collision><geometry><mesh filename="package://nowhere/l1.stl"/></geometry></collision>
-      </link>
-      <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
-        <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
-    </robot>"""
-    path = tmp_path / "r.urdf"
-    path.write_text(urdf)
-    robot = dqcontrol.RobotModel.from_urdf(path, "l1")
-    with pytest.raises(URDFError, match="l1.stl"):
-        MujocoSimulation(robot)
+_MESH_URDF = """<robot name="r">
+  <link name="base"/>
+  <link name="l1">
+    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
+      ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><mesh filename="meshes/{mesh}"/></geometry></collision>
+  </link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+</robot>"""
+#: A tetrahedron as a Wavefront OBJ: 4 vertices, the fewest MuJoCo accepts.
+_TETRA_OBJ = "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+
+def _mesh_urdf(folder, mesh: str, text: str):
+    (folder / "meshes").mkdir(exist_ok=True)
+    (folder / "meshes" / mesh).write_text(text)
+    path = folder / f"r_{mesh.replace('.', '_')}.urdf"
+    path.write_text(_MESH_URDF.format(mesh=mesh))
+    return path
+
+
+def test_collision_mesh_mujoco_cannot_read_is_refused_at_load(tmp_path):
+    """A COLLADA collision mesh (no MuJoCo reader): refused by the robot loader, before any
+    simulation; the simulator's own guard refuses it too in a source that skipped the load
+    check. The same link with an OBJ mesh simulates with it."""
+    from dqcontrol.model.urdf_source import URDFSource
+    from dqcontrol.sim.mjcf_builder import prepare_urdf_xml
+
+    path = _mesh_urdf(tmp_path, "l1.dae", "<COLLADA/>")
+    pattern = r"link 'l1'.*'meshes/l1\.dae'.*accepted collision mesh formats: \['\.obj', '\.stl'\]"
+    with pytest.raises(URDFError, match=pattern):
+        dqcontrol.RobotModel.from_urdf(path, "l1")
+    unchecked = URDFSource(path.read_text(), path, ())
+    with pytest.raises(URDFError, match=r"l1\.dae.*cannot read '\.dae'"):
+        prepare_urdf_xml(unchecked)
+    robot = dqcontrol.RobotModel.from_urdf(_mesh_urdf(tmp_path, "l1.obj", _TETRA_OBJ), "l1")
+    assert MujocoSimulation(robot).model.nmesh == 1
 
 
 def test_payload_sits_at_the_end_effector(lbr4p):

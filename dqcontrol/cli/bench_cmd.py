@@ -13,6 +13,8 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from dqcontrol.cli.common import NO_BARS_HELP, add_out_option, add_progress_option
+
 __all__ = ["bench_path", "load_bench", "register"]
 
 #: The module's name once loaded (``sys.modules``).
@@ -75,7 +77,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "benchmarks/bench.py of the source repository: this command needs a checkout "
         "(an editable install), not an installed wheel.",
     )
-    parser.add_argument("--out", default="results/bench.json", help="JSON output file")
+    add_out_option(parser, "results/bench.json", "JSON output file", metavar="FILE")
+    add_progress_option(parser, NO_BARS_HELP)
     parser.add_argument(
         "--quick",
         action="store_true",

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+
+from dqcontrol.cli.common import add_out_option, add_progress_option
 
 __all__ = ["register", "run"]
 
@@ -54,9 +55,7 @@ def register(subparsers) -> None:
             f"faults: {', '.join(f.name for f in FAULTS)}."
         ),
     )
-    parser.add_argument(
-        "--out", default="results", type=Path, help="output folder (default: results)"
-    )
+    add_out_option(parser, "results", "results folder")
     parser.add_argument(
         "--quick",
         action="store_true",
@@ -94,7 +93,7 @@ def register(subparsers) -> None:
         action="store_true",
         help="exit with code 1 if a QP controller violated a bound, saw NaN or raised",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(parser)
     parser.set_defaults(func=run)
 
 
@@ -121,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
         out=args.out,
         workers=args.workers,
         scheduler=args.scheduler,
-        progress=not args.no_progress,
+        progress=args.progress,
         command=_command_line(args),
     )
     result = campaign_result(

@@ -12,8 +12,9 @@ The figures and replays need the ``viz`` extra; without it the runs are saved, t
 printed, and a note on stderr says what was not written. ``--simulator mujoco`` needs the
 ``sim`` extra.
 
-The helpers that turn options into a robot, a trajectory and controllers, and rebuild them
-from a saved run's ``meta``, are shared with ``dqcontrol view``.
+The helpers that turn options into a trajectory and controllers, and rebuild the trajectory
+from a saved run's ``meta``, are shared with ``dqcontrol view``; the robot options are
+:mod:`dqcontrol.cli.robot_options`.
 """
 
 from __future__ import annotations
@@ -24,6 +25,13 @@ import sys
 import time
 from pathlib import Path
 
+from dqcontrol.cli.common import add_out_option, add_progress_option
+from dqcontrol.cli.robot_options import (
+    RobotRequest,
+    add_robot_options,
+    load_robot,
+    robot_label,
+)
 from dqcontrol.experiments.thesis import (
     THESIS_ACCELERATION_LIMIT,
     THESIS_HORIZON_S,
@@ -58,7 +66,11 @@ examples:
   dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10,pf
   dqcontrol run --period 0.001                      the 1 kHz controller
   dqcontrol run --robot panda --simulator kinematic
-  dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0
+  dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0 \
+      --package-dir ~/ws/src
+  dqcontrol run --robot erd:ur5 --ee-frame tool0 --q0=0,-1.2,1.5,-1.9,-1.57,0
+  dqcontrol run --robot erd:panda --ee-frame panda_hand --lock panda_finger_joint1=0 \
+      --lock panda_finger_joint2=0 --tool 0,0,0.1
   dqcontrol run --controllers pf --obstacle sphere:0.49,-0.39,0.70,0.03
   dqcontrol run --obstacle plane:0,0,1,0.45 --obstacle box:0.3,-0.5,0.4,0.2,0.1,0.3 \
       --self-collision"""
@@ -128,18 +140,7 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     g = p.add_argument_group("robot and task")
-    g.add_argument(
-        "--robot",
-        default="lbr4p",
-        metavar="ROBOT",
-        help="lbr4p (default), panda (example-robot-data), or the path of a URDF file",
-    )
-    g.add_argument(
-        "--ee-frame",
-        metavar="FRAME",
-        help="end-effector frame (required with a URDF path; default: lbr4p_flange, "
-        "panda_hand_tcp)",
-    )
+    add_robot_options(g)
     g.add_argument(
         "--q0",
         type=_float_list,
@@ -194,7 +195,7 @@ def register(subparsers) -> None:
         "--velocity-limits",
         metavar="LIMITS",
         help="joint velocity bounds [rad/s]: 'thesis' (pi*[1,1,1,1,2.5,2.5,2.5], default for "
-        "the LBR4p), 'urdf' (default for other robots) or comma-separated values",
+        "the LBR4p with all 7 joints), 'urdf' (default otherwise) or comma-separated values",
     )
     g.add_argument(
         "--acceleration-limit",
@@ -272,77 +273,18 @@ def register(subparsers) -> None:
         help="with --viewer: keep the viewer open this long after the runs, replaying the "
         "last one (default: until Ctrl-C when run from a terminal, else not at all)",
     )
-    g.add_argument(
-        "--out", default="results", metavar="DIR", help="results folder (default: results)"
-    )
+    add_out_option(g, "results", "results folder")
     g.add_argument("--svg", action="store_true", help="write the figures as SVG instead of PNG")
     g.add_argument(
         "--short",
         action="store_true",
         help="fast mode for CI: low-resolution figures and replays, no progress bars",
     )
+    add_progress_option(g)
     p.set_defaults(func=_main, _parser=p)
 
 
-# ---------------------------------------------------------------------- robots and tasks
-def load_robot(spec: str, ee_frame: str | None):
-    """The robot of ``--robot`` (lbr4p, panda or a URDF path) and its default ``q0``.
-
-    Returns ``(robot, q0, meta)`` where ``meta`` rebuilds it (:func:`robot_from_meta`).
-    Raises :class:`ValueError` with a message for the user when the option is wrong.
-    """
-    import numpy as np
-
-    from dqcontrol.errors import FrameError
-    from dqcontrol.model import (
-        LBR4P_Q0,
-        PANDA_Q0,
-        RobotModel,
-        lbr4p_urdf_path,
-        load_panda,
-    )
-
-    key = spec.strip().lower()
-    try:
-        if key == "lbr4p":
-            robot = RobotModel.from_urdf(lbr4p_urdf_path(), ee_frame or "lbr4p_flange")
-            return robot, LBR4P_Q0.copy(), {"robot": "lbr4p", "ee_frame": robot.ee_frame}
-        if key == "panda":
-            robot = load_panda(ee_frame or "panda_hand_tcp")
-            return robot, PANDA_Q0.copy(), {"robot": "panda", "ee_frame": robot.ee_frame}
-        path = Path(spec).expanduser()
-        if not path.is_file():
-            raise ValueError(f"--robot: {spec!r} is neither lbr4p, panda nor an existing URDF file")
-        if not ee_frame:
-            raise ValueError("--ee-frame is required with a URDF path (the end-effector frame)")
-        robot = RobotModel.from_urdf(path, ee_frame)
-    except FrameError as exc:
-        raise ValueError(f"--ee-frame: {exc}") from None
-    lim = robot.limits
-    finite = np.isfinite(lim.q_min) & np.isfinite(lim.q_max)
-    q0 = np.where(finite, 0.5 * (lim.q_min + lim.q_max), 0.0)
-    meta = {"robot": "urdf", "urdf": str(path.resolve()), "ee_frame": robot.ee_frame}
-    return robot, q0, meta
-
-
-def robot_from_meta(meta: dict):
-    """Rebuild the robot of a saved run from its ``meta`` (written by ``dqcontrol run``)."""
-    from dqcontrol.errors import ParameterError
-
-    kind = meta.get("robot")
-    spec = meta.get("urdf") if kind == "urdf" else kind
-    if spec is None:
-        raise ParameterError(
-            "this run does not say which robot it used (no 'robot' in its meta); it was "
-            "not written by 'dqcontrol run'"
-        )
-    try:
-        robot, _, _ = load_robot(spec, meta.get("ee_frame"))
-    except ValueError as exc:
-        raise ParameterError(f"cannot rebuild the robot of this run: {exc}") from None
-    return robot
-
-
+# ---------------------------------------------------------------------- tasks
 def make_trajectory(kind: str, duration_s: float):
     """The thesis's circle or sinusoid, and the ``meta`` that rebuilds it (its own
     :meth:`~dqcontrol.trajectories.Trajectory.to_metadata`)."""
@@ -510,7 +452,7 @@ def _check_options(args) -> tuple:
 
     parser = args._parser
     try:
-        robot, q0, robot_meta = load_robot(args.robot, args.ee_frame)
+        robot, q0, robot_meta = load_robot(RobotRequest.from_args(args))
     except ValueError as exc:
         parser.error(str(exc))
     n = robot.nq
@@ -522,7 +464,8 @@ def _check_options(args) -> tuple:
         q0 = np.array(args.q0, dtype=float)
     spec = args.velocity_limits
     if spec is None:
-        spec = "thesis" if robot_meta["robot"] == "lbr4p" else "urdf"
+        thesis_arm = robot_meta["robot"] == "lbr4p" and n == len(THESIS_VELOCITY_LIMITS)
+        spec = "thesis" if thesis_arm else "urdf"
     if spec == "thesis":
         if n != len(THESIS_VELOCITY_LIMITS):
             parser.error(
@@ -632,13 +575,13 @@ def _main(args: argparse.Namespace) -> int:
     from dqcontrol.viz.meshcat_viewer import MeshcatViewer
 
     robot.check_q(q0, "--q0")
-    name = robot_meta["robot"] if robot_meta["robot"] != "urdf" else Path(args.robot).stem
+    name = robot_label(robot_meta)
     stem = f"{name}_{args.trajectory}_T{args.duration:g}s_{args.simulator}"
     out = Path(args.out) / stem
     fmt = "svg" if args.svg else "png"
     dpi = 60.0 if args.short else 110.0
     fps = 10.0 if args.short else 30.0
-    progress = not args.short
+    progress = args.progress and not args.short
 
     collision = args._collision
     obstacles = collision.obstacles if collision is not None else ()

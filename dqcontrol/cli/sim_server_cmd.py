@@ -6,6 +6,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from dqcontrol.cli.common import NO_BARS_HELP, add_progress_option
+from dqcontrol.cli.robot_options import add_robot_options
+
 __all__ = ["register"]
 
 _DESCRIPTION = """\
@@ -32,8 +35,7 @@ def register(subparsers) -> None:
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--robot", default="lbr4p", help="lbr4p (default), panda or a URDF path")
-    p.add_argument("--ee-frame", default=None, help="end-effector frame (default: the robot's)")
+    add_robot_options(p)
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
     p.add_argument("--port", type=int, default=5555, help="TCP port (default 5555; 0: any)")
     p.add_argument("--period", type=float, default=0.05, help="control period T [s]")
@@ -42,18 +44,19 @@ def register(subparsers) -> None:
     )
     p.add_argument("--payload", type=float, default=0.0, help="unknown payload [kg]")
     p.add_argument("--max-messages", type=int, default=None, help="stop after this many messages")
+    add_progress_option(p, NO_BARS_HELP)
     p.set_defaults(func=_main, _parser=p)
 
 
 def _main(args: argparse.Namespace) -> int:
     from dqcontrol.cli._extras import check_simulator
-    from dqcontrol.cli.run_cmd import load_robot
+    from dqcontrol.cli.robot_options import RobotRequest, load_robot
     from dqcontrol.sim import JointDriver, MujocoDriver, PayloadDriver
     from dqcontrol.sim.bridge import SimServer
 
     check_simulator("mujoco", "the simulation server")
     try:
-        robot, _q0, _meta = load_robot(args.robot, args.ee_frame)
+        robot, _q0, _meta = load_robot(RobotRequest.from_args(args))
     except ValueError as exc:
         args._parser.error(str(exc))
     if args.payload < 0.0:

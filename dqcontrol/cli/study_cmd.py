@@ -6,6 +6,8 @@ import argparse
 import shlex
 import sys
 
+from dqcontrol.cli.common import add_out_option, add_progress_option
+
 __all__ = ["register"]
 
 _DESCRIPTION = """\
@@ -41,12 +43,7 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("study", metavar="STUDY", help="a .toml study file, or: table1, faults")
-    p.add_argument(
-        "--out",
-        default=None,
-        metavar="DIR",
-        help="results folder (default: the study's [output] folder)",
-    )
+    add_out_option(p, None, "results folder (default: the study's [output] folder)")
     p.add_argument(
         "--workers",
         type=_workers,
@@ -63,7 +60,7 @@ def register(subparsers) -> None:
         "cluster of local worker processes (needs dask[distributed])",
     )
     p.add_argument("--list", action="store_true", help="print the cases and exit")
-    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    add_progress_option(p)
     p.set_defaults(func=_run)
 
 

@@ -6,6 +6,8 @@ import argparse
 import shlex
 import sys
 
+from dqcontrol.cli.common import add_out_option, add_progress_option
+
 __all__ = ["register"]
 
 _DESCRIPTION = """\
@@ -48,9 +50,7 @@ def register(subparsers) -> None:
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument(
-        "--out", default="results", metavar="DIR", help="results folder (default: results)"
-    )
+    add_out_option(p, "results", "results folder")
     p.add_argument(
         "--quick",
         action="store_true",
@@ -111,7 +111,7 @@ def register(subparsers) -> None:
         metavar="N",
         help="path samples of the TOPP-RA bound (default: 2001; 0: no bound)",
     )
-    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    add_progress_option(p)
     p.set_defaults(func=_run)
 
 

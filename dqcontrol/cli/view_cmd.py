@@ -7,6 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from dqcontrol.cli.common import NO_BARS_HELP, add_out_option, add_progress_option
+
 __all__ = ["register"]
 
 _DESCRIPTION = """\
@@ -42,11 +44,8 @@ def register(subparsers) -> None:
     p.add_argument("--html", action="store_true", help="write the self-contained HTML replay")
     p.add_argument("--figures", action="store_true", help="write the run's figures")
     p.add_argument("--svg", action="store_true", help="figures as SVG instead of PNG")
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        help="folder for --html and --figures (default: the run's own folder)",
-    )
+    add_out_option(p, None, "folder for --html and --figures (default: the run's own folder)")
+    add_progress_option(p, NO_BARS_HELP)
     p.add_argument(
         "--speed",
         type=_positive_speed,
@@ -82,7 +81,8 @@ def _main(args: argparse.Namespace) -> int:
     if not (viewer_on or args.html or args.figures):
         parser.error("nothing to do: give --viewer, --html or --figures")
 
-    from dqcontrol.cli.run_cmd import hold_viewer, robot_from_meta, trajectory_from_meta
+    from dqcontrol.cli.robot_options import robot_from_meta
+    from dqcontrol.cli.run_cmd import hold_viewer, trajectory_from_meta
     from dqcontrol.dq.algebra import translation
     from dqcontrol.errors import ParameterError
     from dqcontrol.runs.storage import load_run

@@ -40,6 +40,7 @@ import numpy as np
 import pinocchio as pin
 
 from dqcontrol.errors import ParameterError
+from dqcontrol.model.pinocchio_model import build_angle_model, lock_joints
 from dqcontrol.model.robot import RobotModel
 
 __all__ = [
@@ -792,23 +793,14 @@ def _robot_geometry(robot: RobotModel) -> pin.GeometryModel:
     source = robot.source
     if source is None:
         raise ParameterError("the robot has no URDF source to read collision geometry from")
-    dirs = [str(p) for p in source.package_dirs]
-    if source.directory is not None:
-        dirs.append(str(source.directory))
-    full = pin.buildModelFromXML(source.xml)
-    try:
+    full = build_angle_model(source.xml)
+    try:  # the meshes as the files found and checked at load
         geometry = pin.buildGeomFromUrdfString(
-            full, source.xml, pin.GeometryType.COLLISION, package_dirs=dirs
+            full, source.xml_with_mesh_paths(), pin.GeometryType.COLLISION
         )
     except (ValueError, RuntimeError) as exc:
         raise ParameterError(f"could not read the URDF's collision geometry: {exc}") from None
-    if robot.locked_joints:
-        ids, qref = [], pin.neutral(full)
-        for name, value in robot.locked_joints.items():
-            jid = full.getJointId(name)
-            ids.append(jid)
-            qref[full.idx_qs[jid]] = float(value)
-        full, geometry = pin.buildReducedModel(full, geometry, ids, qref)
+    full, geometry = lock_joints(full, robot.locked_joints, geometry)
     if [full.names[j] for j in range(1, full.njoints)] != robot.joint_names:
         raise ParameterError("the collision geometry's joints do not match the robot's")
     base = robot.base_placement

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,7 @@ from dqcontrol.dq.kernels import pose_jacobian_batch, pose_jacobian_from_xyzquat
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
 from dqcontrol.model.fast import UncheckedModel
+from dqcontrol.model.pinocchio_model import angle_model, build_angle_model, lock_joints
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
 
 __all__ = ["JointLimits", "RobotModel"]
@@ -42,7 +44,8 @@ class JointLimits:
     """Joint limits of a robot, one entry per joint (radians for revolute joints).
 
     Attributes:
-        q_min, q_max: position limits [rad] (or [m] for prismatic joints).
+        q_min, q_max: position limits [rad] (or [m] for prismatic joints); ``-inf`` and
+            ``inf`` for a continuous joint.
         qd_max: symmetric velocity limit [rad/s].
         effort_max: symmetric torque limit [N·m].
     """
@@ -57,7 +60,9 @@ class RobotModel:
     """A fixed-base robot from a URDF, with its end-effector pose as a unit dual quaternion.
 
     Build with :meth:`from_urdf`. All quantities are in the world frame of the model (the
-    URDF's root link, moved by ``base`` if one is given).
+    URDF's root link, moved by ``base`` if one is given). A Pinocchio model given directly
+    may hold unbounded revolute joints (``(cos θ, sin θ)``); they become angle-coordinate
+    joints (:func:`~dqcontrol.model.pinocchio_model.angle_model`).
 
     Attributes:
         model, data: the Pinocchio model and its workspace (the model may be reduced).
@@ -82,6 +87,7 @@ class RobotModel:
         locked_joints: dict[str, float] | None = None,
         tool_placement: pin.SE3 | None = None,
     ) -> None:
+        model = angle_model(model)  # continuous joints: one angle each
         if model.nq != model.nv:
             bad = [
                 model.names[j]
@@ -89,8 +95,8 @@ class RobotModel:
                 if model.joints[j].nq != model.joints[j].nv
             ]
             raise URDFError(
-                "only 1-DoF revolute/prismatic joints are supported (q must be a vector of "
-                f"angles); joints with nq != nv: {bad}. Lock them or make them revolute."
+                "only 1-DoF revolute, continuous and prismatic joints are supported (q holds "
+                f"one number per joint); joints with more: {bad}. Lock them or make them fixed."
             )
         if model.nq == 0:
             raise URDFError("the robot has no movable joint")
@@ -136,7 +142,7 @@ class RobotModel:
         base: pin.SE3 | np.ndarray | None = None,
         tool: pin.SE3 | np.ndarray | None = None,
         locked_joints: dict[str, float] | None = None,
-        package_dirs: list[str | os.PathLike] | None = None,
+        package_dirs: Sequence[str | os.PathLike] | None = None,
     ) -> RobotModel:
         """Load a robot from a URDF file path or XML string.
 
@@ -147,8 +153,12 @@ class RobotModel:
                 ``vec8``); identity by default.
             tool: fixed offset from ``ee_frame`` to the controlled tool frame; the model then
                 controls a new frame ``<ee_frame>_tool``.
-            locked_joints: joints to hold fixed (e.g. gripper fingers), name → position.
-            package_dirs: folders for ``package://`` meshes (viewer and simulator only).
+            locked_joints: joints to hold fixed (e.g. gripper fingers), name → position
+                [rad or m].
+            package_dirs: folders where ``package://`` mesh URIs resolve.
+
+        A ``continuous`` joint is a revolute joint without position limit; its coordinate in
+        ``q`` is its angle [rad] (:mod:`dqcontrol.model.pinocchio_model`).
 
         Raises:
             URDFError: missing file, malformed XML, invalid values, unsupported joints.
@@ -156,21 +166,7 @@ class RobotModel:
                 what exists).
         """
         source = read_urdf(urdf, package_dirs)
-        try:
-            model = pin.buildModelFromXML(source.xml)
-        except (ValueError, RuntimeError) as exc:
-            raise URDFError(f"Pinocchio could not build a model from the URDF: {exc}") from None
-        if locked_joints:
-            ids, qref = [], pin.neutral(model)
-            for name, value in locked_joints.items():
-                if not model.existJointName(name):
-                    raise FrameError(
-                        f"cannot lock unknown joint '{name}'; joints: {list(model.names)[1:]}"
-                    )
-                jid = model.getJointId(name)
-                ids.append(jid)
-                qref[model.idx_qs[jid]] = float(value)
-            model = pin.buildReducedModel(model, ids, qref)
+        model = lock_joints(build_angle_model(source.xml), locked_joints or {})
         base_se3 = _to_se3(base, "base") if base is not None else None
         if base_se3 is not None:
             for j in range(1, model.njoints):
@@ -386,10 +382,13 @@ class RobotModel:
         return np.clip(spare / diag, floor, cap)
 
     def random_configurations(self, count: int, seed: int, margin_rad: float = 0.0) -> np.ndarray:
-        """``count`` uniformly drawn configurations within the limits (shrunk by a margin)."""
+        """``count`` uniformly drawn configurations within the limits (shrunk by a margin).
+
+        A joint without position limit (continuous) is drawn in ``[-π, π]``.
+        """
         rng = np.random.default_rng(seed)
-        lo = self.limits.q_min + margin_rad
-        hi = self.limits.q_max - margin_rad
+        lo = np.where(np.isfinite(self.limits.q_min), self.limits.q_min + margin_rad, -np.pi)
+        hi = np.where(np.isfinite(self.limits.q_max), self.limits.q_max - margin_rad, np.pi)
         return rng.uniform(lo, hi, size=(count, self.nq))
 
     def __repr__(self) -> str:

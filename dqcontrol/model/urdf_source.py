@@ -10,10 +10,12 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from dqcontrol.errors import URDFError
+from dqcontrol.model.meshes import absolute_mesh_xml, check_meshes
 
 #: A URDF larger than this is refused before parsing [bytes] (robot descriptions are kB).
 MAX_URDF_BYTES = 20_000_000
@@ -32,7 +34,7 @@ class URDFSource:
     Attributes:
         xml: the URDF document.
         path: the file it was read from, or ``None`` when given as a string.
-        package_dirs: folders searched for ``package://`` mesh paths (viewer, simulator).
+        package_dirs: folders searched for ``package://`` mesh URIs.
     """
 
     xml: str
@@ -44,17 +46,32 @@ class URDFSource:
         """Folder of the URDF file (relative mesh paths are resolved from it)."""
         return None if self.path is None else self.path.parent
 
+    def xml_with_mesh_paths(self) -> str:
+        """The URDF text with every visual and collision mesh as the absolute path of the
+        file found (and checked) at load, so that every reader of the meshes (viewer,
+        collision model, simulator) reads those very files
+        (:func:`~dqcontrol.model.meshes.absolute_mesh_xml`)."""
+        return absolute_mesh_xml(ET.fromstring(self.xml), self.package_dirs, self.directory)
+
 
 def read_urdf(
-    urdf: str | os.PathLike, package_dirs: list[str | os.PathLike] | None = None
+    urdf: str | os.PathLike, package_dirs: Sequence[str | os.PathLike] | None = None
 ) -> URDFSource:
     """Read a URDF from a file path or an XML string, check it, and return its source.
 
     A string whose first non-blank character is ``<`` is taken as XML; anything else as a
-    path. Raises :class:`URDFError` for a missing file, an oversize file, malformed XML or
-    invalid values (see :func:`check_urdf_xml`).
+    path. Raises :class:`URDFError` for a missing file, an oversize file, malformed XML,
+    invalid values (see :func:`check_urdf_xml`), a package folder that does not exist, or a
+    mesh file that cannot be found, climbs out of its package folder or has a format the
+    viewer or simulator cannot read (:func:`~dqcontrol.model.meshes.check_meshes`).
     """
-    dirs = tuple(Path(p) for p in (package_dirs or []))
+    dirs = tuple(Path(p).expanduser() for p in (package_dirs or []))
+    for folder in dirs:
+        if not folder.is_dir():
+            raise URDFError(
+                f"package folder '{folder}' does not exist (or is not a folder); package_dirs "
+                "must name existing folders that hold the packages of package:// URIs"
+            )
     if isinstance(urdf, bytes | bytearray):
         if len(urdf) > MAX_URDF_BYTES:
             raise URDFError(f"URDF text is {len(urdf)} bytes; refusing over {MAX_URDF_BYTES}")
@@ -88,7 +105,9 @@ def read_urdf(
             raise URDFError(f"cannot read URDF file '{path}': {exc.strerror or exc}") from None
     if len(xml) > MAX_URDF_BYTES:
         raise URDFError(f"URDF text is {len(xml)} characters; refusing over {MAX_URDF_BYTES}")
-    check_urdf_xml(xml, where=str(path) if path else "<string>")
+    where = str(path) if path else "<string>"
+    check_urdf_xml(xml, where=where)
+    check_meshes(ET.fromstring(xml), dirs, None if path is None else path.parent, where)
     return URDFSource(xml=xml, path=path, package_dirs=dirs)
 
 

@@ -34,6 +34,7 @@ from dqcontrol.dq.algebra import qfrom_axis_angle, qfrom_matrix, qmul, qto_matri
 from dqcontrol.errors import ConfigurationError, ParameterError, URDFError
 from dqcontrol.extras import lazy_module
 from dqcontrol.model.collision import Box, Capsule, Cylinder, HalfSpace, Obstacle, Sphere
+from dqcontrol.model.meshes import find_mesh
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.model.urdf_source import URDFSource
 
@@ -122,34 +123,10 @@ class SpecOptions:
 
 # ----------------------------------------------------------------------------- URDF text
 def resolve_mesh_path(filename: str, source: URDFSource) -> Path | None:
-    """Absolute path of a URDF mesh ``filename``, or ``None`` if no such file exists.
-
-    ``package://pkg/rest`` is looked up as ``d/pkg/rest`` and ``d/rest`` for every ``d`` in
-    ``source.package_dirs``, then in the folders above the URDF file (``a/pkg/rest``, or
-    ``a/rest`` when ``a`` is named ``pkg``). ``file://`` URIs and absolute paths are taken as
-    they are; relative paths are relative to the URDF's folder.
-    """
-    candidates: list[Path] = []
-    if filename.startswith("package://"):
-        rest = filename[len("package://") :]
-        pkg, _, sub = rest.partition("/")
-        for d in source.package_dirs:
-            candidates += [Path(d) / rest, Path(d) / sub]
-        if source.directory is not None:
-            for a in (source.directory, *source.directory.parents):
-                candidates.append(a / rest)
-                if a.name == pkg:
-                    candidates.append(a / sub)
-    else:
-        path = Path(filename[len("file://") :] if filename.startswith("file://") else filename)
-        if path.is_absolute():
-            candidates.append(path)
-        elif source.directory is not None:
-            candidates.append(source.directory / path)
-    for c in candidates:
-        if c.is_file():
-            return c.resolve()
-    return None
+    """Absolute path of a URDF mesh ``filename``, or ``None`` if no such file exists (or a
+    ``package://`` path climbs out of its package folder); the search is
+    :func:`dqcontrol.model.meshes.find_mesh`'s."""
+    return find_mesh(filename, source.package_dirs, source.directory).path
 
 
 def prepare_urdf_xml(source: URDFSource) -> PreparedURDF:
@@ -157,7 +134,9 @@ def prepare_urdf_xml(source: URDFSource) -> PreparedURDF:
 
     Raises:
         URDFError: a collision mesh cannot be found or has a type MuJoCo cannot read (the
-            simulation would silently lose that link's collision geometry).
+            simulation would silently lose that link's collision geometry). A source from
+            :func:`~dqcontrol.model.urdf_source.read_urdf` was already checked for both
+            (:mod:`dqcontrol.model.meshes`); this guards a hand-made one.
     """
     try:
         root = ET.fromstring(source.xml)

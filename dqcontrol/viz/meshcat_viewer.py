@@ -50,6 +50,7 @@ import pinocchio as pin
 from dqcontrol.dq.algebra import dq_to_matrix, translation
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.extras import available, missing_extra, require
+from dqcontrol.model.pinocchio_model import build_angle_model, lock_joints
 from dqcontrol.model.robot import RobotModel
 
 __all__ = [
@@ -258,10 +259,10 @@ class OfflineWindow:
 def robot_visual_models(robot: RobotModel) -> tuple[pin.Model, pin.GeometryModel]:
     """Pinocchio model and visual ``GeometryModel`` of ``robot``, from its own URDF.
 
-    The URDF file (or text) of ``robot.source`` is read with the same ``package_dirs``, and
-    the model is reduced by the same locked joints, so ``q`` of the robot is ``q`` of the
-    returned model. The base placement is *not* applied (the viewer places the robot's root
-    node instead).
+    The URDF of ``robot.source`` is read with its meshes as the files found at load, and
+    the model is reduced by the same locked joints, with the same angle coordinate for
+    continuous joints, so ``q`` of the robot is ``q`` of the returned model. The base
+    placement is *not* applied (the viewer places the robot's root node instead).
 
     Raises:
         ParameterError: the robot has no URDF source, or its joints differ.
@@ -271,26 +272,12 @@ def robot_visual_models(robot: RobotModel) -> tuple[pin.Model, pin.GeometryModel
         raise ParameterError(
             "the robot has no URDF source; build it with RobotModel.from_urdf or a loader"
         )
-    dirs = [str(p) for p in src.package_dirs]
-    if src.directory is not None:
-        dirs.append(str(src.directory))
     visual = pin.GeometryType.VISUAL
+    model = build_angle_model(src.xml)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        if src.path is not None:
-            model, geom = pin.buildModelsFromUrdf(
-                str(src.path), package_dirs=dirs, geometry_types=visual
-            )
-        else:
-            model = pin.buildModelFromXML(src.xml)
-            geom = pin.buildGeomFromUrdfString(model, src.xml, visual, package_dirs=dirs)
-    if robot.locked_joints:
-        ids, qref = [], pin.neutral(model)
-        for name, value in robot.locked_joints.items():
-            jid = model.getJointId(name)
-            ids.append(jid)
-            qref[model.idx_qs[jid]] = float(value)
-        model, geom = pin.buildReducedModel(model, geom, ids, qref)
+        geom = pin.buildGeomFromUrdfString(model, src.xml_with_mesh_paths(), visual)
+    model, geom = lock_joints(model, robot.locked_joints, geom)
     names = [model.names[j] for j in range(1, model.njoints)]
     if names != robot.joint_names:
         raise ParameterError(
