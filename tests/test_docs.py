@@ -1,7 +1,7 @@
 """The documentation stays true: every file the README and the docs link to exists, the
-README opens with its two commands, and the getting-started page's code runs. (The site and
-its API reference are built by ``mkdocs build --strict`` in CI, which fails on a broken
-link or anchor; ``tests/test_demos.py`` runs the user guide's code.)"""
+README opens with its two commands, and the README's and the getting-started page's code
+runs. (The site and its API reference are built by ``mkdocs build --strict`` in CI, which
+fails on a broken link or anchor; ``tests/test_demos.py`` runs the user guide's code.)"""
 
 from __future__ import annotations
 
@@ -61,6 +61,23 @@ def test_getting_started_code_runs(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "completed: True" in proc.stdout
+
+
+def test_readme_code_runs_from_an_empty_folder(tmp_path):
+    """The README's Python example in a fresh process outside the checkout: the robot it
+    loads comes from the installed package."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"^```python\n(.*?)^```", text, flags=re.MULTILINE | re.DOTALL)
+    assert blocks
+    proc = subprocess.run(
+        [sys.executable, "-c", "\n".join(blocks)],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().endswith("True 0")
 
 
 def test_site_configuration_lists_every_page():

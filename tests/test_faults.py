@@ -385,7 +385,7 @@ def test_campaign_interrupted_keeps_the_completed_rows():
 
     res = run_campaign(
         ["local"], ["circle"], ["nominal", "solver_fails", "far_start"], "kinematic",
-        on_result=stop_after_two,
+        workers=1, on_result=stop_after_two,
     )  # fmt: skip
     assert res.interrupted and len(res.rows) == 2 and res.total_cases == 3
     assert "interrupted after 2 of 3 cases" in res.note

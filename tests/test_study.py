@@ -344,7 +344,7 @@ def test_table1_and_faults_studies_give_their_commands_figures(tmp_path):
     study = load_study(_write(tmp_path, textwrap.dedent(faults), "f1.toml"))
     result = run_study(study, out=tmp_path, workers=1, progress=False)
     reference = campaign.run_campaign(["local"], ["circle"], ["nominal", "solver_fails"],
-                                      "kinematic")  # fmt: skip
+                                      "kinematic", workers=1)  # fmt: skip
     assert [r.status for r in result.results] == ["completed", "stopped"]
     for got, want in zip(result.results, reference.rows, strict=True):
         a, b = got.row(), want.row()

@@ -460,7 +460,8 @@ def run_campaign(
     simulator: str = "mujoco",
     quick: bool = False,
     *,
-    workers: int = 1,
+    workers: int | None = None,
+    scheduler: str | None = None,
     seed: int = 0,
     on_result: Callable[[CaseResult, int, int], None] | None = None,
 ) -> CampaignResult:
@@ -473,17 +474,18 @@ def run_campaign(
         faults: see ``controllers``.
         simulator: see ``controllers``.
         quick: see ``controllers``.
-        workers: worker processes (1 = in this process).
+        workers: processes of the local pool (default: every core; 1 runs in this
+            process), or of the local Dask cluster.
+        scheduler: a Dask scheduler address, ``"local"`` for a local Dask cluster, or
+            ``None`` for the local pool (:mod:`dqcontrol.experiments.executor`).
         seed: seed of the measurement noise.
         on_result: called as ``on_result(row, done, total)`` after each case (progress).
 
     Ctrl-C stops the campaign: the completed rows are kept and ``interrupted`` is set (the
     note says how many cases ran).
     """
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ParameterError(f"workers must be an integer ≥ 1, got {workers!r}")
     cases = campaign_cases(controllers, trajectories, faults, simulator, quick, seed)
-    executor = resolve_executor(workers, None, len(cases))
+    executor = resolve_executor(workers, scheduler, len(cases))
     return run_cases(cases, executor, simulator=simulator, quick=quick, on_result=on_result)
 
 
