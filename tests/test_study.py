@@ -158,6 +158,16 @@ def test_list_prints_the_cases(capsys):
             "velocity_limits = [1.0, 2.0]",
             ["[options]: controller 'local' cannot be built", "shape (7,)"],
         ),
+        (
+            "period_s = 0.05",
+            "period_s = -0.05",
+            ["[simulator] period_s", "expected a finite number > 0 [s]", "-0.05"],
+        ),
+        (
+            "[grid]",
+            '[robot]\nurdf = "no_such_arm.urdf"\ntool_frame = "flange"\nq0_rad = [0.0]\n\n[grid]',
+            ["[robot] urdf", "no_such_arm.urdf"],
+        ),
     ],
     ids=[
         "controller",
@@ -171,6 +181,8 @@ def test_list_prints_the_cases(capsys):
         "empty",
         "toml",
         "option value",
+        "negative period",
+        "missing robot",
     ],
 )
 def test_bad_study_file_is_a_clear_error_with_exit_code_2(tmp_path, capsys, old, new, fragments):
