@@ -47,37 +47,33 @@ def test_readme_opens_with_the_two_commands():
     assert test_command in (ROOT / ".ci" / "run").read_text(encoding="utf-8")
 
 
-def test_getting_started_code_runs(tmp_path):
-    """The getting-started page's Python, in order, in a fresh process from an empty folder."""
-    text = (ROOT / "docs" / "getting_started.md").read_text(encoding="utf-8")
+def _run_python_blocks(page: Path, folder: Path) -> str:
+    """The page's Python blocks, in order, in a fresh process from ``folder``; its output."""
+    text = page.read_text(encoding="utf-8")
     blocks = re.findall(r"^```python\n(.*?)^```", text, flags=re.MULTILINE | re.DOTALL)
-    assert blocks
+    assert blocks, f"{page.name} has no Python block"
     proc = subprocess.run(
         [sys.executable, "-c", "\n".join(blocks)],
-        cwd=tmp_path,
+        cwd=folder,
         capture_output=True,
         text=True,
         timeout=240,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "completed: True" in proc.stdout
+    return proc.stdout
+
+
+def test_getting_started_code_runs(tmp_path):
+    """The getting-started page's Python from an empty folder."""
+    out = _run_python_blocks(ROOT / "docs" / "getting_started.md", tmp_path)
+    assert "completed: True" in out
 
 
 def test_readme_code_runs_from_an_empty_folder(tmp_path):
-    """The README's Python example in a fresh process outside the checkout: the robot it
-    loads comes from the installed package."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    blocks = re.findall(r"^```python\n(.*?)^```", text, flags=re.MULTILINE | re.DOTALL)
-    assert blocks
-    proc = subprocess.run(
-        [sys.executable, "-c", "\n".join(blocks)],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=240,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert proc.stdout.strip().endswith("True 0")
+    """The README's Python example outside the checkout: the robot it loads comes from the
+    installed package."""
+    out = _run_python_blocks(ROOT / "README.md", tmp_path)
+    assert out.strip().endswith("True 0")
 
 
 def test_site_configuration_lists_every_page():

@@ -102,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
     the report, print a summary. Exit code: 0, 1 (``--strict`` and a QP controller failed a
     check), 130 (interrupted; the partial report is written)."""
     from dqcontrol.cli._extras import check_simulator
-    from dqcontrol.studies import load_study, run_study
+    from dqcontrol.cli.study_cmd import run_with_options
+    from dqcontrol.studies import load_study
     from dqcontrol.studies.faults_study import campaign_result, select_faults
 
     check_simulator(args.simulator)
@@ -115,14 +116,7 @@ def run(args: argparse.Namespace) -> int:
         quick=args.quick,
         seed=args.seed,
     )
-    done = run_study(
-        study,
-        out=args.out,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=args.progress,
-        command=_command_line(args),
-    )
+    done = run_with_options(study, args, _command_line(args))
     result = campaign_result(
         study,
         done.results,

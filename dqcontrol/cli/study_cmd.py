@@ -75,7 +75,7 @@ def _workers(text: str) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from dqcontrol.studies import StudyFileError, load_study, run_study, study_cases
+    from dqcontrol.studies import StudyFileError, load_study, study_cases
     from dqcontrol.studies.kinds import experiment_kind
 
     try:
@@ -90,14 +90,7 @@ def _run(args: argparse.Namespace) -> int:
             print(name(case))
         print(f"{len(cases)} cases ({study.experiment}, {study.simulator})")
         return 0
-    result = run_study(
-        study,
-        out=args.out,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=args.progress,
-        command=_command_line(args),
-    )
+    result = run_with_options(study, args, _command_line(args))
     written = " and ".join(str(p) for p in result.files.values()) or "no table"
     print(
         f"{len(result.results)} of {result.total_cases} cases in {result.wall_time_s:.1f} s "
@@ -127,3 +120,19 @@ def _command_line(args: argparse.Namespace) -> str:
     if args.scheduler:
         parts += ["--scheduler", args.scheduler]
     return shlex.join(parts)
+
+
+def run_with_options(study, args: argparse.Namespace, command: str):
+    """Run ``study`` with the executor and output options every study command takes
+    (``--out``, ``--workers``, ``--scheduler``, ``--no-progress``); ``command`` is quoted in
+    the report."""
+    from dqcontrol.studies import run_study
+
+    return run_study(
+        study,
+        out=args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=args.progress,
+        command=command,
+    )

@@ -139,8 +139,9 @@ def _bound_samples(text: str) -> int:
 def _run(args: argparse.Namespace) -> int:
     """The shipped ``table1`` study (:mod:`dqcontrol.studies`) with the options' selection."""
     from dqcontrol.cli._extras import check_simulator
+    from dqcontrol.cli.study_cmd import run_with_options
     from dqcontrol.errors import ParameterError
-    from dqcontrol.studies import load_study, run_study
+    from dqcontrol.studies import load_study
     from dqcontrol.studies.table1_study import select_table1
 
     check_simulator(args.simulator)
@@ -157,14 +158,7 @@ def _run(args: argparse.Namespace) -> int:
         bound_samples=args.bound_samples,
         save_runs=args.save_runs,
     )
-    result = run_study(
-        study,
-        out=args.out,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=args.progress,
-        command=_command_line(args),
-    )
+    result = run_with_options(study, args, _command_line(args))
     if result.interrupted:
         print(
             f"dqcontrol table1: interrupted; the completed cases are in {args.out}/table1.md",
