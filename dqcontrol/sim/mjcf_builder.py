@@ -234,28 +234,63 @@ def build_spec(robot: RobotModel, prepared: PreparedURDF, options: SpecOptions) 
     Raises:
         URDFError: MuJoCo cannot import the URDF, or a controlled joint is missing from it.
     """
+    spec = _import_urdf(prepared)
+    _set_physics(spec, options)
+    _place_base(spec, robot)
+    _lock_joints(spec, robot)
+    _add_drives(spec, robot, options)
+    ee_body, site_pos, site_quat = _add_ee_site(spec, robot)
+    if options.payload_kg > 0.0:
+        _add_payload(ee_body, site_pos, site_quat, options)
+    add_obstacles(spec, options.obstacles)
+    return spec
+
+
+def _import_urdf(prepared: PreparedURDF) -> mujoco.MjSpec:
+    """Import the prepared URDF text as a :class:`mujoco.MjSpec`.
+
+    Raises:
+        URDFError: MuJoCo cannot import the URDF.
+    """
     try:
-        spec = mujoco.MjSpec.from_string(prepared.xml)
+        return mujoco.MjSpec.from_string(prepared.xml)
     except ValueError as exc:
         raise URDFError(f"MuJoCo could not import the URDF: {exc}") from None
+
+
+def _set_physics(spec: mujoco.MjSpec, options: SpecOptions) -> None:
+    """Set the time step, the ``implicitfast`` integrator and the gravity of ``options``."""
     spec.option.timestep = options.physics_dt_s
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.option.gravity = [0.0, 0.0, -9.81] if options.gravity else [0.0, 0.0, 0.0]
 
-    # base placement: hang every top-level body from a frame at robot.base_placement
+
+def _place_base(spec: mujoco.MjSpec, robot: RobotModel) -> None:
+    """Hang every top-level body from a frame at ``robot.base_placement``."""
     base_pos, base_quat = _pos_quat(robot.base_placement)
     base = spec.worldbody.add_frame(name="dqcontrol_base", pos=base_pos, quat=base_quat)
     for body in list(spec.worldbody.bodies):
         body.set_frame(base)
 
+
+def _lock_joints(spec: mujoco.MjSpec, robot: RobotModel) -> None:
+    """Weld each of ``robot.locked_joints`` at its value and delete the joint couplings
+    (a URDF ``<mimic>`` becomes a joint equality) that involve a locked joint."""
     for name, value in robot.locked_joints.items():
         _lock_joint(spec, name, float(value))
-    # joint couplings (URDF <mimic> becomes a joint equality) that involve a locked joint
     locked = set(robot.locked_joints)
     for eq in list(spec.equalities):
         if eq.type == mujoco.mjtEq.mjEQ_JOINT and {eq.name1, eq.name2} & locked:
             spec.delete(eq)
 
+
+def _add_drives(spec: mujoco.MjSpec, robot: RobotModel, options: SpecOptions) -> None:
+    """Set armature, damping and torque limit of every controlled joint and give it a
+    torque motor, in ``robot.joint_names`` order.
+
+    Raises:
+        URDFError: a controlled joint is missing from the imported URDF.
+    """
     limited = mujoco.mjtLimited.mjLIMITED_TRUE
     for i, name in enumerate(robot.joint_names):
         joint = spec.joint(name)
@@ -267,18 +302,37 @@ def build_spec(robot: RobotModel, prepared: PreparedURDF, options: SpecOptions) 
         limit = float(options.effort_limit_nm[i])
         joint.actfrclimited = limited
         joint.actfrcrange = [-limit, limit]
-        # a torque motor: the servo law runs in dqcontrol.sim.mujoco_sim
-        act = spec.add_actuator(
-            name=name + ACTUATOR_SUFFIX, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
-        )
-        act.set_to_motor()
-        act.gear = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-        act.ctrllimited = limited
-        act.ctrlrange = [-limit, limit]
-        act.forcelimited = limited
-        act.forcerange = [-limit, limit]
+        _add_motor(spec, name, limit)
 
-    # end-effector site at the Pinocchio frame, on the body of its parent joint
+
+def _add_motor(spec: mujoco.MjSpec, joint: str, limit: float) -> None:
+    """Add the torque motor of ``joint``, its control and force clamped to ``±limit``
+    [N·m]; the servo law runs in :mod:`dqcontrol.sim.mujoco_sim`."""
+    limited = mujoco.mjtLimited.mjLIMITED_TRUE
+    act = spec.add_actuator(
+        name=joint + ACTUATOR_SUFFIX, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT
+    )
+    act.set_to_motor()
+    act.gear = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    act.ctrllimited = limited
+    act.ctrlrange = [-limit, limit]
+    act.forcelimited = limited
+    act.forcerange = [-limit, limit]
+
+
+def _add_ee_site(
+    spec: mujoco.MjSpec, robot: RobotModel
+) -> tuple[mujoco.MjsBody, np.ndarray, np.ndarray]:
+    """Add the site ``robot.ee_frame`` at the Pinocchio end-effector frame, on the body of
+    the frame's parent joint.
+
+    Returns:
+        The body carrying the site, and the site's position [m] and quaternion ``wxyz`` in
+        that body.
+
+    Raises:
+        URDFError: the joint carrying the end-effector frame is missing from the URDF.
+    """
     frame = robot.model.frames[robot.model.getFrameId(robot.ee_frame)]
     if frame.parentJoint == 0:
         ee_body = spec.worldbody
@@ -299,29 +353,35 @@ def build_spec(robot: RobotModel, prepared: PreparedURDF, options: SpecOptions) 
         rgba=[0.1, 0.8, 0.1, 0.6],
         group=2,
     )
+    return ee_body, site_pos, site_quat
 
-    if options.payload_kg > 0.0:
-        mass = float(options.payload_kg)
-        inertia = 0.4 * mass * PAYLOAD_RADIUS_M**2  # solid sphere: "a point-ish mass"
-        payload = ee_body.add_body(
-            name=PAYLOAD_BODY,
-            pos=site_pos + qto_matrix(site_quat) @ options.payload_offset_m,
-            quat=[1.0, 0.0, 0.0, 0.0],
-            mass=mass,
-            inertia=[inertia, inertia, inertia],
-            explicitinertial=True,
-        )
-        payload.add_geom(
-            type=mujoco.mjtGeom.mjGEOM_SPHERE,
-            size=[PAYLOAD_RADIUS_M, 0.0, 0.0],
-            contype=0,
-            conaffinity=0,
-            group=1,
-            density=0.0,
-            rgba=[0.8, 0.1, 0.1, 1.0],
-        )
-    add_obstacles(spec, options.obstacles)
-    return spec
+
+def _add_payload(
+    ee_body: mujoco.MjsBody, site_pos: np.ndarray, site_quat: np.ndarray, options: SpecOptions
+) -> None:
+    """Add the payload body of ``options.payload_kg`` [kg] to ``ee_body``, centred at
+    ``options.payload_offset_m`` [m] from the end-effector site (at ``site_pos`` [m], with
+    quaternion ``site_quat`` in ``ee_body``): a small solid sphere, drawn but without
+    contacts."""
+    mass = float(options.payload_kg)
+    inertia = 0.4 * mass * PAYLOAD_RADIUS_M**2  # solid sphere: "a point-ish mass"
+    payload = ee_body.add_body(
+        name=PAYLOAD_BODY,
+        pos=site_pos + qto_matrix(site_quat) @ options.payload_offset_m,
+        quat=[1.0, 0.0, 0.0, 0.0],
+        mass=mass,
+        inertia=[inertia, inertia, inertia],
+        explicitinertial=True,
+    )
+    payload.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_SPHERE,
+        size=[PAYLOAD_RADIUS_M, 0.0, 0.0],
+        contype=0,
+        conaffinity=0,
+        group=1,
+        density=0.0,
+        rgba=[0.8, 0.1, 0.1, 1.0],
+    )
 
 
 def add_obstacles(spec: mujoco.MjSpec, obstacles: tuple[Obstacle, ...]) -> None:

@@ -93,6 +93,7 @@ from dqcontrol.dq.algebra import dq_from_rt, qfrom_matrix
 from dqcontrol.errors import DQControlError, ParameterError, URDFError
 from dqcontrol.extras import lazy_module
 from dqcontrol.model.robot import RobotModel
+from dqcontrol.model.urdf_source import URDFSource
 from dqcontrol.sim.mjcf_builder import (
     PAYLOAD_BODY,
     SpecOptions,
@@ -209,6 +210,103 @@ def _effort_limits(robot: RobotModel) -> np.ndarray:
     return effort
 
 
+def _urdf_source(robot: RobotModel) -> URDFSource:
+    """The URDF ``robot`` was built from.
+
+    Raises:
+        ParameterError: ``robot`` is not a :class:`RobotModel` or has no URDF source.
+    """
+    if not isinstance(robot, RobotModel):
+        raise ParameterError(f"robot must be a RobotModel, got {type(robot).__name__}")
+    if robot.source is None:
+        raise ParameterError(
+            "robot has no URDF source (build it with RobotModel.from_urdf or a loader)"
+        )
+    return robot.source
+
+
+def _time_constants(
+    physics_dt_s: float, servo_time_constant_s: float, integral_time_constant_s: float
+) -> tuple[float, float, float]:
+    """The physics step, ``τ_v`` and ``τ_i`` [s], checked (``math.inf``: no ``τ_i``).
+
+    Raises:
+        ParameterError: ``physics_dt_s`` is not in ``(0, MAX_PHYSICS_DT_S]``, ``τ_v`` is
+            below ``2 physics_dt_s`` (the servo is explicit in time) or ``τ_i`` is not > 0.
+    """
+    dt = _positive("physics_dt_s", physics_dt_s, "s")
+    if dt > MAX_PHYSICS_DT_S:
+        raise ParameterError(f"physics_dt_s must be ≤ {MAX_PHYSICS_DT_S} s, got {dt}")
+    tau_v = _positive("servo_time_constant_s", servo_time_constant_s, "s")
+    if tau_v < 2.0 * dt:
+        raise ParameterError(
+            f"servo_time_constant_s must be ≥ 2 physics_dt_s = {2.0 * dt} s (the servo is "
+            f"explicit in time), got {tau_v}"
+        )
+    tau_i = float(integral_time_constant_s)
+    if not (tau_i > 0.0) or math.isnan(tau_i):  # inf allowed: no integral action
+        raise ParameterError(
+            f"integral_time_constant_s must be > 0 [s] (math.inf: no integral action), "
+            f"got {integral_time_constant_s!r}"
+        )
+    return dt, tau_v, tau_i
+
+
+class _Drives(NamedTuple):
+    """The checked physical settings of the drives and the payload (per joint in
+    ``robot.joint_names`` order).
+
+    Attributes:
+        effort_scale: factor on the URDF's effort limits.
+        effort_limit_nm: torque limit of each drive [N·m] (``effort_scale`` × URDF effort).
+        armature: reflected rotor inertia [kg·m²].
+        damping: viscous joint damping [N·m·s/rad]; ``None`` keeps the URDF's.
+        payload_kg: payload mass [kg].
+        payload_offset_m: payload centre in the end-effector frame [m].
+    """
+
+    effort_scale: float
+    effort_limit_nm: np.ndarray
+    armature: np.ndarray
+    damping: np.ndarray | None
+    payload_kg: float
+    payload_offset_m: np.ndarray
+
+
+def _drives(
+    robot: RobotModel,
+    *,
+    effort_scale: float,
+    payload_kg: float,
+    payload_offset_m: np.ndarray | None,
+    armature: float | np.ndarray | None,
+    joint_damping: float | np.ndarray | None,
+) -> _Drives:
+    """The drives' and the payload's settings of :class:`MujocoSimulation`'s arguments of
+    the same names, checked, with the defaults filled in (module docstring).
+
+    Raises:
+        ParameterError: an argument is outside its range, or a controlled joint has no
+            positive URDF effort limit.
+    """
+    n = robot.nq
+    scale = _positive("effort_scale", effort_scale, "-")
+    payload = _positive("payload_kg", payload_kg, "kg", allow_zero=True)
+    offset = _payload_offset(payload_offset_m)
+    effort = _effort_limits(robot)
+    arm = (
+        ARMATURE_PER_NM * effort
+        if armature is None
+        else _per_joint("armature", armature, n, "kg·m²")
+    )
+    damping = (
+        None
+        if joint_damping is None
+        else _per_joint("joint_damping", joint_damping, n, "N·m·s/rad")
+    )
+    return _Drives(scale, scale * effort, arm, damping, payload, offset)
+
+
 class MujocoSimulation:
     """A robot in MuJoCo whose joints track velocity commands through torque-limited servos.
 
@@ -262,43 +360,19 @@ class MujocoSimulation:
         effort_scale: float = 1.0,
         obstacles: tuple = (),
     ) -> None:
-        if not isinstance(robot, RobotModel):
-            raise ParameterError(f"robot must be a RobotModel, got {type(robot).__name__}")
-        if robot.source is None:
-            raise ParameterError(
-                "robot has no URDF source (build it with RobotModel.from_urdf or a loader)"
-            )
+        source = _urdf_source(robot)
         if motor not in _MOTORS:
             raise ParameterError(f"motor must be one of {_MOTORS}, got {motor!r}")
-        dt = _positive("physics_dt_s", physics_dt_s, "s")
-        if dt > MAX_PHYSICS_DT_S:
-            raise ParameterError(f"physics_dt_s must be ≤ {MAX_PHYSICS_DT_S} s, got {dt}")
-        tau_v = _positive("servo_time_constant_s", servo_time_constant_s, "s")
-        if tau_v < 2.0 * dt:
-            raise ParameterError(
-                f"servo_time_constant_s must be ≥ 2 physics_dt_s = {2.0 * dt} s (the servo is "
-                f"explicit in time), got {tau_v}"
-            )
-        tau_i = float(integral_time_constant_s)
-        if not (tau_i > 0.0) or math.isnan(tau_i):  # inf allowed: no integral action
-            raise ParameterError(
-                f"integral_time_constant_s must be > 0 [s] (math.inf: no integral action), "
-                f"got {integral_time_constant_s!r}"
-            )
-        n = robot.nq
-        scale = _positive("effort_scale", effort_scale, "-")
-        payload = _positive("payload_kg", payload_kg, "kg", allow_zero=True)
-        offset = _payload_offset(payload_offset_m)
-        effort = _effort_limits(robot)
-        arm = (
-            ARMATURE_PER_NM * effort
-            if armature is None
-            else _per_joint("armature", armature, n, "kg·m²")
+        dt, tau_v, tau_i = _time_constants(
+            physics_dt_s, servo_time_constant_s, integral_time_constant_s
         )
-        damping = (
-            None
-            if joint_damping is None
-            else _per_joint("joint_damping", joint_damping, n, "N·m·s/rad")
+        drives = _drives(
+            robot,
+            effort_scale=effort_scale,
+            payload_kg=payload_kg,
+            payload_offset_m=payload_offset_m,
+            armature=armature,
+            joint_damping=joint_damping,
         )
 
         self.robot = robot
@@ -312,9 +386,20 @@ class MujocoSimulation:
         self.integral_time_constant_s = tau_i
         self.gravity_feedforward = bool(gravity_feedforward)
         #: Reflected rotor inertia of each joint [kg·m²].
-        self.armature = arm.copy()
+        self.armature = drives.armature.copy()
 
-        self._prepared = prepare_urdf_xml(robot.source)
+        self._build_model(source, bool(gravity), drives, obstacles)
+        self._build_nominal_model(bool(gravity))
+        self._allocate_buffers(robot.nq)
+        self.reset(np.clip(np.zeros(robot.nq), robot.limits.q_min, robot.limits.q_max))
+
+    # ------------------------------------------------------------------ construction
+    def _build_model(
+        self, source: URDFSource, gravity: bool, drives: _Drives, obstacles: tuple
+    ) -> None:
+        """Prepare the URDF and compile the first MuJoCo model, with ``gravity`` on or off,
+        the drives' settings and the static ``obstacles``."""
+        self._prepared = prepare_urdf_xml(source)
         #: Visual meshes MuJoCo could not read and that were left out (path and reason).
         self.dropped_visuals = self._prepared.dropped_visuals
         #: Static obstacles in the world (they collide with the robot's geometry).
@@ -330,27 +415,30 @@ class MujocoSimulation:
         )
         self._compile(
             SpecOptions(
-                physics_dt_s=dt,
-                gravity=bool(gravity),
-                armature_kg_m2=arm,
-                damping_nms_rad=damping,
-                effort_limit_nm=scale * effort,
-                payload_kg=payload,
-                payload_offset_m=offset,
+                physics_dt_s=self.physics_dt_s,
+                gravity=gravity,
+                armature_kg_m2=drives.armature,
+                damping_nms_rad=drives.damping,
+                effort_limit_nm=drives.effort_limit_nm,
+                payload_kg=drives.payload_kg,
+                payload_offset_m=drives.payload_offset_m,
                 obstacles=self.obstacles,
             )
         )
-        self.effort_scale = scale
+        self.effort_scale = drives.effort_scale
 
-        # the drives' nominal model: the controller's, plus rotor inertia; gravity only as
-        # feed-forward
-        self._pin_model = pin.Model(robot.model)
-        self._pin_model.armature = arm.copy()
+    def _build_nominal_model(self, gravity: bool) -> None:
+        """The drives' nominal Pinocchio model: the controller's plus the rotor inertia, with
+        gravity only when it is on and fed forward."""
+        self._pin_model = pin.Model(self.robot.model)
+        self._pin_model.armature = self.armature.copy()
         if not (gravity and self.gravity_feedforward):
             self._pin_model.gravity = pin.Motion.Zero()
         self._pin_data = self._pin_model.createData()
 
-        # preallocated buffers of the hot loop (no numpy allocation per physics step)
+    def _allocate_buffers(self, n: int) -> None:
+        """The drives' state and the work arrays of the hot loop for ``n`` joints, allocated
+        once (no numpy allocation per physics step)."""
         self._u = np.zeros(n)  # velocity command [rad/s]
         self._um = np.zeros(n)  # reference model's velocity [rad/s]
         self._w = np.zeros(n)  # integral action [rad/s²]
@@ -369,7 +457,6 @@ class MujocoSimulation:
         self._ramp_steps = 0
         self._ramp_done = 0
         self._warnings = 0
-        self.reset(np.clip(np.zeros(n), robot.limits.q_min, robot.limits.q_max))
 
     # ------------------------------------------------------------------ the model
     def _compile(self, options: SpecOptions) -> None:
