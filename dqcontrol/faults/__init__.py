@@ -7,7 +7,11 @@ failing or contradictory QPs.
   :class:`~dqcontrol.sim.PayloadDriver`, :class:`~dqcontrol.sim.TorqueLimitDriver`);
 - :mod:`~dqcontrol.faults.qp_faults` — QPs with contradictory bounds (:func:`contradictory`);
 - :mod:`~dqcontrol.faults.scenarios` — the controllers, trajectories and faults by name;
-- :mod:`~dqcontrol.faults.campaign` — :func:`run_campaign`, :func:`run_case` and the report.
+- :mod:`~dqcontrol.faults.cases` — the cases and their rows (:class:`CaseSpec`,
+  :func:`campaign_cases`, :class:`CaseResult`, :class:`CampaignResult`);
+- :mod:`~dqcontrol.faults.campaign` — :func:`run_campaign` and :func:`run_case`: the runs
+  and their judgement;
+- :mod:`~dqcontrol.faults.report` — the report (:func:`render_markdown`, :func:`render_csv`).
 """
 
 from dqcontrol.faults.campaign import (
