@@ -51,6 +51,14 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_out_option(p, "results", "results folder")
+    _add_grid_options(p)
+    _add_execution_options(p)
+    p.set_defaults(func=_run)
+
+
+def _add_grid_options(p: argparse.ArgumentParser) -> None:
+    """Add the options that select the cases of the grid: ``--quick``, ``--periods``,
+    ``--trajectories``, ``--controllers`` and ``--simulator``."""
     p.add_argument(
         "--quick",
         action="store_true",
@@ -83,6 +91,11 @@ def register(subparsers) -> None:
         default="mujoco",
         help="closed loop: MuJoCo physics (default) or the ideal kinematic loop",
     )
+
+
+def _add_execution_options(p: argparse.ArgumentParser) -> None:
+    """Add the options of how the cases run and what they keep: ``--workers``,
+    ``--scheduler``, ``--no-save-runs``, ``--bound-samples`` and ``--no-progress``."""
     p.add_argument(
         "--workers",
         type=int,
@@ -112,7 +125,6 @@ def register(subparsers) -> None:
         help="path samples of the TOPP-RA bound (default: 2001; 0: no bound)",
     )
     add_progress_option(p)
-    p.set_defaults(func=_run)
 
 
 def _controller(text: str) -> str:

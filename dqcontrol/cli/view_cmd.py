@@ -63,12 +63,46 @@ def register(subparsers) -> None:
 
 
 def _positive_speed(text: str) -> float:
-    from dqcontrol.cli.run_cmd import _positive_float
+    """The argparse type of ``--speed``: a finite number > 0."""
+    from dqcontrol.cli.run_options import positive_float
 
-    return _positive_float("x real time")(text)
+    return positive_float("x real time")(text)
 
 
 def _main(args: argparse.Namespace) -> int:
+    """Replay the saved run in the live viewer and/or write its figures and HTML replay.
+
+    Returns:
+        The exit code, 0; bad options exit with 2, an unreadable run raises
+        :class:`~dqcontrol.errors.ParameterError`.
+    """
+    json_path, name, viewer_on = _check_options(args)
+
+    from dqcontrol.cli.robot_options import robot_from_meta
+    from dqcontrol.cli.run_cmd import trajectory_from_meta
+    from dqcontrol.sim.bridge import run_origin
+
+    log = _load_log(json_path)
+    meta = log.meta
+    print(f"run {name}: states from {run_origin(meta)}", flush=True)
+    trajectory = trajectory_from_meta(meta, log)
+    path_points = trajectory.path_positions(1000) if trajectory is not None else None
+    out = Path(args.out) if args.out else json_path.parent
+    robot = None
+    if args.html or viewer_on:
+        robot = robot_from_meta(meta)
+    written = _write_files(args, log, robot, trajectory, path_points, out, name)
+    if written:
+        print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
+    if viewer_on:
+        assert robot is not None, "built above for the viewer"
+        _replay(args, log, robot, path_points, name)
+    return 0
+
+
+def _check_options(args: argparse.Namespace) -> tuple[Path, str, bool]:
+    """The saved run's ``.json``, its name, and whether to open the live viewer; parser
+    error (exit 2) for a missing run, a negative ``--hold`` or nothing to do."""
     parser = args._parser
     path = Path(args.run)
     stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
@@ -80,13 +114,14 @@ def _main(args: argparse.Namespace) -> int:
     viewer_on = args.viewer if args.viewer is not None else not (args.html or args.figures)
     if not (viewer_on or args.html or args.figures):
         parser.error("nothing to do: give --viewer, --html or --figures")
+    return json_path, stem.name, viewer_on
 
-    from dqcontrol.cli.robot_options import robot_from_meta
-    from dqcontrol.cli.run_cmd import hold_viewer, trajectory_from_meta
-    from dqcontrol.dq.algebra import translation
+
+def _load_log(json_path: Path):
+    """The log of the saved run; :class:`~dqcontrol.errors.ParameterError` if it cannot be
+    read or has no samples."""
     from dqcontrol.errors import ParameterError
     from dqcontrol.runs.storage import load_run
-    from dqcontrol.sim.bridge import run_origin
 
     try:
         log, record = load_run(json_path)
@@ -94,16 +129,12 @@ def _main(args: argparse.Namespace) -> int:
         raise ParameterError(f"cannot read the run {json_path}: {exc}") from None
     if len(log) == 0:
         raise ParameterError(f"the run {json_path} has no samples")
-    meta = log.meta
-    print(f"run {stem.name}: states from {run_origin(meta)}", flush=True)
-    trajectory = trajectory_from_meta(meta, log)
-    path_points = trajectory.path_positions(1000) if trajectory is not None else None
-    out = Path(args.out) if args.out else json_path.parent
-    name = stem.name
+    return log
+
+
+def _write_files(args, log, robot, trajectory, path_points, out: Path, name: str) -> list[Path]:
+    """Write the run's figures (``--figures``) and its HTML replay (``--html``) to ``out``."""
     written: list[Path] = []
-    robot = None
-    if args.html or viewer_on:
-        robot = robot_from_meta(meta)
     if args.figures:
         from dqcontrol.viz.figures import plot_run
 
@@ -112,27 +143,30 @@ def _main(args: argparse.Namespace) -> int:
     if args.html:
         from dqcontrol.viz.meshcat_viewer import export_replay_html
 
-        assert robot is not None, "built above for --html"
+        assert robot is not None, "built by the caller for --html"
         written.append(
             export_replay_html(
                 robot, log, out / f"{name}_replay.html", path_points=path_points, speed=args.speed
             )
         )
-    if written:
-        print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
-    if viewer_on:
-        from dqcontrol.viz.meshcat_viewer import MeshcatViewer
+    return written
 
-        assert robot is not None, "built above for the viewer"
-        with MeshcatViewer(robot, q=log.q[0]) as viewer:
-            points = path_points if path_points is not None else translation(log.target)
-            viewer.show_path(points)
-            viewer.frame_scene(points)
-            viewer.set_animation(log, speed=args.speed)
-            label = meta.get("label") or meta.get("controller") or name
-            print(f"replaying {label} ({len(log)} samples, {log.t_s[-1]:.2f} s)", flush=True)
-            hold = args.hold
-            if hold is None and not (sys.stdin and sys.stdin.isatty()):
-                print("not waiting (stdin is not a terminal); use --hold SECONDS to keep it open")
-            hold_viewer(viewer, hold)
-    return 0
+
+def _replay(args: argparse.Namespace, log, robot, path_points, name: str) -> None:
+    """Play the run in the live viewer, looping, and keep it open ``--hold``."""
+    from dqcontrol.cli.run_output import hold_viewer
+    from dqcontrol.dq.algebra import translation
+    from dqcontrol.viz.meshcat_viewer import MeshcatViewer
+
+    meta = log.meta
+    with MeshcatViewer(robot, q=log.q[0]) as viewer:
+        points = path_points if path_points is not None else translation(log.target)
+        viewer.show_path(points)
+        viewer.frame_scene(points)
+        viewer.set_animation(log, speed=args.speed)
+        label = meta.get("label") or meta.get("controller") or name
+        print(f"replaying {label} ({len(log)} samples, {log.t_s[-1]:.2f} s)", flush=True)
+        hold = args.hold
+        if hold is None and not (sys.stdin and sys.stdin.isatty()):
+            print("not waiting (stdin is not a terminal); use --hold SECONDS to keep it open")
+        hold_viewer(viewer, hold)
