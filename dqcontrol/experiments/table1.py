@@ -47,6 +47,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -59,6 +60,9 @@ from dqcontrol.experiments.thesis import (
     THESIS_PERIOD_S,
     THESIS_VELOCITY_LIMITS,
 )
+
+if TYPE_CHECKING:
+    from dqcontrol.experiments.sweep import SweepOutcome
 
 __all__ = [
     "COLUMNS",
@@ -893,10 +897,6 @@ def run_table1(
     The pool's workers are started with ``spawn`` (fresh interpreters): a script that calls
     this function must do so under ``if __name__ == "__main__":``.
     """
-    from dqcontrol.experiments.executor import resolve_executor
-    from dqcontrol.experiments.sweep import sweep
-    from dqcontrol.runs.storage import atomic_write_text
-
     if settings is None:
         settings = Table1Settings(simulator=simulator)
     cases = table1_cases(
@@ -905,6 +905,34 @@ def run_table1(
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     runs_dir = out_dir / "table1_runs" if save_runs else None
+    outcome, executor = _sweep_cases(cases, settings, runs_dir, workers, scheduler, progress)
+    return _write_tables(out_dir, outcome, settings, executor, command, runs_dir)
+
+
+def _sweep_cases(
+    cases: list[Table1Case],
+    settings: Table1Settings,
+    runs_dir: Path | None,
+    workers: int | None,
+    scheduler: str | None,
+    progress: bool,
+) -> tuple[SweepOutcome, str]:
+    """Run every case on the executor that ``workers`` and ``scheduler`` select.
+
+    Args:
+        cases: the cases of the grid.
+        settings: the shared settings.
+        runs_dir: folder each run is saved in, or ``None`` not to save them.
+        workers: processes of the local pool (see :func:`run_table1`).
+        scheduler: address of a Dask distributed scheduler, or ``None``.
+        progress: show a progress bar.
+
+    Returns:
+        The sweep's outcome (the longest cases are started first) and the executor's label.
+    """
+    from dqcontrol.experiments.executor import resolve_executor
+    from dqcontrol.experiments.sweep import sweep
+
     save_dir = None if runs_dir is None else str(runs_dir.resolve())
     executor = resolve_executor(workers, scheduler, len(cases))
     outcome = sweep(
@@ -916,13 +944,42 @@ def run_table1(
         name=lambda case: case.name,
         progress="table1" if progress else None,
     )
+    return outcome, executor.label
+
+
+def _write_tables(
+    out_dir: Path,
+    outcome: SweepOutcome,
+    settings: Table1Settings,
+    executor: str,
+    command: str | None,
+    runs_dir: Path | None,
+) -> Table1Result:
+    """Write ``table1.md`` and ``table1.csv`` of the sweep's results into ``out_dir``.
+
+    Args:
+        out_dir: the results folder.
+        outcome: the sweep's outcome.
+        settings: the shared settings.
+        executor: the executor's label, quoted in the ``.md`` header.
+        command: the command line, quoted in the ``.md`` header.
+        runs_dir: folder the runs were saved in, or ``None``.
+
+    Returns:
+        The tables and where they were written.
+
+    Raises:
+        KeyboardInterrupt: the sweep was interrupted (once both tables are written).
+    """
+    from dqcontrol.runs.storage import atomic_write_text
+
     results, wall, interrupted = outcome.results, outcome.wall_time_s, outcome.interrupted
     rows = table_rows(results)
     markdown = format_markdown(
         rows,
         settings,
         wall_time_s=wall,
-        executor=executor.label,
+        executor=executor,
         command=command,
         interrupted=interrupted,
         physics_dt_s=next((r["meta"].get("physics_dt_s") for r in results), None),
@@ -939,7 +996,7 @@ def run_table1(
         csv_path=csv_path,
         md_path=md_path,
         wall_time_s=wall,
-        executor=executor.label,
+        executor=executor,
         interrupted=interrupted,
         runs_dir=runs_dir,
         failures=failures,

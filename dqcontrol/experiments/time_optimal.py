@@ -264,20 +264,44 @@ def time_optimal_bound(
     """
     started = time.perf_counter()
     toppra = _import_toppra()
-    n = robot.nq
     q0 = robot.check_q(q0, "q0")
     settings = _check_settings(
-        robot,
-        velocity_limits=velocity_limits,
-        acceleration_limit=acceleration_limit,
-        torque_limits=torque_limits,
-        speed_cap=speed_cap,
-        samples=samples,
-        posture_gain_per_s=posture_gain_per_s,
-        acceleration_floor=acceleration_floor,
-        acceleration_cap=acceleration_cap,
-        ik_tolerance=ik_tolerance,
-    )
+        robot, velocity_limits=velocity_limits, acceleration_limit=acceleration_limit,
+        torque_limits=torque_limits, speed_cap=speed_cap, samples=samples,
+        posture_gain_per_s=posture_gain_per_s, acceleration_floor=acceleration_floor,
+        acceleration_cap=acceleration_cap, ik_tolerance=ik_tolerance,
+    )  # fmt: skip
+    joint_path = _task_joint_path(robot, trajectory, q0, settings)
+    return _bound_along(toppra, robot, settings, joint_path, started)
+
+
+@dataclass(frozen=True, eq=False)
+class _JointPath:
+    """The joint path of a task (stage 1 of the module notes).
+
+    Attributes:
+        nominal_duration_s: the task's nominal duration ``T_tot`` [s].
+        sigma: the grid of ``σ`` [s of nominal time], shape ``(N,)`` (:func:`_grid`).
+        q: joint path [rad] at the grid, shape ``(N, n)``.
+        ik_max_error: largest ``‖e6‖`` over the samples.
+    """
+
+    nominal_duration_s: float
+    sigma: np.ndarray
+    q: np.ndarray
+    ik_max_error: float
+
+
+def _task_joint_path(
+    robot: RobotModel, trajectory: Trajectory, q0: np.ndarray, settings: TimeOptimalSettings
+) -> _JointPath:
+    """The joint path that follows ``trajectory`` from ``q0``, within the position limits.
+
+    A trajectory without a reference is first anchored at ``robot.pose(q0)``.
+
+    Raises:
+        ParameterError: a sample cannot be reached, or the path leaves the position limits.
+    """
     if trajectory.reference is None:
         trajectory = trajectory.anchored_at(robot.pose(q0))
     duration = trajectory.duration
@@ -285,30 +309,44 @@ def time_optimal_bound(
     targets, _ = trajectory.targets(sigma)
     q, ik_error = _joint_path(robot, targets, sigma, q0, settings)
     _check_position_limits(robot, sigma, q)
+    return _JointPath(duration, sigma, q, ik_error)
 
+
+def _bound_along(
+    toppra: Any,
+    robot: RobotModel,
+    settings: TimeOptimalSettings,
+    joint_path: _JointPath,
+    started: float,
+) -> TimeOptimalBound:
+    """The time-optimal parameterisation of ``joint_path`` (stage 2 of the module notes).
+
+    Args:
+        toppra: the ``toppra`` module.
+        robot: the robot model.
+        settings: the checked limits and settings.
+        joint_path: the joint path of the task.
+        started: :func:`time.perf_counter` at the start of the computation.
+
+    Raises:
+        ParameterError: TOPP-RA finds no parameterisation of the path, on either grid.
+    """
+    sigma, q = joint_path.sigma, joint_path.q
     path = toppra.SplineInterpolator(sigma, q)
-    dq = np.asarray(path(sigma, 1)).reshape(-1, n)
-    ddq = np.asarray(path(sigma, 2)).reshape(-1, n)
+    dq = np.asarray(path(sigma, 1)).reshape(-1, robot.nq)
+    ddq = np.asarray(path(sigma, 2)).reshape(-1, robot.nq)
     a_max = _AccelerationTable(robot, settings)
     constraints = _constraints(toppra, robot, settings, a_max)
     sd = _parameterize(toppra, path, sigma, constraints)
-    coarse = _coarse_indices(sigma.size)
-    coarse_path = toppra.SplineInterpolator(sigma[coarse], q[coarse])
-    sd_coarse = _parameterize(toppra, coarse_path, sigma[coarse], constraints)
-    delta = np.diff(sigma)
-    # constant σ̈ on each interval: x_{i+1} = x_i + 2 Δσ u_i, Δt = 2 Δσ / (σ̇_i + σ̇_{i+1})
-    sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * delta)
-    dt = 2.0 * delta / (sd[:-1] + sd[1:])
-    times = np.concatenate(([0.0], np.cumsum(dt)))
-    delta_coarse = np.diff(sigma[coarse])
-    duration_coarse = float(np.sum(2.0 * delta_coarse / (sd_coarse[:-1] + sd_coarse[1:])))
+    duration_coarse = _coarse_duration(toppra, sigma, q, constraints)
+    sdd, dt, times = _interval_timing(sigma, sd)
     share, peak = _constraint_use(robot, settings, a_max, q, dq, ddq, sd, sdd, dt)
     return TimeOptimalBound(
         duration_s=float(times[-1]),
         duration_coarse_s=duration_coarse,
-        nominal_duration_s=float(duration),
+        nominal_duration_s=float(joint_path.nominal_duration_s),
         samples=int(sigma.size),
-        ik_max_error=float(ik_error),
+        ik_max_error=float(joint_path.ik_max_error),
         sigma=sigma,
         q=q,
         dq_dsigma=dq,
@@ -321,6 +359,36 @@ def time_optimal_bound(
         settings=settings,
         compute_time_s=time.perf_counter() - started,
     )
+
+
+def _coarse_duration(
+    toppra: Any, sigma: np.ndarray, q: np.ndarray, constraints: list[Any]
+) -> float:
+    """The time-optimal duration [s] on the grid with every other point (``2Δσ``).
+
+    Raises:
+        ParameterError: TOPP-RA finds no parameterisation on that grid.
+    """
+    coarse = _coarse_indices(sigma.size)
+    coarse_path = toppra.SplineInterpolator(sigma[coarse], q[coarse])
+    sd_coarse = _parameterize(toppra, coarse_path, sigma[coarse], constraints)
+    delta_coarse = np.diff(sigma[coarse])
+    return float(np.sum(2.0 * delta_coarse / (sd_coarse[:-1] + sd_coarse[1:])))
+
+
+def _interval_timing(
+    sigma: np.ndarray, sd: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``σ̈`` [1/s] and the duration [s] of each grid interval, and the time [s] at each
+    grid point, for ``σ̇ = sd`` at the grid and ``σ̈`` constant on each interval.
+
+    With ``x = σ̇²``: ``x_{i+1} = x_i + 2 Δσ u_i`` and ``Δt = 2 Δσ / (σ̇_i + σ̇_{i+1})``.
+    """
+    delta = np.diff(sigma)
+    sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * delta)
+    dt = 2.0 * delta / (sd[:-1] + sd[1:])
+    times = np.concatenate(([0.0], np.cumsum(dt)))
+    return sdd, dt, times
 
 
 # ---------------------------------------------------------------------------- checks

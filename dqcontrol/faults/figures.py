@@ -114,55 +114,59 @@ def _excess_mrad(r) -> tuple[np.ndarray, np.ndarray]:
     return PERIOD_S * np.arange(q.shape[0]), 1000.0 * excess
 
 
+#: The runs of ``faults_limits.png``: label, fault, simulator, hook on the controller's
+#: configuration (:func:`~dqcontrol.faults.campaign.run_case`), colour and line style.
+_LIMITS_RUNS = (
+    (
+        "MuJoCo, exact measurements, no margin",
+        "near_limits",
+        "mujoco",
+        lambda c: position_margin(c, 0.0),
+        "tab:blue",
+        "-",
+    ),
+    (
+        "MuJoCo, noise 2 mrad, margin 5 mrad",
+        "near_limits_noise",
+        "mujoco",
+        None,
+        "tab:purple",
+        "-",
+    ),
+    ("MuJoCo, delay 2 T, unaware", "near_limits_delay_2", "mujoco", None, "tab:red", "-"),
+    (
+        "kinematic, delay 2 T, unaware",
+        "near_limits_delay_2",
+        "kinematic",
+        None,
+        "tab:orange",
+        "-",
+    ),
+    (
+        "MuJoCo, delay 2 T, compensated, 5 mrad margin",
+        "near_limits_delay_2",
+        "mujoco",
+        lambda c: compensate_delay(c, 2),
+        "tab:green",
+        "--",
+    ),
+    (
+        "kinematic, delay 2 T, compensated",
+        "near_limits_delay_2",
+        "kinematic",
+        lambda c: compensate_delay(c, 2),
+        "tab:olive",
+        "--",
+    ),
+)
+
+
 def limits_figure(path: Path) -> Path:
     """``faults_limits.png`` (see the module docstring)."""
     plt = _pyplot()
 
-    runs = [  # fmt: skip
-        (
-            "MuJoCo, exact measurements, no margin",
-            "near_limits",
-            "mujoco",
-            lambda c: position_margin(c, 0.0),
-            "tab:blue",
-            "-",
-        ),
-        (
-            "MuJoCo, noise 2 mrad, margin 5 mrad",
-            "near_limits_noise",
-            "mujoco",
-            None,
-            "tab:purple",
-            "-",
-        ),
-        ("MuJoCo, delay 2 T, unaware", "near_limits_delay_2", "mujoco", None, "tab:red", "-"),
-        (
-            "kinematic, delay 2 T, unaware",
-            "near_limits_delay_2",
-            "kinematic",
-            None,
-            "tab:orange",
-            "-",
-        ),
-        (
-            "MuJoCo, delay 2 T, compensated, 5 mrad margin",
-            "near_limits_delay_2",
-            "mujoco",
-            lambda c: compensate_delay(c, 2),
-            "tab:green",
-            "--",
-        ),
-        (
-            "kinematic, delay 2 T, compensated",
-            "near_limits_delay_2",
-            "kinematic",
-            lambda c: compensate_delay(c, 2),
-            "tab:olive",
-            "--",
-        ),
-    ]
     fig, ax = plt.subplots(figsize=(8.0, 5.0))
-    for label, fault, sim, hook, color, style in runs:
+    for label, fault, sim, hook, color, style in _LIMITS_RUNS:
         r = _case(fault, "circle", "local", sim, hook, aware=False)
         t, e = _excess_mrad(r)
         ax.plot(t, e, style, color=color, lw=1.3, label=f"{label}: max {max(e.max(), 0):.2f}")

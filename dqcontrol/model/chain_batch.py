@@ -106,61 +106,23 @@ class ChainBatch:
         The joint placements, axes and the frame placement are read once, here.
         """
         frame = model.frames[frame_id]
-        parent = int(frame.parentJoint)
-        chain = [int(j) for j in model.supports[parent]][1:]
-        if not 0 < len(chain) <= MAX_JOINTS or model.nq != model.nv:
+        found = _revolute_chain(model, int(frame.parentJoint))
+        if found is None:
             return None
-        axes = []
-        for j in chain:
-            axis = _revolute_axis(model.joints[j])
-            if axis is None or model.joints[j].nq != 1:
-                return None
-            axes.append(axis)
+        chain, axes = found
         columns = [int(model.joints[j].idx_q) for j in chain]
-
-        # C[b] (b a binary number over the chain, first joint most significant): vec8 of
-        # P_1 u_1 P_2 u_2 … u_m P_ee with u_j = 1 (b_j = 0) or the axis a_j (b_j = 1)
-        coeffs = np.zeros((1, 8))
-        coeffs[0, 0] = 1.0
-        for j, axis in zip(chain, axes, strict=True):
-            coeffs = dq_mul(coeffs, dq_from_se3(model.jointPlacements[j]))
-            pure = np.zeros(8)
-            pure[1:4] = axis
-            coeffs = np.stack((coeffs, dq_mul(coeffs, pure)), axis=1).reshape(-1, 8)
-        coeffs = dq_mul(coeffs, dq_from_se3(frame.placement))
+        coeffs = _chain_coefficients(model, chain, axes, frame.placement)
+        n = int(model.nq)
+        flat = _pose_jacobian_coefficients(coeffs, columns, n)
 
         m = len(chain)
-        size = (2,) * m
-        tensor = coeffs.reshape(size + (8,))
-        # ∂/∂θ_j maps the pair (cos, sin)(θ_j/2) to ½(-sin, cos): the coefficient of a
-        # product with b_j = 0 becomes ½ C[b_j = 1], with b_j = 1 it becomes -½ C[b_j = 0]
-        n = int(model.nq)
-        outputs = np.zeros((2**m, 8, n + 1))
-        outputs[:, :, 0] = coeffs
-        for p, col in enumerate(columns):
-            moved = np.moveaxis(tensor, p, 0)
-            deriv = np.stack((0.5 * moved[1], -0.5 * moved[0]))
-            outputs[:, :, 1 + col] = np.moveaxis(deriv, 0, p).reshape(2**m, 8)
-        # columns of out: vec8(x) (8), then J row-major (8 × n)
-        flat = np.concatenate((outputs[:, :, 0], outputs[:, :, 1:].reshape(2**m, 8 * n)), axis=1)
-
         m_a = m // 2
         signs_a, map_a = _fourier(m_a)
         signs_b, map_b = _fourier(m - m_a)
         size_a, size_b = map_a.shape[1], map_b.shape[1]
         flat = flat.reshape(2**m_a, 2 ** (m - m_a), -1)
         t = np.einsum("abo,ak,bl->klo", flat, map_a, map_b).reshape(size_a * size_b, -1)
-
-        # phases: [φ_A, φ_A, φ_B, φ_B] with offsets π/2 on the first copy (cos = sin(· + π/2))
-        e = np.zeros((n, size_a + size_b))
-        for signs, start, group in ((signs_a, 0, columns[:m_a]), (signs_b, size_a, columns[m_a:])):
-            phases = signs.shape[0]
-            for k, col in enumerate(group):
-                e[col, start : start + phases] = 0.5 * signs[:, k]
-                e[col, start + phases : start + 2 * phases] = 0.5 * signs[:, k]
-        offsets = np.zeros(size_a + size_b)
-        offsets[: size_a // 2] = 0.5 * np.pi
-        offsets[size_a : size_a + size_b // 2] = 0.5 * np.pi
+        e, offsets = _phase_map(n, (signs_a, columns[:m_a]), (signs_b, columns[m_a:]))
         return cls(n, e, offsets, size_a, np.ascontiguousarray(t))
 
     def __call__(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -174,3 +136,98 @@ class ChainBatch:
         out = k.reshape(count, self._products).dot(self._t)
         out *= np.copysign(_ONE, out[:, :1])  # r_w ≥ 0, Jacobian row flipped with x
         return out[:, :8], out[:, 8:].reshape(count, 8, self.nq)
+
+
+def _revolute_chain(model: pin.Model, parent: int) -> tuple[list[int], list[np.ndarray]] | None:
+    """The joints from the root to joint ``parent`` and their axes, if :meth:`ChainBatch.build`
+    supports them.
+
+    Returns:
+        The joint indices (root first) and each joint's unit axis in its own frame, or
+        ``None`` when the chain is empty or longer than :data:`MAX_JOINTS`, a joint is not a
+        1-DoF revolute joint about a fixed axis, or the model's ``nq`` differs from ``nv``.
+    """
+    chain = [int(j) for j in model.supports[parent]][1:]
+    if not 0 < len(chain) <= MAX_JOINTS or model.nq != model.nv:
+        return None
+    axes = []
+    for j in chain:
+        axis = _revolute_axis(model.joints[j])
+        if axis is None or model.joints[j].nq != 1:
+            return None
+        axes.append(axis)
+    return chain, axes
+
+
+def _chain_coefficients(
+    model: pin.Model, chain: list[int], axes: list[np.ndarray], placement: pin.SE3
+) -> np.ndarray:
+    """The pose's coefficients over the products of half-angle cosines and sines.
+
+    Row ``b`` (``b`` a binary number over the chain, first joint most significant) is
+    ``vec8`` of ``P_1 u_1 P_2 u_2 … u_m P_ee``, with ``P_j`` the joint placements,
+    ``P_ee = placement`` that of the frame, and ``u_j = 1`` (``b_j = 0``) or the pure
+    quaternion of the axis ``a_j`` (``b_j = 1``). Shape ``(2^m, 8)``.
+    """
+    coeffs = np.zeros((1, 8))
+    coeffs[0, 0] = 1.0
+    for j, axis in zip(chain, axes, strict=True):
+        coeffs = dq_mul(coeffs, dq_from_se3(model.jointPlacements[j]))
+        pure = np.zeros(8)
+        pure[1:4] = axis
+        coeffs = np.stack((coeffs, dq_mul(coeffs, pure)), axis=1).reshape(-1, 8)
+    return dq_mul(coeffs, dq_from_se3(placement))
+
+
+def _pose_jacobian_coefficients(coeffs: np.ndarray, columns: list[int], n: int) -> np.ndarray:
+    """The coefficients of ``[vec8(x), J]`` over the same products as ``coeffs``.
+
+    Args:
+        coeffs: the pose's coefficients (:func:`_chain_coefficients`), shape ``(2^m, 8)``.
+        columns: the configuration index of each joint of the chain.
+        n: the model's number of configuration variables.
+
+    Returns:
+        Shape ``(2^m, 8 (n + 1))``: the columns of ``vec8(x)`` (8), then ``J`` row-major
+        (``8 × n``; zero in the columns of joints off the chain).
+    """
+    m = len(columns)
+    tensor = coeffs.reshape((2,) * m + (8,))
+    # ∂/∂θ_j maps the pair (cos, sin)(θ_j/2) to ½(-sin, cos): the coefficient of a
+    # product with b_j = 0 becomes ½ C[b_j = 1], with b_j = 1 it becomes -½ C[b_j = 0]
+    outputs = np.zeros((2**m, 8, n + 1))
+    outputs[:, :, 0] = coeffs
+    for p, col in enumerate(columns):
+        moved = np.moveaxis(tensor, p, 0)
+        deriv = np.stack((0.5 * moved[1], -0.5 * moved[0]))
+        outputs[:, :, 1 + col] = np.moveaxis(deriv, 0, p).reshape(2**m, 8)
+    return np.concatenate((outputs[:, :, 0], outputs[:, :, 1:].reshape(2**m, 8 * n)), axis=1)
+
+
+def _phase_map(
+    n: int, group_a: tuple[np.ndarray, list[int]], group_b: tuple[np.ndarray, list[int]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The matrix ``E`` and the offsets that map configurations to the phases of both groups.
+
+    Args:
+        n: the model's number of configuration variables.
+        group_a: the signs of the first group (:func:`_fourier`) and its joints'
+            configuration indices.
+        group_b: the same for the second group.
+
+    Returns:
+        ``E`` (``n × P``) and the offsets (``P``) such that ``sin(q · E + offsets)`` is
+        ``[cos φ_A, sin φ_A, cos φ_B, sin φ_B]``: each group's phases twice, the first copy
+        offset by π/2 (``cos = sin(· + π/2)``).
+    """
+    size_a, size_b = 2 * group_a[0].shape[0], 2 * group_b[0].shape[0]
+    e = np.zeros((n, size_a + size_b))
+    for (signs, group), start in ((group_a, 0), (group_b, size_a)):
+        phases = signs.shape[0]
+        for k, col in enumerate(group):
+            e[col, start : start + phases] = 0.5 * signs[:, k]
+            e[col, start + phases : start + 2 * phases] = 0.5 * signs[:, k]
+    offsets = np.zeros(size_a + size_b)
+    offsets[: size_a // 2] = 0.5 * np.pi
+    offsets[size_a : size_a + size_b // 2] = 0.5 * np.pi
+    return e, offsets

@@ -154,12 +154,38 @@ def check_urdf_xml(xml: str, where: str = "<string>") -> None:
     inertia with positive diagonal; joint limits with ``lower ≤ upper`` and non-negative
     ``effort`` and ``velocity``.
     """
+    root = _robot_root(xml, where)
+    links = _check_links(root, where)
+    children = _check_joints(root, links, where)
+    roots = links - children
+    if len(roots) != 1:
+        raise URDFError(
+            f"{where}: the links must form one tree with one root; roots found: {sorted(roots)}"
+        )
+
+
+def _robot_root(xml: str, where: str) -> ET.Element:
+    """Parse the URDF text and return its ``<robot>`` element.
+
+    Raises:
+        URDFError: the XML is malformed or its root is not ``<robot>``.
+    """
     try:
         root = ET.fromstring(xml)
     except ET.ParseError as exc:
         raise URDFError(f"{where}: malformed XML ({exc})") from None
     if root.tag != "robot":
         raise URDFError(f"{where}: root element must be <robot>, got <{root.tag}>")
+    return root
+
+
+def _check_links(root: ET.Element, where: str) -> set[str]:
+    """Check every ``<link>`` (named, unique, valid inertial) and return the link names.
+
+    Raises:
+        URDFError: a link has no name or a repeated one, its ``<inertial>`` is invalid
+            (:func:`_check_inertial`), or the robot has no link at all.
+    """
     links: set[str] = set()
     for link in root.findall("link"):
         name = link.get("name")
@@ -170,27 +196,50 @@ def check_urdf_xml(xml: str, where: str = "<string>") -> None:
         links.add(name)
         inertial = link.find("inertial")
         if inertial is not None:
-            lw = f"{where}: link '{name}'"
-            mass = inertial.find("mass")
-            if mass is None:
-                raise URDFError(f"{lw}: <inertial> has no <mass>")
-            m = _float_attr(mass, "value", lw + " mass")
-            if m < 0.0:
-                raise URDFError(f"{lw}: mass must be ≥ 0 kg, got {m}")
-            origin = inertial.find("origin")
-            if origin is not None:
-                _floats(origin.get("xyz"), 3, "inertial origin xyz", lw, MAX_ORIGIN_M)
-                _floats(origin.get("rpy"), 3, "inertial origin rpy", lw)
-            inertia = inertial.find("inertia")
-            if inertia is not None:
-                for key in ("ixx", "iyy", "izz"):
-                    v = _float_attr(inertia, key, lw + " inertia", 0.0)
-                    if v < 0.0:
-                        raise URDFError(f"{lw}: inertia {key} must be ≥ 0 kg·m², got {v}")
-                for key in ("ixy", "ixz", "iyz"):
-                    _float_attr(inertia, key, lw + " inertia", 0.0)
+            _check_inertial(inertial, f"{where}: link '{name}'")
     if not links:
         raise URDFError(f"{where}: the robot has no <link>")
+    return links
+
+
+def _check_inertial(inertial: ET.Element, lw: str) -> None:
+    """Check a link's ``<inertial>``: a mass ≥ 0, a finite origin, an inertia diagonal ≥ 0.
+
+    Args:
+        inertial: the ``<inertial>`` element.
+        lw: the link's place in the file, prefixed to every message.
+
+    Raises:
+        URDFError: the mass is missing or negative, the origin is not finite (or too far),
+            or an inertia entry is not a finite number or a diagonal entry is negative.
+    """
+    mass = inertial.find("mass")
+    if mass is None:
+        raise URDFError(f"{lw}: <inertial> has no <mass>")
+    m = _float_attr(mass, "value", lw + " mass")
+    if m < 0.0:
+        raise URDFError(f"{lw}: mass must be ≥ 0 kg, got {m}")
+    origin = inertial.find("origin")
+    if origin is not None:
+        _floats(origin.get("xyz"), 3, "inertial origin xyz", lw, MAX_ORIGIN_M)
+        _floats(origin.get("rpy"), 3, "inertial origin rpy", lw)
+    inertia = inertial.find("inertia")
+    if inertia is not None:
+        for key in ("ixx", "iyy", "izz"):
+            v = _float_attr(inertia, key, lw + " inertia", 0.0)
+            if v < 0.0:
+                raise URDFError(f"{lw}: inertia {key} must be ≥ 0 kg·m², got {v}")
+        for key in ("ixy", "ixz", "iyz"):
+            _float_attr(inertia, key, lw + " inertia", 0.0)
+
+
+def _check_joints(root: ET.Element, links: set[str], where: str) -> set[str]:
+    """Check every ``<joint>`` against the links and return the names of the child links.
+
+    Raises:
+        URDFError: a joint has no name or a repeated one, or is invalid
+            (:func:`_check_joint`).
+    """
     joints: set[str] = set()
     children: set[str] = set()
     for joint in root.findall("joint"):
@@ -200,47 +249,72 @@ def check_urdf_xml(xml: str, where: str = "<string>") -> None:
         if name in joints:
             raise URDFError(f"{where}: joint '{name}' is defined twice")
         joints.add(name)
-        jw = f"{where}: joint '{name}'"
-        jtype = joint.get("type")
-        if jtype not in _SUPPORTED_JOINTS:
-            raise URDFError(f"{jw}: type '{jtype}' is not one of {sorted(_SUPPORTED_JOINTS)}")
-        parent, child = joint.find("parent"), joint.find("child")
-        if parent is None or child is None:
-            raise URDFError(f"{jw}: needs both <parent link=...> and <child link=...>")
-        for role, elem in (("parent", parent), ("child", child)):
-            link_name = elem.get("link")
-            if link_name not in links:
-                raise URDFError(
-                    f"{jw}: {role} link '{link_name}' does not exist; links: {sorted(links)}"
-                )
-        if child.get("link") in children:
-            raise URDFError(f"{jw}: link '{child.get('link')}' is the child of two joints")
-        children.add(child.attrib["link"])  # present: checked above
-        origin = joint.find("origin")
-        if origin is not None:
-            _floats(origin.get("xyz"), 3, "origin xyz", jw, MAX_ORIGIN_M)
-            _floats(origin.get("rpy"), 3, "origin rpy", jw)
-        axis = joint.find("axis")
-        if axis is not None:
-            a = _floats(axis.get("xyz"), 3, "axis xyz", jw)
-            if jtype in ("revolute", "prismatic", "continuous") and not any(a):
-                raise URDFError(f"{jw}: axis must be non-zero, got '{axis.get('xyz')}'")
-        limit = joint.find("limit")
-        if jtype in ("revolute", "prismatic") and limit is None:
-            raise URDFError(f"{jw}: a {jtype} joint needs <limit lower upper effort velocity>")
-        if limit is not None:
-            lower = _float_attr(limit, "lower", jw + " limit", 0.0)
-            upper = _float_attr(limit, "upper", jw + " limit", 0.0)
-            if jtype in ("revolute", "prismatic") and lower > upper:
-                raise URDFError(
-                    f"{jw}: limit lower={lower} > upper={upper}; need lower ≤ upper [rad or m]"
-                )
-            for key in ("effort", "velocity"):
-                v = _float_attr(limit, key, jw + " limit", 0.0)
-                if v < 0.0:
-                    raise URDFError(f"{jw}: limit {key} must be ≥ 0, got {v}")
-    roots = links - children
-    if len(roots) != 1:
-        raise URDFError(
-            f"{where}: the links must form one tree with one root; roots found: {sorted(roots)}"
-        )
+        _check_joint(joint, links, children, f"{where}: joint '{name}'")
+    return children
+
+
+def _check_joint(joint: ET.Element, links: set[str], children: set[str], jw: str) -> None:
+    """Check one joint's type, links, origin, axis and limits; add its child to ``children``.
+
+    Args:
+        joint: the ``<joint>`` element.
+        links: the names of the robot's links.
+        children: the links that are already a joint's child; updated in place.
+        jw: the joint's place in the file, prefixed to every message.
+
+    Raises:
+        URDFError: the type is not supported, the parent or child link is missing or does
+            not exist, the child already has a parent joint, the origin or axis is invalid,
+            or the limits are (:func:`_check_limit`).
+    """
+    jtype = joint.get("type")
+    if jtype not in _SUPPORTED_JOINTS:
+        raise URDFError(f"{jw}: type '{jtype}' is not one of {sorted(_SUPPORTED_JOINTS)}")
+    parent, child = joint.find("parent"), joint.find("child")
+    if parent is None or child is None:
+        raise URDFError(f"{jw}: needs both <parent link=...> and <child link=...>")
+    for role, elem in (("parent", parent), ("child", child)):
+        link_name = elem.get("link")
+        if link_name not in links:
+            raise URDFError(
+                f"{jw}: {role} link '{link_name}' does not exist; links: {sorted(links)}"
+            )
+    if child.get("link") in children:
+        raise URDFError(f"{jw}: link '{child.get('link')}' is the child of two joints")
+    children.add(child.attrib["link"])  # present: checked above
+    origin = joint.find("origin")
+    if origin is not None:
+        _floats(origin.get("xyz"), 3, "origin xyz", jw, MAX_ORIGIN_M)
+        _floats(origin.get("rpy"), 3, "origin rpy", jw)
+    axis = joint.find("axis")
+    if axis is not None:
+        a = _floats(axis.get("xyz"), 3, "axis xyz", jw)
+        if jtype in ("revolute", "prismatic", "continuous") and not any(a):
+            raise URDFError(f"{jw}: axis must be non-zero, got '{axis.get('xyz')}'")
+    _check_limit(joint.find("limit"), jtype, jw)
+
+
+def _check_limit(limit: ET.Element | None, jtype: str | None, jw: str) -> None:
+    """Check a joint's ``<limit>``: present where required, ``lower ≤ upper``, rates ≥ 0.
+
+    Args:
+        limit: the joint's ``<limit>`` element, or ``None`` when it has none.
+        jtype: the joint's type (revolute and prismatic joints need a limit).
+        jw: the joint's place in the file, prefixed to every message.
+
+    Raises:
+        URDFError: a revolute or prismatic joint has no limit or ``lower > upper``, or a
+            value is not a finite number, or ``effort`` or ``velocity`` is negative.
+    """
+    if jtype in ("revolute", "prismatic") and limit is None:
+        raise URDFError(f"{jw}: a {jtype} joint needs <limit lower upper effort velocity>")
+    if limit is None:
+        return
+    lower = _float_attr(limit, "lower", jw + " limit", 0.0)
+    upper = _float_attr(limit, "upper", jw + " limit", 0.0)
+    if jtype in ("revolute", "prismatic") and lower > upper:
+        raise URDFError(f"{jw}: limit lower={lower} > upper={upper}; need lower ≤ upper [rad or m]")
+    for key in ("effort", "velocity"):
+        v = _float_attr(limit, key, jw + " limit", 0.0)
+        if v < 0.0:
+            raise URDFError(f"{jw}: limit {key} must be ≥ 0, got {v}")

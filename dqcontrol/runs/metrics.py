@@ -78,47 +78,94 @@ def _nanmax(values: np.ndarray) -> float:
     return float(np.max(values)) if values.size else 0.0
 
 
-def compute_metrics(
-    log: RunLog, trajectory: Trajectory, bounds: BoundSpec, period_s: float
-) -> Metrics:
-    """Metrics of a run; ``trajectory`` must be the anchored one the controller used."""
-    duration = trajectory.duration
+def _excess_max(excess: np.ndarray) -> float:
+    """The largest excess over a bound, 0 when none is above it (or there are no samples)."""
+    return float(max(0.0, _nanmax(excess)))
+
+
+def _mean(values: np.ndarray) -> float:
+    """The mean of per-sample values, NaN when there are no samples."""
+    return float(np.mean(values)) if values.size else float("nan")
+
+
+def _median(values: np.ndarray) -> float:
+    """The median of per-sample values, NaN when there are no samples."""
+    return float(np.median(values)) if values.size else float("nan")
+
+
+def _task_end(log: RunLog, duration: float, period_s: float) -> tuple[bool, int]:
+    """Whether σ reached ``T_tot``, and the number of samples of the task.
+
+    The task ends with the first sample whose step takes σ to ``T_tot``; without one it is
+    the whole log.
+    """
     reached = np.flatnonzero(log.sigma + period_s * log.s >= duration - 1e-12)
     completed = reached.size > 0
     end = int(reached[0]) + 1 if completed else len(log)
-    sl = slice(0, end)
-    pose, target = log.pose[sl], log.target[sl]
-    nan_seen = bool(
+    return completed, end
+
+
+def _nan_seen(log: RunLog) -> bool:
+    """Whether any joint position, velocity command or pose of the whole log is not finite."""
+    return bool(
         not np.all(np.isfinite(log.q))
         or not np.all(np.isfinite(log.qd_command))
         or not np.all(np.isfinite(log.pose))
     )
-    err = np.linalg.norm(target - pose, axis=1) if end else np.zeros(0)
-    if end:
-        terr, rerr = (np.asarray(e) for e in pose_error(pose, target))
-        dev = trajectory.path_deviation(translation(pose))
-    else:
-        terr = rerr = dev = np.zeros(0)
-    qd_cmd = log.qd_command[sl]
-    q = log.q[sl]
-    # position: measured joint positions outside the limits
-    pos_excess = np.maximum(q - bounds.q_max, bounds.q_min - q)
-    pos_bad = pos_excess > VIOLATION_TOL
-    vel_excess = np.abs(qd_cmd) - bounds.qd_max
-    vel_bad = vel_excess > VIOLATION_TOL
-    # acceleration: between consecutive commands, the first against the initial command (0)
+
+
+def _tracking_errors(
+    log: RunLog, trajectory: Trajectory, end: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-sample errors over the first ``end`` samples (empty arrays when ``end`` is 0).
+
+    Returns:
+        ``‖vec8(x_d) - vec8(x)‖``, the translation error [m], the rotation error [rad] and
+        the deviation from the geometric path [m], each of shape ``(end,)``.
+    """
+    if not end:
+        return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)
+    pose, target = log.pose[:end], log.target[:end]
+    err = np.linalg.norm(target - pose, axis=1)
+    terr, rerr = (np.asarray(e) for e in pose_error(pose, target))
+    dev = trajectory.path_deviation(translation(pose))
+    return err, terr, rerr, dev
+
+
+def _acceleration_excess(
+    qd_cmd: np.ndarray, bounds: BoundSpec, period_s: float, end: int
+) -> np.ndarray:
+    """Per-sample, per-joint excess of the commanded acceleration over its bound [rad/s²].
+
+    The acceleration is taken between consecutive commands, the first against the initial
+    command (0); the bound is ``a_max``, else ``a_max_per_sample``, else none (``-inf``
+    excess).
+    """
     prev = np.vstack((np.zeros((1, qd_cmd.shape[1])), qd_cmd[:-1])) if end else qd_cmd
     acc = np.abs(qd_cmd - prev) / period_s
     if bounds.a_max is not None:
         a_lim = np.broadcast_to(bounds.a_max, acc.shape)
     elif bounds.a_max_per_sample is not None:
-        a_lim = bounds.a_max_per_sample[sl]
+        a_lim = bounds.a_max_per_sample[:end]
     else:
         a_lim = np.full(acc.shape, np.inf)
-    acc_excess = acc - a_lim
-    acc_bad = acc_excess > VIOLATION_TOL * max(1.0, 1.0 / period_s)
-    torque = log.torque[sl]
-    peak = log.torque_peak[sl]
+    return acc - a_lim
+
+
+def compute_metrics(
+    log: RunLog, trajectory: Trajectory, bounds: BoundSpec, period_s: float
+) -> Metrics:
+    """Metrics of a run; ``trajectory`` must be the anchored one the controller used."""
+    duration = trajectory.duration
+    completed, end = _task_end(log, duration, period_s)
+    sl = slice(0, end)
+    err, terr, rerr, dev = _tracking_errors(log, trajectory, end)
+    qd_cmd, q = log.qd_command[sl], log.q[sl]
+    pos_excess = np.maximum(q - bounds.q_max, bounds.q_min - q)
+    vel_excess = np.abs(qd_cmd) - bounds.qd_max
+    acc_excess = _acceleration_excess(qd_cmd, bounds, period_s, end)
+    acc_tol = VIOLATION_TOL * max(1.0, 1.0 / period_s)
+    torque, peak = log.torque[sl], log.torque_peak[sl]
     has_torque = bool(torque.size) and bool(np.all(np.isfinite(torque)))
     exec_time = float(log.t_s[end - 1] + period_s) if completed else float("nan")
     return Metrics(
@@ -130,27 +177,27 @@ def compute_metrics(
         execution_time_s=exec_time,
         execution_ratio=exec_time / duration if completed else float("nan"),
         samples=int(end),
-        e_mean=float(np.mean(err)) if end else float("nan"),
+        e_mean=_mean(err),
         e_max=_nanmax(err),
-        translation_error_mean_m=float(np.mean(terr)) if end else float("nan"),
+        translation_error_mean_m=_mean(terr),
         translation_error_max_m=_nanmax(terr),
-        rotation_error_mean_rad=float(np.mean(rerr)) if end else float("nan"),
+        rotation_error_mean_rad=_mean(rerr),
         rotation_error_max_rad=_nanmax(rerr),
-        path_deviation_mean_m=float(np.mean(dev)) if end else float("nan"),
+        path_deviation_mean_m=_mean(dev),
         path_deviation_max_m=_nanmax(dev),
-        u_mean_rad_s=float(np.mean(np.linalg.norm(qd_cmd, axis=1))) if end else float("nan"),
-        s_mean=float(np.mean(log.s[sl])) if end else float("nan"),
+        u_mean_rad_s=_mean(np.linalg.norm(qd_cmd, axis=1)),
+        s_mean=_mean(log.s[sl]),
         torque_peak_nm=float(np.max(np.abs(peak))) if has_torque else float("nan"),
         torque_rms_nm=float(np.sqrt(np.mean(torque**2))) if has_torque else float("nan"),
-        position_violations=int(np.count_nonzero(pos_bad)),
-        position_violation_max_rad=float(max(0.0, _nanmax(pos_excess))),
-        velocity_violations=int(np.count_nonzero(vel_bad)),
-        velocity_violation_max_rad_s=float(max(0.0, _nanmax(vel_excess))),
-        acceleration_violations=int(np.count_nonzero(acc_bad)),
-        acceleration_violation_max_rad_s2=float(max(0.0, _nanmax(acc_excess))),
+        position_violations=int(np.count_nonzero(pos_excess > VIOLATION_TOL)),
+        position_violation_max_rad=_excess_max(pos_excess),
+        velocity_violations=int(np.count_nonzero(vel_excess > VIOLATION_TOL)),
+        velocity_violation_max_rad_s=_excess_max(vel_excess),
+        acceleration_violations=int(np.count_nonzero(acc_excess > acc_tol)),
+        acceleration_violation_max_rad_s2=_excess_max(acc_excess),
         fallbacks=int(np.count_nonzero(log.fallback[sl])),
         relaxed_steps=int(np.count_nonzero(log.relaxed[sl])),
-        nan_seen=nan_seen,
-        solve_time_median_s=float(np.median(log.solve_time_s[sl])) if end else float("nan"),
-        step_time_median_s=float(np.median(log.step_time_s[sl])) if end else float("nan"),
+        nan_seen=_nan_seen(log),
+        solve_time_median_s=_median(log.solve_time_s[sl]),
+        step_time_median_s=_median(log.step_time_s[sl]),
     )

@@ -342,16 +342,7 @@ def plot_comparison(
     Returns:
         ``path``.
     """
-    items = (
-        list(runs.items())
-        if isinstance(runs, Mapping)
-        else [(_label(log, f"run {i + 1}"), log) for i, log in enumerate(runs)]
-    )
-    if not items:
-        raise ParameterError("plot_comparison needs at least one run")
-    for label, log in items:
-        if len(log) == 0:
-            raise ParameterError(f"run {label!r} is empty (no samples)")
+    items = _comparison_items(runs)
     out = Path(path)
     _check_format(out.suffix or ".none")
     ref = _reference_points(items[0][1], trajectory)
@@ -375,6 +366,42 @@ def plot_comparison(
         ax_sigma.plot(log.t_s, log.sigma, color=color, linewidth=1.3)
         t_end = max(t_end, float(log.t_s[-1]))
     ax_sigma.plot([0.0, t_end], [0.0, t_end], label="σ = t", **_REF_STYLE)
+    _label_comparison_axes(ax_path, ax_err, ax_s, ax_sigma, labels)
+    fig.suptitle(title or "comparison of controllers")
+    return _save(fig, out, dpi)
+
+
+def _comparison_items(runs: Mapping[str, RunLog] | Sequence[RunLog]) -> list[tuple[str, RunLog]]:
+    """The ``(label, log)`` pairs of :func:`plot_comparison`'s ``runs``, in order.
+
+    Logs given without labels are labelled by their controller (else ``run i``).
+
+    Raises:
+        ParameterError: there is no run, or a run has no samples.
+    """
+    items = (
+        list(runs.items())
+        if isinstance(runs, Mapping)
+        else [(_label(log, f"run {i + 1}"), log) for i, log in enumerate(runs)]
+    )
+    if not items:
+        raise ParameterError("plot_comparison needs at least one run")
+    for label, log in items:
+        if len(log) == 0:
+            raise ParameterError(f"run {label!r} is empty (no samples)")
+    return items
+
+
+def _label_comparison_axes(ax_path, ax_err, ax_s, ax_sigma, labels: tuple[str, str]) -> None:
+    """Labels, titles, legends, limits and grids of :func:`plot_comparison`'s four axes.
+
+    Args:
+        ax_path: the axes of the path, in the plane whose axis ``labels`` are given.
+        ax_err: the axes of the translation error.
+        ax_s: the axes of the time scaling ``s``.
+        ax_sigma: the axes of the phase ``σ``.
+        labels: the labels of the path plane's two axes.
+    """
     ax_path.set_xlabel(labels[0])
     ax_path.set_ylabel(labels[1])
     ax_path.set_aspect("equal", adjustable="datalim")
@@ -389,5 +416,3 @@ def plot_comparison(
     ax_sigma.legend(loc="best", fontsize="small")
     for ax in (ax_path, ax_err, ax_s, ax_sigma):
         ax.grid(True, alpha=0.3)
-    fig.suptitle(title or "comparison of controllers")
-    return _save(fig, out, dpi)
