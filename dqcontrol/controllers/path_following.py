@@ -78,6 +78,13 @@ STALL_SCALING = 0.01
 STALL_DELAY_S = 0.5
 #: Factor on the path level's tolerance while stalled.
 STALL_TIGHTENING = 0.01
+#: The step's message after the path level was infeasible, by what regained feasibility
+#: (the slack in mrad is formatted in).
+_RELAXED_MESSAGES = {
+    "": "",
+    "loosened": "predicted position bounds loosened by {:g} mrad to regain feasibility",
+    "dropped": "predicted position bounds dropped to regain feasibility",
+}
 
 
 def _in_range(name: str, value: float, low: float, high: float, unit: str) -> float:
@@ -196,6 +203,11 @@ class PathFollowingController(Controller):
         self.levels = self._levels(tuple(extra_terms))
         self._stalled_levels = _tightened(self.levels)
         self.limits = self._limits() + tuple(extra_limits)
+        slack = self.tuning.position_slack_rad
+        self.loosened_limits = tuple(
+            lim.widened(slack) if isinstance(lim, PredictedPositionLimit) else lim
+            for lim in self.limits
+        )
         self.relaxed_limits = tuple(
             lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
         )
@@ -241,7 +253,7 @@ class PathFollowingController(Controller):
         )
         path = Level(
             (
-                PathErrorTerm(PATH_WEIGHT),
+                PathErrorTerm(PATH_WEIGHT, tuning.path_full_weight_time_s),
                 DampingTerm(layout, mu, include_scaling=True),
                 self.singularity,
             ),
@@ -344,17 +356,21 @@ class PathFollowingController(Controller):
             self.sigma, pred, xs, jacs, xd, dxd, a_max, extras,
         )  # fmt: skip
 
-    def _solve(self, ctx: StepContext) -> tuple[Problem, LevelsResult, bool]:
-        """Build and solve; without the predicted position rows if that fails."""
+    def _solve(self, ctx: StepContext) -> tuple[Problem, LevelsResult, str]:
+        """Build and solve; if the path level is infeasible, again with the predicted
+        position rows loosened, then without them. Returns the problem, its result and
+        which of those was kept (``""``, ``"loosened"``, ``"dropped"``)."""
         levels = self._stalled_levels if self._stalled() else self.levels
         problem = build_problem(ctx, levels, self.limits, self._cache)
         result = solve_levels(problem, self.backend)
-        if result.failed_level == 0:
-            relaxed = build_problem(ctx, levels, self.relaxed_limits, self._cache)
-            again = solve_levels(relaxed, self.backend)
+        if result.failed_level != 0:
+            return problem, result, ""
+        for limits, how in ((self.loosened_limits, "loosened"), (self.relaxed_limits, "dropped")):
+            retry = build_problem(ctx, levels, limits, self._cache)
+            again = solve_levels(retry, self.backend)
             if again.failed_level != 0:
-                return relaxed, again, True
-        return problem, result, False
+                return retry, again, how
+        return problem, result, ""
 
     def _stalled(self) -> bool:
         """``s`` has stayed below :data:`STALL_SCALING` for :data:`STALL_DELAY_S`."""
@@ -387,7 +403,7 @@ class PathFollowingController(Controller):
         poor = self._poor or self._disturbed(q)
         iterations, solve_time, done = 0, 0.0, 0
         while True:
-            problem, result, relaxed = self._solve(self._context(q, pred))
+            problem, result, relaxation = self._solve(self._context(q, pred))
             done += 1
             iterations += result.iterations
             solve_time += result.solve_time_s
@@ -407,13 +423,13 @@ class PathFollowingController(Controller):
                 break
             pred = model.at(q, self.sigma, qd_plan.copy(), np.clip(s_plan, 0.0, self.s_max))
         self._last = problem
-        return self._finish(q, problem, result, relaxed, start, iterations, solve_time, done)
+        return self._finish(q, problem, result, relaxation, start, iterations, solve_time, done)
 
-    def _finish(self, q, problem, result, relaxed, start, iterations, solve_time, rounds):
+    def _finish(self, q, problem, result, relaxation, start, iterations, solve_time, rounds):
         n, layout = self.n, self.layout
         lo0, up0 = problem.lower[:n], problem.upper[:n]
         conflict = tuple(np.flatnonzero(problem.conflict[:n]).tolist())
-        message = "predicted position bounds dropped to regain feasibility" if relaxed else ""
+        message = _RELAXED_MESSAGES[relaxation].format(self.tuning.position_slack_rad * 1e3)
         if result.failed_level != 0:
             qd_plan, s_plan = layout.split(result.solution.x)
             assert s_plan is not None, "path following always scales time"
@@ -450,7 +466,7 @@ class PathFollowingController(Controller):
             x0 = -x0
         diag = StepDiagnostics(
             status=result.solution.status, iterations=iterations, solve_time_s=solve_time,
-            step_time_s=time.perf_counter() - start, fallback=fallback, relaxed=relaxed,
+            step_time_s=time.perf_counter() - start, fallback=fallback, relaxed=bool(relaxation),
             conflict_joints=conflict, message=message, linearisations=rounds,
         )  # fmt: skip
         plan_qd, plan_s = self.prediction_model.plan_qd, self.prediction_model.plan_s

@@ -36,6 +36,11 @@ class PathFollowingTuning:
             as ``1 + t/t_g`` with the state's time ``t``.
         trust_radius_phase_s: ``ρ_σ``, the same for the phase [s].
         trust_growth_time_s: ``t_g`` [s].
+        path_full_weight_time_s: the path errors of the states up to this time from now
+            weigh fully, later ones less as ``(t_w/t)²`` [s] (docs/theory.md §8.3).
+        position_slack_rad: when the predicted position rows leave no feasible plan, they
+            are tried this much looser [rad] before they are dropped (docs/theory.md §8.6);
+            keep it below the controller's position margin.
     """
 
     path_tolerance: float = 1e-6
@@ -49,6 +54,8 @@ class PathFollowingTuning:
     trust_radius_rad: float = 0.05
     trust_radius_phase_s: float = 0.02
     trust_growth_time_s: float = 0.05
+    path_full_weight_time_s: float = 0.05
+    position_slack_rad: float = 1e-3
 
     def __post_init__(self) -> None:
         units = {
@@ -56,6 +63,7 @@ class PathFollowingTuning:
             "linearisation_tolerance": "rad/s", "linearisation_tolerance_m": "m",
             "relinearise_threshold_rad": "rad", "acceleration_reserve": "-",
             "trust_radius_rad": "rad", "trust_radius_phase_s": "s", "trust_growth_time_s": "s",
+            "path_full_weight_time_s": "s", "position_slack_rad": "rad",
         }  # fmt: skip
         for name, unit in units.items():
             object.__setattr__(self, name, check_positive(name, getattr(self, name), unit))

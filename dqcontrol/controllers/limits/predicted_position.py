@@ -59,6 +59,17 @@ class PredictedPositionLimit(Limit):
         self._weights: np.ndarray | None = None
         self._c: np.ndarray | None = None
 
+    def widened(self, slack_rad: float) -> PredictedPositionLimit:
+        """The same rows with the position bounds ``slack_rad`` [rad] looser on each side."""
+        return PredictedPositionLimit(
+            self.layout,
+            self.q_min - slack_rad,
+            self.q_max + slack_rad,
+            self.qd_max,
+            terminal=self.terminal,
+            reach_rad=self.reach_rad,
+        )
+
     def _matrix(self, weights: np.ndarray) -> np.ndarray:
         """Rows ``q_i = Σ_j W_ij qd_j`` as a ``(p n, len(z))`` matrix (cached per ``W``)."""
         if self._weights is not weights:

@@ -40,19 +40,24 @@ def tangent_projectors(poses: np.ndarray) -> np.ndarray:
 class PathErrorTerm(Term):
     """``Σ_i ‖e_i‖²``, ``e_i`` the linearised tangent error of block ``i``'s state.
 
-    Each state's rows are weighted by ``(T / t_i)²`` (``t_i`` its time from now, ``T`` the
-    first interval): where the later states cannot all be kept on the path, the error
-    falls on them rather than on the states about to be reached.
+    Each state's rows are weighted by ``min(1, (t_w / t_i)²)`` (``t_i`` its time from now,
+    ``t_w`` the larger of the first interval and ``full_weight_time_s``): where the later
+    states cannot all be kept on the path, the error falls on them rather than on the
+    states about to be reached. ``t_w`` does not shrink with the control period, so a fast
+    loop still weighs the states it must brake for (docs/theory.md §8.3).
 
     Args:
         weight: weight of the term (dimensionless; the rows are in half-radians and
             half-metres).
+        full_weight_time_s: the states up to this time from now weigh fully [s] (``0``:
+            only the first interval's).
     """
 
     name = "path_error"
 
-    def __init__(self, weight: float = 1.0) -> None:
+    def __init__(self, weight: float = 1.0, full_weight_time_s: float = 0.0) -> None:
         self.weight = float(weight)
+        self.full_weight_time_s = float(full_weight_time_s)
 
     def residual(self, ctx: StepContext) -> Residual:
         """The linearised tangent errors of the predicted states, weighted by their time."""
@@ -71,5 +76,6 @@ class PathErrorTerm(Term):
         gap += np.einsum("pan,pn->pa", pj, pred.q_base - pred.q_lin)
         gap -= pd * (pred.sigma_base - pred.sigma_lin)[:, None]
         ends = layout.instants_s + layout.durations_s
-        row_weights = np.repeat((ends[0] / ends) ** 2, 6)
+        full = max(float(ends[0]), self.full_weight_time_s)
+        row_weights = np.repeat(np.minimum(1.0, (full / ends) ** 2), 6)
         return Residual(self.name, self.weight, -gap.ravel(), A=a, row_weights=row_weights)
