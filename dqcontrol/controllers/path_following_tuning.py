@@ -37,7 +37,7 @@ class PathFollowingTuning:
         trust_radius_phase_s: ``ρ_σ``, the same for the phase [s].
         trust_growth_time_s: ``t_g`` [s].
         path_full_weight_time_s: the path errors of the states up to this time from now
-            weigh fully, later ones less as ``(t_w/t)²`` [s] (docs/theory.md §8.3).
+            weigh fully, later ones less as ``(t_w/t)²`` [s] (docs/theory.md §8.2).
         position_slack_rad: when the predicted position rows leave no feasible plan, they
             are tried this much looser [rad] before they are dropped (docs/theory.md §8.6);
             keep it below the controller's position margin.

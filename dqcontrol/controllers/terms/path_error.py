@@ -44,7 +44,7 @@ class PathErrorTerm(Term):
     ``t_w`` the larger of the first interval and ``full_weight_time_s``): where the later
     states cannot all be kept on the path, the error falls on them rather than on the
     states about to be reached. ``t_w`` does not shrink with the control period, so a fast
-    loop still weighs the states it must brake for (docs/theory.md §8.3).
+    loop still weighs the states it must brake for (docs/theory.md §8.2).
 
     Args:
         weight: weight of the term (dimensionless; the rows are in half-radians and
