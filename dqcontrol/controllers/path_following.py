@@ -202,15 +202,7 @@ class PathFollowingController(Controller):
         self._posture_reference = posture_reference
         self.levels = self._levels(tuple(extra_terms))
         self._stalled_levels = _tightened(self.levels)
-        self.limits = self._limits() + tuple(extra_limits)
-        slack = self.tuning.position_slack_rad
-        self.loosened_limits = tuple(
-            lim.widened(slack) if isinstance(lim, PredictedPositionLimit) else lim
-            for lim in self.limits
-        )
-        self.relaxed_limits = tuple(
-            lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
-        )
+        self._set_limits(tuple(extra_limits))
         self._stall_steps = int(np.ceil(STALL_DELAY_S / self.period_s - 1e-9))
         self.backend = make_backend(solver, solver_settings)
         self.solver = self.backend.name
@@ -219,6 +211,19 @@ class PathFollowingController(Controller):
         self._reset_state()
 
     # ------------------------------------------------------------------ composition
+    def _set_limits(self, extra: tuple[Limit, ...]) -> None:
+        """The limits, and the two retries of an infeasible path level: the predicted
+        position rows loosened by ``position_slack_rad``, then without them (theory §8.6)."""
+        self.limits = self._limits() + extra
+        slack = self.tuning.position_slack_rad
+        self.loosened_limits = tuple(
+            lim.widened(slack) if isinstance(lim, PredictedPositionLimit) else lim
+            for lim in self.limits
+        )
+        self.relaxed_limits = tuple(
+            lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
+        )
+
     def _set_servo(self, time_constant_s: float, breaks: np.ndarray) -> None:
         """The prediction (with the servo's lag) and the share of the dynamics-aware
         acceleration a command step may use behind the servo."""

@@ -169,14 +169,7 @@ class RobotModel:
         model = lock_joints(build_angle_model(source.xml), locked_joints or {})
         base_se3 = _to_se3(base, "base") if base is not None else None
         if base_se3 is not None:
-            for j in range(1, model.njoints):
-                if model.parents[j] == 0:
-                    model.jointPlacements[j] = base_se3 * model.jointPlacements[j]
-            for f in range(1, len(model.frames)):
-                frame = model.frames[f]
-                if frame.parentJoint == 0:
-                    frame.placement = base_se3 * frame.placement
-                    model.frames[f] = frame
+            _move_base(model, base_se3)
         names = [f.name for f in model.frames]
         if ee_frame not in names:
             raise FrameError(
@@ -185,18 +178,7 @@ class RobotModel:
             )
         tool_se3 = _to_se3(tool, "tool") if tool is not None else None
         if tool_se3 is not None:
-            parent = model.frames[model.getFrameId(ee_frame)]
-            tool_name = f"{ee_frame}_tool"
-            model.addFrame(
-                pin.Frame(
-                    tool_name,
-                    parent.parentJoint,
-                    model.getFrameId(ee_frame),
-                    parent.placement * tool_se3,
-                    pin.FrameType.OP_FRAME,
-                )
-            )
-            ee_frame = tool_name
+            ee_frame = _add_tool_frame(model, ee_frame, tool_se3)
         return cls(
             model,
             ee_frame,
@@ -396,6 +378,34 @@ class RobotModel:
             f"RobotModel('{self.model.name}', n={self.nq}, ee_frame='{self.ee_frame}', "
             f"joints={self.joint_names})"
         )
+
+
+def _move_base(model: pin.Model, base: pin.SE3) -> None:
+    """Place the root link at ``base`` in the world: the joints and frames on the root."""
+    for j in range(1, model.njoints):
+        if model.parents[j] == 0:
+            model.jointPlacements[j] = base * model.jointPlacements[j]
+    for f in range(1, len(model.frames)):
+        frame = model.frames[f]
+        if frame.parentJoint == 0:
+            frame.placement = base * frame.placement
+            model.frames[f] = frame
+
+
+def _add_tool_frame(model: pin.Model, ee_frame: str, tool: pin.SE3) -> str:
+    """Add the frame ``<ee_frame>_tool`` at ``tool`` from ``ee_frame``; its name."""
+    parent = model.frames[model.getFrameId(ee_frame)]
+    tool_name = f"{ee_frame}_tool"
+    model.addFrame(
+        pin.Frame(
+            tool_name,
+            parent.parentJoint,
+            model.getFrameId(ee_frame),
+            parent.placement * tool,
+            pin.FrameType.OP_FRAME,
+        )
+    )
+    return tool_name
 
 
 def _to_se3(value: pin.SE3 | np.ndarray, name: str) -> pin.SE3:

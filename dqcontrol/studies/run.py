@@ -95,27 +95,15 @@ def run_study(
     runs_dir = folder / f"{study.name}_runs" if study.output.save_runs else None
     save_dir = None if runs_dir is None else str(runs_dir.resolve())
     executor = resolve_executor(workers, scheduler, len(cases))
-    outcome = sweep(
-        kind.job(study, save_dir),
-        cases,
-        executor,
-        order=sorted(range(len(cases)), key=lambda i: -kind.cost(cases[i])),
-        name=kind.case_name,
-        progress=study.name if progress else None,
-        record=kind.record,
-        record_dir=cases_dir,
-    )
+    job = kind.job(study, save_dir)
+    outcome = _sweep_cases(study, job, cases, executor, cases_dir, progress)
     wall, interrupted = outcome.wall_time_s, outcome.interrupted
     finished = outcome.results
     info = RunInfo(
         wall, executor.label, command or f"dqcontrol study {study.source}", interrupted, len(cases)
     )
     texts = kind.render(study, finished, info)
-    suffix = {"md": ".md", "csv": ".csv"}
-    files = {
-        fmt: atomic_write_text(folder / f"{study.name}{suffix[fmt]}", texts[fmt])
-        for fmt in study.output.formats
-    }
+    files = _write_tables(study, folder, texts)
     return StudyResult(
         study=study,
         results=finished,
@@ -128,4 +116,28 @@ def run_study(
         total_cases=len(cases),
         interrupted=interrupted,
         texts=texts,
+    )
+
+
+def _write_tables(study: Study, folder: Path, texts: dict) -> dict:
+    """Write the study's tables in its output formats, atomically; ``{format: path}``."""
+    suffix = {"md": ".md", "csv": ".csv"}
+    return {
+        fmt: atomic_write_text(folder / f"{study.name}{suffix[fmt]}", texts[fmt])
+        for fmt in study.output.formats
+    }
+
+
+def _sweep_cases(study: Study, job, cases, executor, cases_dir: Path, progress: bool):
+    """Run the cases, the costliest first, each one's record saved in ``cases_dir``."""
+    kind = experiment_kind(study.experiment)
+    return sweep(
+        job,
+        cases,
+        executor,
+        order=sorted(range(len(cases)), key=lambda i: -kind.cost(cases[i])),
+        name=kind.case_name,
+        progress=study.name if progress else None,
+        record=kind.record,
+        record_dir=cases_dir,
     )
