@@ -2,10 +2,13 @@
 
 Level ``k`` minimises its terms subject to the limits and to every higher level held at its
 optimum: after level ``k`` is solved at ``z_k``, each of its held residual rows ``a`` is
-kept within ``±tolerance`` of ``a · z_k`` by the lower levels (two-sided rows). For least
-squares this is exact: the optimal residual of a convex level is unique, so the set of its
-minimisers is the set of feasible points with that residual. One level with weights is the
-thesis's controllers.
+kept at ``a · z_k`` by the lower levels, as an equality (a backend may eliminate these
+rows and solve in their null space). For least squares this is exact: the optimal residual
+of a convex level is unique, so the set of its minimisers is the set of feasible points
+with that residual. Should a level with its held equalities fail (rounding can make an
+equality that the level above met only to the solver's tolerance inconsistent with a
+limit), it is solved again with each held row within ``±tolerance`` of its value
+(two-sided rows) instead. One level with weights is the thesis's controllers.
 """
 
 from __future__ import annotations
@@ -105,16 +108,18 @@ class LevelsResult:
         return sum(s.solve_time_s for s in self.per_level)
 
 
-def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
+def level_qp(problem: Problem, k: int, held: list[tuple], equalities: bool = False) -> DenseQP:
     """Level ``k``'s dense QP with the rows ``held`` (``(A, lower, upper)``) of the levels
-    above it."""
+    above it, marked as equalities if ``equalities`` (then ``lower == upper`` on them)."""
     p_mat, c = objective(problem.layout, problem.levels[k].residuals)
+    count = sum(h[0].shape[0] for h in held) if equalities else 0
     return DenseQP(
         p_mat,
         c,
         np.vstack([problem.A] + [h[0] for h in held]),
         np.concatenate([problem.lower] + [h[1] for h in held]),
         np.concatenate([problem.upper] + [h[2] for h in held]),
+        count,
     )
 
 
@@ -124,9 +129,10 @@ def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
 HELD_BAND_SHARE = 0.5
 
 
-def held_rows(problem: Problem, k: int, z: np.ndarray) -> tuple | None:
-    """``(A, lower, upper)`` holding level ``k``'s held residuals within its tolerance
-    (the band given to the backend is :data:`HELD_BAND_SHARE` of it)."""
+def held_rows(problem: Problem, k: int, z: np.ndarray, exact: bool = False) -> tuple | None:
+    """``(A, lower, upper)`` holding level ``k``'s held residuals at their values at ``z``
+    (``exact``) or within the level's tolerance of them (the band given to the backend is
+    :data:`HELD_BAND_SHARE` of it)."""
     layout = problem.layout
     level = problem.levels[k]
     mats = [r.dense(layout) for r in level.residuals if r.held]
@@ -134,30 +140,48 @@ def held_rows(problem: Problem, k: int, z: np.ndarray) -> tuple | None:
         return None
     a = np.vstack(mats)
     value = a @ z
+    if exact:
+        return a, value, value
     band = HELD_BAND_SHARE * level.tolerance
     return a, value - band, value + band
 
 
 def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     """Solve the levels in order, each holding the ones above (see the module docstring)."""
-    held: list[tuple] = []
+    points: list[np.ndarray] = []
+    exact: list[tuple] = []
     per_level: list[Solution] = []
     best: Solution | None = None
     for k in range(len(problem.levels)):
-        sol = backend.solve(k, level_qp(problem, k, held))
+        sol = _solve_level(problem, k, points, exact, backend)
         per_level.append(sol)
         if not sol.ok:
             if best is None:
                 return LevelsResult(sol, tuple(per_level), 0)
             return LevelsResult(best, tuple(per_level), k)
         best = sol
+        assert sol.x is not None, "a solved level has its solution"
+        points.append(sol.x)
         if k + 1 < len(problem.levels):
-            assert sol.x is not None, "a solved level has its solution"
-            rows = held_rows(problem, k, sol.x)
+            rows = held_rows(problem, k, sol.x, exact=True)
             if rows is not None:
-                held.append(rows)
+                exact.append(rows)
     assert best is not None, "a problem has at least one level"
     return LevelsResult(best, tuple(per_level), None)
+
+
+def _solve_level(
+    problem: Problem, k: int, points: list[np.ndarray], exact: list[tuple], backend: Backend
+) -> Solution:
+    """Level ``k`` holding each level ``j < k`` at its solution ``points[j]``: exactly
+    (the rows ``exact``) first, within the tolerances if that fails (backend key
+    ``(k, "band")``)."""
+    sol = backend.solve(k, level_qp(problem, k, exact, equalities=True))
+    if sol.ok or not exact:
+        return sol
+    band = [held_rows(problem, j, z) for j, z in enumerate(points)]
+    again = backend.solve((k, "band"), level_qp(problem, k, [r for r in band if r is not None]))
+    return again if again.ok else sol
 
 
 def residual_values(problem: Problem, z: np.ndarray) -> list[dict[str, float]]:

@@ -26,7 +26,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["block_ldp", "ldp_solution"]
+__all__ = ["block_ldp", "dense_ldp", "ldp_solution"]
 
 
 @compiled
@@ -160,6 +160,55 @@ def block_ldp(
             return False
         _shift_block(inv, c, o, block, g, w)
     _distance_rows(block, lower, upper, a_ptr, a_idx, a_val, linv_t, w, m_out, lo_out, up_out)
+    return True
+
+
+@compiled
+def dense_ldp(
+    h: np.ndarray,
+    c: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    general: np.ndarray,
+    m_out: np.ndarray,
+    lo_out: np.ndarray,
+    up_out: np.ndarray,
+    linv_t: np.ndarray,
+    w: np.ndarray,
+) -> bool:
+    """:func:`block_ldp` for a dense ``h`` (N, N), one block, with the general rows given
+    dense (``general`` (rows, N); their zero entries are skipped).
+
+    Writes ``M = [L⁻ᵀ; general L⁻ᵀ]`` to ``m_out`` (N + rows, N), the shifted bounds to
+    ``lo_out``/``up_out``, ``L⁻ᵀ`` to ``linv_t`` (1, N, N) and ``w`` to ``w``; returns False
+    when ``h`` is not safely positive definite (the same test as :func:`block_ldp`).
+    """
+    n = h.shape[0]
+    factor = np.empty((n, n))
+    inv = np.empty((n, n))
+    if not _factor_block(h, 0, n, factor, inv, linv_t[0]):
+        return False
+    _shift_block(inv, c, 0, n, np.empty(n), w)
+    lt = linv_t[0]
+    for r in range(n):
+        for j in range(n):
+            m_out[r, j] = lt[r, j]
+        lo_out[r] = max(lower[r] + w[r], -1e30)
+        up_out[r] = min(upper[r] + w[r], 1e30)
+    for r in range(general.shape[0]):
+        row = n + r
+        for j in range(n):
+            m_out[row, j] = 0.0
+        shift = 0.0
+        for col in range(n):
+            val = general[r, col]
+            if val == 0.0:
+                continue
+            for j in range(col, n):  # L⁻ᵀ is upper triangular
+                m_out[row, j] += val * lt[col, j]
+            shift += val * w[col]
+        lo_out[row] = max(lower[row] + shift, -1e30)
+        up_out[row] = min(upper[row] + shift, 1e30)
     return True
 
 
