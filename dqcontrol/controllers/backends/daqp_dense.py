@@ -116,7 +116,7 @@ class DaqpBackend:
             return Solution(False, f"error: {exc}", 0, _since(start))
         return self._answer(self._models, key, x, flag, info, start)
 
-    def _least_distance(self, key: object, qp: DenseQP) -> tuple | None:
+    def _least_distance(self, key: object, qp: DenseQP) -> dict | None:
         """The least-distance form of ``qp`` in this key's buffers, or ``None`` when ``P``
         is not safely positive definite."""
         nv = qp.c.size
