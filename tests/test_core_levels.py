@@ -128,10 +128,12 @@ def random_problem(seed: int):
 
 
 def reference_level(problem, k, points, exact):
-    """Level ``k`` by quadprog with each level ``j < k`` held at ``points[j]``: its held
-    rows equal to their values there (``exact``) or within the level's tolerance."""
+    """Level ``k`` by quadprog with the levels above held: each level's held rows equal to
+    their values at the last level's solution (``exact``), or within the level's tolerance
+    of their values at its own solution ``points[j]``."""
     held = []
     for j, z in enumerate(points):
+        z = points[-1] if exact else z
         rows = held_rows(problem, j, z, exact=exact)
         if rows is not None:
             held.append(independent_rows(rows, z) if exact else rows)

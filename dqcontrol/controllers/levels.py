@@ -2,13 +2,16 @@
 
 Level ``k`` minimises its terms subject to the limits and to every higher level held at its
 optimum: after level ``k`` is solved at ``z_k``, each of its held residual rows ``a`` is
-kept at ``a · z_k`` by the lower levels, as an equality (a backend may eliminate these
-rows and solve in their null space). For least squares this is exact: the optimal residual
-of a convex level is unique, so the set of its minimisers is the set of feasible points
-with that residual. Should a level with its held equalities fail (rounding can make an
-equality that the level above met only to the solver's tolerance inconsistent with a
-limit), it is solved again with each held row within ``±tolerance`` of its value
-(two-sided rows) instead. One level with weights is the thesis's controllers.
+kept at ``a · z_k`` by the lower levels. For least squares this is exact: the optimal
+residual of a convex level is unique, so the set of its minimisers is the set of feasible
+points with that residual. The held rows are kept by construction: level ``k + 1`` moves
+only in their null space, ``z = z_k + Z_k y`` with ``Z_k`` an orthonormal basis of the
+null space of every held row so far (:func:`~dqcontrol.controllers.null_space.null_space`,
+each level narrowing the last basis), so its QP has ``dim Z_k`` variables instead of all.
+Should that reduced level fail (rounding at a degenerate vertex can leave no ``y`` that
+meets the limits to the solver's tolerance), it is solved again over all variables with
+each held row within ``±tolerance`` of its value (two-sided rows) instead. One level with
+weights is the thesis's controllers.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import numpy as np
 
 from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.null_space import null_space, product
 from dqcontrol.controllers.problem import (
     Bounds,
     BuiltLevel,
@@ -38,6 +42,7 @@ __all__ = [
     "build_problem",
     "held_rows",
     "level_qp",
+    "reduced_qp",
     "residual_values",
     "solve_levels",
 ]
@@ -108,18 +113,16 @@ class LevelsResult:
         return sum(s.solve_time_s for s in self.per_level)
 
 
-def level_qp(problem: Problem, k: int, held: list[tuple], equalities: bool = False) -> DenseQP:
+def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
     """Level ``k``'s dense QP with the rows ``held`` (``(A, lower, upper)``) of the levels
-    above it, marked as equalities if ``equalities`` (then ``lower == upper`` on them)."""
+    above it."""
     p_mat, c = objective(problem.layout, problem.levels[k].residuals)
-    count = sum(h[0].shape[0] for h in held) if equalities else 0
     return DenseQP(
         p_mat,
         c,
         np.vstack([problem.A] + [h[0] for h in held]),
         np.concatenate([problem.lower] + [h[1] for h in held]),
         np.concatenate([problem.upper] + [h[2] for h in held]),
-        count,
     )
 
 
@@ -149,11 +152,18 @@ def held_rows(problem: Problem, k: int, z: np.ndarray, exact: bool = False) -> t
 def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     """Solve the levels in order, each holding the ones above (see the module docstring)."""
     points: list[np.ndarray] = []
-    exact: list[tuple] = []
     per_level: list[Solution] = []
     best: Solution | None = None
+    basis: np.ndarray | None = None  # the null space the next level moves in
+    rows_a = problem.A
     for k in range(len(problem.levels)):
-        sol = _solve_level(problem, k, points, exact, backend)
+        if k == 0:
+            sol = backend.solve(0, level_qp(problem, 0, []))
+        else:
+            assert basis is not None, "a lower level has the basis of the held rows"
+            sol = _reduced_level(problem, k, points[-1], basis, rows_a, backend)
+            if not sol.ok:
+                sol = _banded_level(problem, k, points, backend)
         per_level.append(sol)
         if not sol.ok:
             if best is None:
@@ -163,25 +173,70 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
         assert sol.x is not None, "a solved level has its solution"
         points.append(sol.x)
         if k + 1 < len(problem.levels):
-            rows = held_rows(problem, k, sol.x, exact=True)
-            if rows is not None:
-                exact.append(rows)
+            basis = _narrowed(problem, k, basis)
     assert best is not None, "a problem has at least one level"
     return LevelsResult(best, tuple(per_level), None)
 
 
-def _solve_level(
-    problem: Problem, k: int, points: list[np.ndarray], exact: list[tuple], backend: Backend
+def _narrowed(problem: Problem, k: int, basis: np.ndarray | None) -> np.ndarray:
+    """The basis of the null space of level ``k``'s held rows within ``basis`` (``None``:
+    all variables)."""
+    mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
+    if basis is None:
+        basis = np.eye(problem.layout.num_vars)
+    if not mats or basis.shape[1] == 0:
+        return basis
+    held = product(np.vstack(mats), basis)
+    return product(basis, null_space(held))
+
+
+def reduced_qp(
+    problem: Problem, k: int, point: np.ndarray, basis: np.ndarray, rows_a: np.ndarray
+) -> DenseQP:
+    """Level ``k``'s QP in ``y`` with ``z = point + basis y`` (``rows_a``: the problem's
+    ``A``): ``y`` has no bounds of its own, every row of ``A`` is a general row."""
+    p_mat, c = objective(problem.layout, problem.levels[k].residuals)
+    pz = product(p_mat, basis)
+    hessian = basis.T @ pz
+    hessian = 0.5 * (hessian + hessian.T)
+    gradient = basis.T @ (p_mat @ point + c)
+    shift = rows_a @ point
+    dim = basis.shape[1]
+    free = np.full(dim, np.inf)
+    return DenseQP(
+        hessian,
+        gradient,
+        np.vstack([np.eye(dim), product(rows_a, basis)]),
+        np.concatenate([-free, problem.lower - shift]),
+        np.concatenate([free, problem.upper - shift]),
+    )
+
+
+def _reduced_level(
+    problem: Problem,
+    k: int,
+    point: np.ndarray,
+    basis: np.ndarray,
+    rows_a: np.ndarray,
+    backend: Backend,
 ) -> Solution:
-    """Level ``k`` holding each level ``j < k`` at its solution ``points[j]``: exactly
-    (the rows ``exact``) first, within the tolerances if that fails (backend key
-    ``(k, "band")``)."""
-    sol = backend.solve(k, level_qp(problem, k, exact, equalities=True))
-    if sol.ok or not exact:
+    """Level ``k`` in the null space of the held rows (backend key ``(k, dim)``); its
+    solution and duals are those of the whole problem."""
+    dim = basis.shape[1]
+    if dim == 0:  # the levels above leave no freedom
+        return Solution(True, "solved", 0, 0.0, point.copy(), None)
+    sol = backend.solve((k, dim), reduced_qp(problem, k, point, basis, rows_a))
+    if not sol.ok or sol.x is None:
         return sol
+    duals = None if sol.duals is None else sol.duals[dim:]
+    return sol._replace(x=point + basis @ sol.x, duals=duals)
+
+
+def _banded_level(problem: Problem, k: int, points: list[np.ndarray], backend: Backend) -> Solution:
+    """Level ``k`` over all variables with each level ``j < k`` held within its tolerance
+    of its value at ``points[j]`` (backend key ``(k, "band")``)."""
     band = [held_rows(problem, j, z) for j, z in enumerate(points)]
-    again = backend.solve((k, "band"), level_qp(problem, k, [r for r in band if r is not None]))
-    return again if again.ok else sol
+    return backend.solve((k, "band"), level_qp(problem, k, [r for r in band if r is not None]))
 
 
 def residual_values(problem: Problem, z: np.ndarray) -> list[dict[str, float]]:

@@ -288,18 +288,13 @@ class BuiltLevel:
 
 
 class DenseQP(NamedTuple):
-    """``minimize ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` (dense; ``A = [I; C]``).
-
-    The last ``equalities`` rows are equalities (``lower == upper``): the rows holding the
-    levels above, which a backend may eliminate instead of treating them as inequalities.
-    """
+    """``minimize ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` (dense; ``A = [I; C]``)."""
 
     P: np.ndarray
     c: np.ndarray
     A: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
-    equalities: int = 0
 
 
 class BlockQP(NamedTuple):

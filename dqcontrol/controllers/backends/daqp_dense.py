@@ -1,15 +1,10 @@
 """DAQP on dense QPs: one workspace per problem (priority level), updated in place each
 step (docs/theory.md §7.5).
 
-Two forms make a level cheaper than DAQP's own handling of a new Hessian, which
-factorises ``H`` and forms ``A R⁻¹`` for every row at every step:
-
-- a level with equality rows (the rows holding the levels above) is handed to DAQP with
-  those rows marked as equalities and DAQP's equality elimination on: it then works in the
-  null space of the held rows, a few variables instead of all of them;
-- a level without equality rows and with a positive definite ``H`` is handed to DAQP as
-  the equivalent least-distance problem (:func:`~dqcontrol.controllers.qp_ldp.dense_ldp`,
-  compiled), so that DAQP's ``H`` stays the identity for the workspace's life.
+A QP with a positive definite ``H`` is handed to DAQP as the equivalent least-distance
+problem (:func:`~dqcontrol.controllers.qp_ldp.dense_ldp`, compiled), so that DAQP's ``H``
+stays the identity for the workspace's life; otherwise DAQP factorises the new ``H`` and
+forms ``A R⁻¹`` for every row at every step, which costs more.
 """
 
 from __future__ import annotations
@@ -32,8 +27,6 @@ DEFAULT_DAQP_SETTINGS = {"primal_tol": 1e-9}
 _EXIT = {-1: "primal_infeasible", -2: "cycling", -3: "unbounded", -4: "iteration_limit",
          -5: "nonconvex", -6: "initial_active_set_infeasible"}  # fmt: skip
 _BIG = 1e30
-#: DAQP's ``sense`` of an equality row (active and immutable).
-_EQUALITY = 5
 
 
 class DaqpBackend:
@@ -41,9 +34,9 @@ class DaqpBackend:
 
     Args:
         settings: DAQP settings over :data:`DEFAULT_DAQP_SETTINGS`.
-        least_distance: hand DAQP the least-distance form of levels without equality rows
-            whose Hessian is positive definite (the same optimum, found cheaper); ``False``
-            gives DAQP every level as it is.
+        least_distance: hand DAQP the least-distance form of QPs whose Hessian is positive
+            definite (the same optimum, found cheaper); ``False`` gives DAQP every QP as it
+            is.
     """
 
     name = "daqp"
@@ -75,7 +68,7 @@ class DaqpBackend:
         if not (qp.lower <= qp.upper).all():
             bad = np.flatnonzero(~(qp.lower <= qp.upper))[:5].tolist()
             return Solution(False, f"invalid_bounds: lower > upper or NaN in rows {bad}")
-        if self.least_distance and qp.equalities == 0:
+        if self.least_distance:
             buffers = self._least_distance(key, qp)
             if buffers is not None:
                 return self._solve_ldp(key, buffers, start)
@@ -88,19 +81,15 @@ class DaqpBackend:
         a = np.ascontiguousarray(qp.A[nv:])
         lo = np.clip(qp.lower, -_BIG, _BIG)
         up = np.clip(qp.upper, -_BIG, _BIG)
-        shape = (a.shape, qp.equalities)
+        shape = a.shape
         entry = self._models.get(key)
         try:
             if entry is None or entry[1] != shape:
                 model = self._daqp.Model()
                 sense = np.zeros(lo.size, dtype=c_int)
-                settings = dict(self.settings)
-                if qp.equalities:
-                    sense[lo.size - qp.equalities :] = _EQUALITY
-                    settings.setdefault("eq_reduction", 1)
                 if model.setup(h, f, a, up, lo, sense)[0] < 0:
                     return Solution(False, "error: DAQP setup failed", 0, _since(start))
-                model.settings = settings
+                model.settings = dict(self.settings)
             else:
                 model = entry[0]
                 # DAQP's update cannot take an A without rows (only bounds): leave it out
