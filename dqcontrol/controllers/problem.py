@@ -262,8 +262,9 @@ class Level:
 
     Attributes:
         terms: the terms minimised at this level (their weighted sum).
-        tolerance: lower levels keep each held residual row of this level within this
-            absolute distance of its optimum (in the row's own unit).
+        tolerance: lower levels hold each held residual row of this level at its value
+            (in its null space); where that fails, within this absolute distance of its
+            optimum (in the row's own unit, docs/theory.md §7.4).
         name: label for diagnostics.
     """
 
