@@ -158,7 +158,8 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     rows_a = problem.A
     for k in range(len(problem.levels)):
         if k == 0:
-            sol = backend.solve(0, level_qp(problem, 0, []))
+            p_mat, c = objective(problem.layout, problem.levels[0].residuals)
+            sol = backend.solve(0, DenseQP(p_mat, c, rows_a, problem.lower, problem.upper))
         else:
             assert basis is not None, "a lower level has the basis of the held rows"
             sol = _reduced_level(problem, k, points[-1], basis, rows_a, backend)
