@@ -182,14 +182,43 @@ def dense_ldp(
     Writes ``M = [L⁻ᵀ; general L⁻ᵀ]`` to ``m_out`` (N + rows, N), the shifted bounds to
     ``lo_out``/``up_out``, ``L⁻ᵀ`` to ``linv_t`` (1, N, N) and ``w`` to ``w``; returns False
     when ``h`` is not safely positive definite (the same test as :func:`block_ldp`).
+    Everything is compiled, with no BLAS call: for a few hundred variables OpenBLAS hands
+    a factorisation to a second thread, whose wake-up on a busy machine costs milliseconds.
     """
     n = h.shape[0]
     factor = np.empty((n, n))
-    inv = np.empty((n, n))
-    if not _factor_block(h, 0, n, factor, inv, linv_t[0]):
+    inverse = np.empty((n, n))
+    if not _factor_block(h, 0, n, factor, inverse, linv_t[0]):
         return False
-    _shift_block(inv, c, 0, n, np.empty(n), w)
-    lt = linv_t[0]
+    _dense_rows(linv_t[0], c, lower, upper, general, m_out, lo_out, up_out, w)
+    return True
+
+
+@compiled
+def _dense_rows(
+    lt: np.ndarray,
+    c: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    general: np.ndarray,
+    m_out: np.ndarray,
+    lo_out: np.ndarray,
+    up_out: np.ndarray,
+    w: np.ndarray,
+) -> None:
+    """``w = L⁻ᵀ L⁻¹ c``, ``M = [L⁻ᵀ; general L⁻ᵀ]`` and the shifted bounds (clamped to
+    ±1e30) from ``lt = L⁻ᵀ`` (upper triangular)."""
+    n = lt.shape[0]
+    g = np.zeros(n)  # L⁻¹ c = (L⁻ᵀ)ᵀ c
+    for i in range(n):
+        ci = c[i]
+        for j in range(i, n):
+            g[j] += ci * lt[i, j]
+    for i in range(n):
+        acc = 0.0
+        for j in range(i, n):
+            acc += lt[i, j] * g[j]
+        w[i] = acc
     for r in range(n):
         for j in range(n):
             m_out[r, j] = lt[r, j]
@@ -209,7 +238,6 @@ def dense_ldp(
             shift += val * w[col]
         lo_out[row] = max(lower[row] + shift, -1e30)
         up_out[row] = min(upper[row] + shift, 1e30)
-    return True
 
 
 @compiled

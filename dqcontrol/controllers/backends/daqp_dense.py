@@ -1,10 +1,12 @@
 """DAQP on dense QPs: one workspace per problem (priority level), updated in place each
 step (docs/theory.md §7.5).
 
-A QP with a positive definite ``H`` is handed to DAQP as the equivalent least-distance
-problem (:func:`~dqcontrol.controllers.qp_ldp.dense_ldp`, compiled), so that DAQP's ``H``
-stays the identity for the workspace's life; otherwise DAQP factorises the new ``H`` and
-forms ``A R⁻¹`` for every row at every step, which costs more.
+A QP with a positive definite ``H`` and sparse general rows is handed to DAQP as the
+equivalent least-distance problem (:func:`~dqcontrol.controllers.qp_ldp.dense_ldp`,
+compiled), so that DAQP's ``H`` stays the identity for the workspace's life: forming
+``C L⁻ᵀ`` then costs one pass over the non-zeros of ``C``, where DAQP, given the new ``H``,
+would form ``A R⁻¹`` over every entry. With dense rows (a level reduced to the null space
+of the levels above) DAQP's own handling costs the same and is kept.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ DEFAULT_DAQP_SETTINGS = {"primal_tol": 1e-9}
 _EXIT = {-1: "primal_infeasible", -2: "cycling", -3: "unbounded", -4: "iteration_limit",
          -5: "nonconvex", -6: "initial_active_set_infeasible"}  # fmt: skip
 _BIG = 1e30
+#: Largest share of non-zero entries in the general rows for the least-distance form.
+SPARSE_ROWS_SHARE = 0.25
 
 
 class DaqpBackend:
@@ -35,8 +39,8 @@ class DaqpBackend:
     Args:
         settings: DAQP settings over :data:`DEFAULT_DAQP_SETTINGS`.
         least_distance: hand DAQP the least-distance form of QPs whose Hessian is positive
-            definite (the same optimum, found cheaper); ``False`` gives DAQP every QP as it
-            is.
+            definite and whose general rows are sparse (the same optimum, found cheaper);
+            ``False`` gives DAQP every QP as it is.
     """
 
     name = "daqp"
@@ -68,7 +72,7 @@ class DaqpBackend:
         if not (qp.lower <= qp.upper).all():
             bad = np.flatnonzero(~(qp.lower <= qp.upper))[:5].tolist()
             return Solution(False, f"invalid_bounds: lower > upper or NaN in rows {bad}")
-        if self.least_distance:
+        if self.least_distance and _sparse_rows(qp):
             buffers = self._least_distance(key, qp)
             if buffers is not None:
                 return self._solve_ldp(key, buffers, start)
@@ -76,9 +80,10 @@ class DaqpBackend:
 
     def _solve_as_is(self, key: object, qp: DenseQP, start: float) -> Solution:
         nv = qp.c.size
-        h = np.ascontiguousarray(qp.P)
-        f = np.ascontiguousarray(qp.c)
-        a = np.ascontiguousarray(qp.A[nv:])
+        # DAQP takes writable C-ordered buffers (the problem's rows may be read-only)
+        h = np.require(qp.P, requirements=("C", "W"))
+        f = np.require(qp.c, requirements=("C", "W"))
+        a = np.require(qp.A[nv:], requirements=("C", "W"))
         lo = np.clip(qp.lower, -_BIG, _BIG)
         up = np.clip(qp.upper, -_BIG, _BIG)
         shape = a.shape
@@ -160,6 +165,12 @@ class DaqpBackend:
             return Solution(False, status, iterations, _since(start))
         duals = np.asarray(info.get("lam")) if isinstance(info, dict) and "lam" in info else None
         return Solution(True, "solved", iterations, _since(start), np.array(x), duals)
+
+
+def _sparse_rows(qp: DenseQP) -> bool:
+    """Whether the general rows of ``qp`` are sparse enough for the least-distance form."""
+    general = qp.A[qp.c.size :]
+    return np.count_nonzero(general) <= SPARSE_ROWS_SHARE * general.size
 
 
 def _since(start: float) -> float:
