@@ -1,17 +1,18 @@
-"""The products a level's objective is made of: Gram matrices of residual rows, kept for
-constant rows, and their sum into the Hessian.
+"""Products of constant rows, computed once: the Gram matrices of a level's objective and
+the stacked rows of a problem.
 
 :func:`~dqcontrol.controllers.problem.objective` adds ``2 w AᵀA`` of every residual to the
 Hessian at every step. Rows that never change (a damping's identity blocks, a smoothness
-term's differences) give the same ``AᵀA`` at every step: a term marks such an array
-read-only (:func:`frozen`), and its Gram matrix is then computed once, by the same numpy
-expression as a changing array's (the same numbers, bit for bit), and kept while the array
-lives.
+term's differences, a limit's constant matrix) give the same products at every step: a term
+or limit marks such an array read-only (:func:`frozen`), and a product of read-only arrays
+is then computed once, by the same numpy expression as for changing arrays (the same
+numbers, bit for bit), and kept while its operands live (:func:`kept`).
 """
 
 from __future__ import annotations
 
 import weakref
+from collections.abc import Callable
 
 import numpy as np
 
@@ -21,8 +22,8 @@ __all__ = ["add_diagonal_blocks", "block_gram", "block_lin", "dense_gram", "froz
 
 #: How many products are kept at most (a few per controller).
 _CAPACITY = 256
-#: ``ids of the operands -> (weak references to them, their product)``.
-_KEPT: dict[tuple[int, ...], tuple[tuple[weakref.ref, ...], np.ndarray]] = {}
+#: ``(the function, ids of the operands) -> (weak references to them, the product)``.
+_KEPT: dict[tuple, tuple[tuple[weakref.ref, ...], np.ndarray]] = {}
 
 
 def frozen(array: np.ndarray) -> np.ndarray:
@@ -31,11 +32,11 @@ def frozen(array: np.ndarray) -> np.ndarray:
     return array
 
 
-def kept(operands: tuple[np.ndarray, ...], compute) -> np.ndarray:
+def kept(operands: tuple[np.ndarray, ...], compute: Callable[..., np.ndarray]) -> np.ndarray:
     """``compute(*operands)``, kept while every operand lives when all are read-only."""
     if any(a.flags.writeable for a in operands):
         return compute(*operands)
-    key = tuple(id(a) for a in operands)
+    key = (compute, *(id(a) for a in operands))
     entry = _KEPT.get(key)
     if entry is not None and all(r() is a for r, a in zip(entry[0], operands, strict=True)):
         return entry[1]

@@ -128,6 +128,16 @@ class DecisionLayout:
         return blocks[:, :n], (blocks[:, n] if self.with_scaling else None)
 
 
+def _block_diagonal(blocks: np.ndarray, num_vars: int = 0) -> np.ndarray:
+    """The ``(p r, num_vars)`` matrix with ``blocks`` ``(p, r, m)`` on its diagonal
+    (``num_vars`` 0: ``p m``)."""
+    p, r, m = blocks.shape
+    out = np.zeros((p * r, num_vars or p * m))
+    for i in range(p):
+        out[i * r : (i + 1) * r, i * m : (i + 1) * m] = blocks[i]
+    return out
+
+
 class Residual(NamedTuple):
     """Residual rows of a term: its cost is ``weight ‖A z - b‖²``.
 
@@ -146,16 +156,15 @@ class Residual(NamedTuple):
     row_weights: np.ndarray | None = None
 
     def dense(self, layout: DecisionLayout) -> np.ndarray:
-        """``A`` as a dense ``(r, len(z))`` array."""
+        """``A`` as a dense ``(r, len(z))`` array (read-only and kept for read-only
+        ``blocks``)."""
         if self.A is not None:
             return self.A
         blocks = self.blocks
         assert blocks is not None, "a residual has A or blocks"
-        p, r, m = blocks.shape
-        out = np.zeros((p * r, layout.num_vars))
-        for i in range(p):
-            out[i * r : (i + 1) * r, i * m : (i + 1) * m] = blocks[i]
-        return out
+        if blocks.shape[0] * blocks.shape[2] == layout.num_vars:
+            return kept((blocks,), _block_diagonal)
+        return _block_diagonal(blocks, layout.num_vars)
 
     def value(self, layout: DecisionLayout, z: np.ndarray) -> np.ndarray:
         """``A z - b`` (unweighted)."""
