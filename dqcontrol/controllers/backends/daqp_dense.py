@@ -170,7 +170,7 @@ class DaqpBackend:
 def _sparse_rows(qp: DenseQP) -> bool:
     """Whether the general rows of ``qp`` are sparse enough for the least-distance form."""
     general = qp.A[qp.c.size :]
-    return np.count_nonzero(general) <= SPARSE_ROWS_SHARE * general.size
+    return bool(np.count_nonzero(general) <= SPARSE_ROWS_SHARE * general.size)
 
 
 def _since(start: float) -> float:
