@@ -20,9 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.null_space import null_space, product
+from dqcontrol.controllers.null_space import null_space
 from dqcontrol.controllers.problem import (
     Bounds,
     BuiltLevel,
@@ -150,7 +151,13 @@ def held_rows(problem: Problem, k: int, z: np.ndarray, exact: bool = False) -> t
 
 
 def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
-    """Solve the levels in order, each holding the ones above (see the module docstring)."""
+    """Solve the levels in order, each holding the ones above (see the module docstring),
+    with one BLAS thread (:func:`~dqcontrol._blas.single_blas_thread`)."""
+    with single_blas_thread():
+        return _solve_levels(problem, backend)
+
+
+def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     points: list[np.ndarray] = []
     per_level: list[Solution] = []
     best: Solution | None = None
@@ -187,8 +194,8 @@ def _narrowed(problem: Problem, k: int, basis: np.ndarray | None) -> np.ndarray:
         basis = np.eye(problem.layout.num_vars)
     if not mats or basis.shape[1] == 0:
         return basis
-    held = product(np.vstack(mats), basis)
-    return product(basis, null_space(held))
+    held = np.vstack(mats) @ basis
+    return basis @ null_space(held)
 
 
 def reduced_qp(
@@ -197,7 +204,7 @@ def reduced_qp(
     """Level ``k``'s QP in ``y`` with ``z = point + basis y`` (``rows_a``: the problem's
     ``A``): ``y`` has no bounds of its own, every row of ``A`` is a general row."""
     p_mat, c = objective(problem.layout, problem.levels[k].residuals)
-    pz = product(p_mat, basis)
+    pz = p_mat @ basis
     hessian = basis.T @ pz
     hessian = 0.5 * (hessian + hessian.T)
     gradient = basis.T @ (p_mat @ point + c)
@@ -207,7 +214,7 @@ def reduced_qp(
     return DenseQP(
         hessian,
         gradient,
-        np.vstack([np.eye(dim), product(rows_a, basis)]),
+        np.vstack([np.eye(dim), rows_a @ basis]),
         np.concatenate([-free, problem.lower - shift]),
         np.concatenate([free, problem.upper - shift]),
     )

@@ -26,6 +26,7 @@ from typing import Literal
 
 import numpy as np
 
+from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends import make_backend
 from dqcontrol.controllers.base import (
     Controller,
@@ -410,6 +411,10 @@ class PathFollowingController(Controller):
         return float(np.max(np.abs(true - linear)))
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        with single_blas_thread():  # the dense levels' products and factorisations
+            return self._planned_step(q, qd)
+
+    def _planned_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
         model = self.prediction_model
         model.qd_measured = self.qd_prev if qd is None else qd
