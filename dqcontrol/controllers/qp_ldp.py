@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.linalg import lapack
 
 from dqcontrol._compiled import compiled
 
@@ -163,7 +164,6 @@ def block_ldp(
     return True
 
 
-@compiled
 def dense_ldp(
     h: np.ndarray,
     c: np.ndarray,
@@ -181,15 +181,21 @@ def dense_ldp(
 
     Writes ``M = [L⁻ᵀ; general L⁻ᵀ]`` to ``m_out`` (N + rows, N), the shifted bounds to
     ``lo_out``/``up_out``, ``L⁻ᵀ`` to ``linv_t`` (1, N, N) and ``w`` to ``w``; returns False
-    when ``h`` is not safely positive definite (the same test as :func:`block_ldp`).
-    Everything is compiled, with no BLAS call: for a few hundred variables OpenBLAS hands
-    a factorisation to a second thread, whose wake-up on a busy machine costs milliseconds.
+    when ``h`` is not safely positive definite (the same test as :func:`block_ldp`). The
+    factor and its inverse come from LAPACK (``potrf``, ``trtri``; call it with one BLAS
+    thread, :func:`~dqcontrol._blas.single_blas_thread`), the rest from one compiled pass.
     """
-    n = h.shape[0]
-    factor = np.empty((n, n))
-    inverse = np.empty((n, n))
-    if not _factor_block(h, 0, n, factor, inverse, linv_t[0]):
+    try:
+        factor = np.linalg.cholesky(h)
+    except np.linalg.LinAlgError:
         return False
+    pivots = np.diagonal(factor)
+    if not float(pivots.min()) ** 2 > 1e-12 * float(np.diagonal(h).max()):
+        return False
+    inverse, info = lapack.dtrtri(factor, lower=1)
+    if info != 0:
+        return False
+    linv_t[0] = inverse.T
     _dense_rows(linv_t[0], c, lower, upper, general, m_out, lo_out, up_out, w)
     return True
 
