@@ -146,13 +146,17 @@ def test_levels_match_a_level_by_level_reference_and_hold_higher_levels(lbr4p):
     assert result.failed_level is None
     held = []
     for k, sol in enumerate(result.per_level):
+        # the reference holds the levels above exactly (independent rows, ±1e-10 for
+        # quadprog's consistency check), as the solve does first
         qp = level_qp(problem, k, held)
         ref_value, _ = _level_optimum(qp)
         value = 0.5 * sol.x @ qp.P @ sol.x + qp.c @ sol.x
         assert value <= ref_value + 1e-7 * max(1.0, abs(ref_value))
-        rows = held_rows(problem, k, sol.x)
+        rows = held_rows(problem, k, sol.x, exact=True)
         if rows is not None:
-            held.append(rows)
+            _, sv, vt = np.linalg.svd(rows[0], full_matrices=False)
+            basis = vt[sv > 1e-10 * sv[0]]
+            held.append((basis, basis @ sol.x - 1e-10, basis @ sol.x + 1e-10))
     # every lower level keeps the path rows of level 1 within the level's tolerance
     path = problem.levels[0].residuals[0]
     tol = problem.levels[0].tolerance

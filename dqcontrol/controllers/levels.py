@@ -2,10 +2,16 @@
 
 Level ``k`` minimises its terms subject to the limits and to every higher level held at its
 optimum: after level ``k`` is solved at ``z_k``, each of its held residual rows ``a`` is
-kept within ``±tolerance`` of ``a · z_k`` by the lower levels (two-sided rows). For least
-squares this is exact: the optimal residual of a convex level is unique, so the set of its
-minimisers is the set of feasible points with that residual. One level with weights is the
-thesis's controllers.
+kept at ``a · z_k`` by the lower levels. For least squares this is exact: the optimal
+residual of a convex level is unique, so the set of its minimisers is the set of feasible
+points with that residual. The held rows are kept by construction: level ``k + 1`` moves
+only in their null space, ``z = z_k + Z_k y`` with ``Z_k`` an orthonormal basis of the
+null space of every held row so far (:func:`~dqcontrol.controllers.null_space.null_space`,
+each level narrowing the last basis), so its QP has ``dim Z_k`` variables instead of all.
+Should that reduced level fail (rounding at a degenerate vertex can leave no ``y`` that
+meets the limits to the solver's tolerance), it is solved again over all variables with
+each held row within ``±tolerance`` of its value (two-sided rows) instead. One level with
+weights is the thesis's controllers.
 """
 
 from __future__ import annotations
@@ -14,8 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.null_space import null_space
 from dqcontrol.controllers.problem import (
     Bounds,
     BuiltLevel,
@@ -35,6 +43,7 @@ __all__ = [
     "build_problem",
     "held_rows",
     "level_qp",
+    "reduced_qp",
     "residual_values",
     "solve_levels",
 ]
@@ -124,9 +133,10 @@ def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
 HELD_BAND_SHARE = 0.5
 
 
-def held_rows(problem: Problem, k: int, z: np.ndarray) -> tuple | None:
-    """``(A, lower, upper)`` holding level ``k``'s held residuals within its tolerance
-    (the band given to the backend is :data:`HELD_BAND_SHARE` of it)."""
+def held_rows(problem: Problem, k: int, z: np.ndarray, exact: bool = False) -> tuple | None:
+    """``(A, lower, upper)`` holding level ``k``'s held residuals at their values at ``z``
+    (``exact``) or within the level's tolerance of them (the band given to the backend is
+    :data:`HELD_BAND_SHARE` of it)."""
     layout = problem.layout
     level = problem.levels[k]
     mats = [r.dense(layout) for r in level.residuals if r.held]
@@ -134,30 +144,107 @@ def held_rows(problem: Problem, k: int, z: np.ndarray) -> tuple | None:
         return None
     a = np.vstack(mats)
     value = a @ z
+    if exact:
+        return a, value, value
     band = HELD_BAND_SHARE * level.tolerance
     return a, value - band, value + band
 
 
 def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
-    """Solve the levels in order, each holding the ones above (see the module docstring)."""
-    held: list[tuple] = []
+    """Solve the levels in order, each holding the ones above (see the module docstring),
+    with one BLAS thread (:func:`~dqcontrol._blas.single_blas_thread`)."""
+    with single_blas_thread():
+        return _solve_levels(problem, backend)
+
+
+def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
+    points: list[np.ndarray] = []
     per_level: list[Solution] = []
     best: Solution | None = None
+    basis: np.ndarray | None = None  # the null space the next level moves in
+    rows_a = problem.A
     for k in range(len(problem.levels)):
-        sol = backend.solve(k, level_qp(problem, k, held))
+        if k == 0:
+            p_mat, c = objective(problem.layout, problem.levels[0].residuals)
+            sol = backend.solve(0, DenseQP(p_mat, c, rows_a, problem.lower, problem.upper))
+        else:
+            assert basis is not None, "a lower level has the basis of the held rows"
+            sol = _reduced_level(problem, k, points[-1], basis, rows_a, backend)
+            if not sol.ok:
+                sol = _banded_level(problem, k, points, backend)
         per_level.append(sol)
         if not sol.ok:
             if best is None:
                 return LevelsResult(sol, tuple(per_level), 0)
             return LevelsResult(best, tuple(per_level), k)
         best = sol
+        assert sol.x is not None, "a solved level has its solution"
+        points.append(sol.x)
         if k + 1 < len(problem.levels):
-            assert sol.x is not None, "a solved level has its solution"
-            rows = held_rows(problem, k, sol.x)
-            if rows is not None:
-                held.append(rows)
+            basis = _narrowed(problem, k, basis)
     assert best is not None, "a problem has at least one level"
     return LevelsResult(best, tuple(per_level), None)
+
+
+def _narrowed(problem: Problem, k: int, basis: np.ndarray | None) -> np.ndarray:
+    """The basis of the null space of level ``k``'s held rows within ``basis`` (``None``:
+    all variables)."""
+    mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
+    if basis is None:
+        basis = np.eye(problem.layout.num_vars)
+    if not mats or basis.shape[1] == 0:
+        return basis
+    held = np.vstack(mats) @ basis
+    return basis @ null_space(held)
+
+
+def reduced_qp(
+    problem: Problem, k: int, point: np.ndarray, basis: np.ndarray, rows_a: np.ndarray
+) -> DenseQP:
+    """Level ``k``'s QP in ``y`` with ``z = point + basis y`` (``rows_a``: the problem's
+    ``A``): ``y`` has no bounds of its own, every row of ``A`` is a general row."""
+    p_mat, c = objective(problem.layout, problem.levels[k].residuals)
+    pz = p_mat @ basis
+    hessian = basis.T @ pz
+    hessian = 0.5 * (hessian + hessian.T)
+    gradient = basis.T @ (p_mat @ point + c)
+    shift = rows_a @ point
+    dim = basis.shape[1]
+    free = np.full(dim, np.inf)
+    return DenseQP(
+        hessian,
+        gradient,
+        np.vstack([np.eye(dim), rows_a @ basis]),
+        np.concatenate([-free, problem.lower - shift]),
+        np.concatenate([free, problem.upper - shift]),
+    )
+
+
+def _reduced_level(
+    problem: Problem,
+    k: int,
+    point: np.ndarray,
+    basis: np.ndarray,
+    rows_a: np.ndarray,
+    backend: Backend,
+) -> Solution:
+    """Level ``k`` in the null space of the held rows (backend key ``(k, dim)``); its
+    solution and duals are those of the whole problem."""
+    dim = basis.shape[1]
+    if dim == 0:  # the levels above leave no freedom
+        return Solution(True, "solved", 0, 0.0, point.copy(), None)
+    sol = backend.solve((k, dim), reduced_qp(problem, k, point, basis, rows_a))
+    if not sol.ok or sol.x is None:
+        return sol
+    duals = None if sol.duals is None else sol.duals[dim:]
+    return sol._replace(x=point + basis @ sol.x, duals=duals)
+
+
+def _banded_level(problem: Problem, k: int, points: list[np.ndarray], backend: Backend) -> Solution:
+    """Level ``k`` over all variables with each level ``j < k`` held within its tolerance
+    of its value at ``points[j]`` (backend key ``(k, "band")``)."""
+    band = [held_rows(problem, j, z) for j, z in enumerate(points)]
+    return backend.solve((k, "band"), level_qp(problem, k, [r for r in band if r is not None]))
 
 
 def residual_values(problem: Problem, z: np.ndarray) -> list[dict[str, float]]:

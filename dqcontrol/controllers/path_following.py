@@ -26,6 +26,7 @@ from typing import Literal
 
 import numpy as np
 
+from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends import make_backend
 from dqcontrol.controllers.base import (
     Controller,
@@ -207,6 +208,7 @@ class PathFollowingController(Controller):
         self.backend = make_backend(solver, solver_settings)
         self.solver = self.backend.name
         self._cache: dict = {}
+        self._a_max_key: tuple = (None, np.zeros((0, self.n)))
         self._last: Problem | None = None
         self._reset_state()
 
@@ -342,7 +344,7 @@ class PathFollowingController(Controller):
         )
         p = self.layout.num_blocks
         if self.a_const is not None:
-            a_max = np.broadcast_to(self.a_const, (p, self.n))
+            a_max = self._constant_a_max(self.a_const, p)
         else:
             starts = np.vstack([q[None, :], pred.q_lin[:-1]])
             a_max = self.robot.fast.acceleration_limits_batch(
@@ -360,6 +362,14 @@ class PathFollowingController(Controller):
             self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev,
             self.sigma, pred, xs, jacs, xd, dxd, a_max, extras,
         )  # fmt: skip
+
+    def _constant_a_max(self, a_const: np.ndarray, p: int) -> np.ndarray:
+        """The constant ``a_max`` of every block ``(p, n)``, the same array at every step
+        (the limits keep what they derive from it while it stays the same)."""
+        key = self._a_max_key
+        if key[0] is not a_const or key[1].shape[0] != p:
+            self._a_max_key = (a_const, np.broadcast_to(a_const, (p, self.n)))
+        return self._a_max_key[1]
 
     def _solve(self, ctx: StepContext) -> tuple[Problem, LevelsResult, str]:
         """Build and solve; if the path level is infeasible, again with the predicted
@@ -401,6 +411,10 @@ class PathFollowingController(Controller):
         return float(np.max(np.abs(true - linear)))
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        with single_blas_thread():  # the dense levels' products and factorisations
+            return self._planned_step(q, qd)
+
+    def _planned_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
         model = self.prediction_model
         model.qd_measured = self.qd_prev if qd is None else qd

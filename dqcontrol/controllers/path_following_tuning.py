@@ -18,7 +18,8 @@ class PathFollowingTuning:
 
     Attributes:
         path_tolerance: how far lower levels may move each path-error row from its optimum
-            (half-radians / half-metres, > 0).
+            where a level falls back to bands (half-radians / half-metres, > 0); otherwise
+            they hold it exactly (docs/theory.md §7.4).
         progress_tolerance: the same for the progress rows (> 0).
         damping: the regularisation weight of every level (> 0).
         max_linearisations: bound on linearise-and-solve rounds per step (integer ≥ 1).

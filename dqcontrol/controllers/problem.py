@@ -27,10 +27,20 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from functools import cache, cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from dqcontrol.controllers.gram import (
+    add_diagonal_blocks,
+    block_gram,
+    block_lin,
+    dense_gram,
+    frozen,
+    kept,
+)
+from dqcontrol.controllers.joint_box import hard_into, intersect_into
 from dqcontrol.errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -118,6 +128,16 @@ class DecisionLayout:
         return blocks[:, :n], (blocks[:, n] if self.with_scaling else None)
 
 
+def _block_diagonal(blocks: np.ndarray, num_vars: int = 0) -> np.ndarray:
+    """The ``(p r, num_vars)`` matrix with ``blocks`` ``(p, r, m)`` on its diagonal
+    (``num_vars`` 0: ``p m``)."""
+    p, r, m = blocks.shape
+    out = np.zeros((p * r, num_vars or p * m))
+    for i in range(p):
+        out[i * r : (i + 1) * r, i * m : (i + 1) * m] = blocks[i]
+    return out
+
+
 class Residual(NamedTuple):
     """Residual rows of a term: its cost is ``weight ‖A z - b‖²``.
 
@@ -136,16 +156,15 @@ class Residual(NamedTuple):
     row_weights: np.ndarray | None = None
 
     def dense(self, layout: DecisionLayout) -> np.ndarray:
-        """``A`` as a dense ``(r, len(z))`` array."""
+        """``A`` as a dense ``(r, len(z))`` array (read-only and kept for read-only
+        ``blocks``)."""
         if self.A is not None:
             return self.A
         blocks = self.blocks
         assert blocks is not None, "a residual has A or blocks"
-        p, r, m = blocks.shape
-        out = np.zeros((p * r, layout.num_vars))
-        for i in range(p):
-            out[i * r : (i + 1) * r, i * m : (i + 1) * m] = blocks[i]
-        return out
+        if blocks.shape[0] * blocks.shape[2] == layout.num_vars:
+            return kept((blocks,), _block_diagonal)
+        return _block_diagonal(blocks, layout.num_vars)
 
     def value(self, layout: DecisionLayout, z: np.ndarray) -> np.ndarray:
         """``A z - b`` (unweighted)."""
@@ -262,8 +281,9 @@ class Level:
 
     Attributes:
         terms: the terms minimised at this level (their weighted sum).
-        tolerance: lower levels keep each held residual row of this level within this
-            absolute distance of its optimum (in the row's own unit).
+        tolerance: lower levels hold each held residual row of this level at its value
+            (in its null space); where that fails, within this absolute distance of its
+            optimum (in the row's own unit, docs/theory.md §7.4).
         name: label for diagnostics.
     """
 
@@ -337,6 +357,17 @@ class BlockQP(NamedTuple):
         return DenseQP(p_mat, self.c, np.vstack([np.eye(p * m), self.C]), self.lower, self.upper)
 
 
+def _stacked(*rows: np.ndarray) -> np.ndarray:
+    """The rows one below the other."""
+    return np.vstack(rows)
+
+
+@cache
+def _identity(size: int) -> np.ndarray:
+    """The read-only identity of this size."""
+    return frozen(np.eye(size))
+
+
 @dataclass(frozen=True)
 class Problem:
     """Everything built at one step: the layout, the levels, the limits' rows.
@@ -362,18 +393,18 @@ class Problem:
         nv = self.layout.num_vars
         return self.C, self.lower[nv:], self.upper[nv:]
 
-    @property
+    @cached_property
     def C(self) -> np.ndarray:  # noqa: N802 - the matrix's name in the formulas
-        """The general rows ``(r, len(z))``."""
+        """The general rows ``(r, len(z))`` (read-only)."""
         nv = self.layout.num_vars
         if not self.inequalities:
-            return np.zeros((0, nv))
-        return np.vstack([g.C for g in self.inequalities])
+            return frozen(np.zeros((0, nv)))
+        return kept(tuple(g.C for g in self.inequalities), _stacked)
 
-    @property
+    @cached_property
     def A(self) -> np.ndarray:  # noqa: N802
-        """``[I; C]``, the rows ``lower``/``upper`` bound."""
-        return np.vstack([np.eye(self.layout.num_vars), self.C])
+        """``[I; C]``, the rows ``lower``/``upper`` bound (read-only)."""
+        return kept((_identity(self.layout.num_vars), self.C), _stacked)
 
     @property
     def P(self) -> np.ndarray:  # noqa: N802
@@ -419,28 +450,38 @@ class Problem:
 
 
 def objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
-    """``(P, c)`` with ``½ zᵀ P z + cᵀ z = Σ w ‖A z - b‖²`` up to a constant."""
+    """``(P, c)`` with ``½ zᵀ P z + cᵀ z = Σ w ‖A z - b‖²`` up to a constant.
+
+    The products of read-only rows are computed once (:mod:`~dqcontrol.controllers.gram`);
+    the sums are the same, in the same order, at every step."""
     nv = layout.num_vars
     p_mat = np.zeros((nv, nv))
     c = np.zeros(nv)
-    p, m = layout.num_blocks, layout.block_size
-    diagonal = p_mat.reshape(p, m, p, m)  # a view: [i, :, i, :] is block i
-    blocks = np.arange(p)
     for r in residuals:
         w2 = 2.0 * r.weight
         if w2 == 0.0:
             continue
         if r.blocks is not None:
-            gram = np.matmul(r.blocks.transpose(0, 2, 1), r.blocks)
-            lin = np.matmul(r.blocks.transpose(0, 2, 1), r.b.reshape(p, -1, 1))[:, :, 0]
-            diagonal[blocks, :, blocks, :] += w2 * gram
-            c -= w2 * lin.ravel()
+            add_diagonal_blocks(p_mat, block_gram(r.blocks), w2)
+            c -= w2 * block_lin(r.blocks, r.b)
+            continue
+        a = r.dense(layout)
+        if r.row_weights is None:
+            p_mat += w2 * dense_gram(a)
+            c -= w2 * (a.T @ r.b)
         else:
-            a = r.dense(layout)
-            a_w = a if r.row_weights is None else a * r.row_weights[:, None]
+            a_w = a * r.row_weights[:, None]
             p_mat += w2 * (a_w.T @ a)
             c -= w2 * (a_w.T @ r.b)
     return p_mat, c
+
+
+def _entries(values, index: np.ndarray) -> np.ndarray:
+    """``values`` as one float per entry of ``index`` (a scalar is repeated)."""
+    if isinstance(values, np.ndarray) and values.dtype == np.float64:
+        if values.shape == index.shape:
+            return values
+    return np.broadcast_to(np.asarray(values, dtype=float), index.shape)
 
 
 def merge_bounds(
@@ -455,23 +496,15 @@ def merge_bounds(
     up = np.full(nv, np.inf)
     for b in bounds:
         if not b.hard:
-            np.maximum.at(lo, b.index, b.lower)
-            np.minimum.at(up, b.index, b.upper)
-    conflict = np.zeros(nv, dtype=bool)
+            index = np.asarray(b.index, dtype=np.int64).ravel()
+            intersect_into(lo, up, index, _entries(b.lower, index), _entries(b.upper, index))
+    conflict = np.zeros(nv, dtype=np.int8)
     for b in bounds:
         if b.hard:
-            soft_lo, soft_up = lo[b.index], up[b.index]
-            new_lo = np.maximum(soft_lo, b.lower)
-            new_up = np.minimum(soft_up, b.upper)
-            clash = new_lo > new_up
-            if clash.any():
-                target = np.where(b.upper < soft_lo, b.upper, b.lower)
-                new_lo = np.where(clash, target, new_lo)
-                new_up = np.where(clash, target, new_up)
-                conflict[b.index[clash]] = True
-            lo[b.index] = new_lo
-            up[b.index] = new_up
-    return lo, up, conflict
+            index = np.asarray(b.index, dtype=np.int64).ravel()
+            lower, upper = _entries(b.lower, index), _entries(b.upper, index)
+            hard_into(lo, up, conflict, index, lower, upper)
+    return lo, up, conflict.astype(bool)
 
 
 def fixed_variables(layout: DecisionLayout, bounds: tuple[Bounds, ...]) -> np.ndarray:

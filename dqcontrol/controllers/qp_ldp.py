@@ -23,10 +23,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.linalg import lapack
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["block_ldp", "ldp_solution"]
+__all__ = ["block_ldp", "dense_ldp", "ldp_solution"]
 
 
 @compiled
@@ -161,6 +162,88 @@ def block_ldp(
         _shift_block(inv, c, o, block, g, w)
     _distance_rows(block, lower, upper, a_ptr, a_idx, a_val, linv_t, w, m_out, lo_out, up_out)
     return True
+
+
+def dense_ldp(
+    h: np.ndarray,
+    c: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    general: np.ndarray,
+    m_out: np.ndarray,
+    lo_out: np.ndarray,
+    up_out: np.ndarray,
+    linv_t: np.ndarray,
+    w: np.ndarray,
+) -> bool:
+    """:func:`block_ldp` for a dense ``h`` (N, N), one block, with the general rows given
+    dense (``general`` (rows, N); their zero entries are skipped).
+
+    Writes ``M = [L⁻ᵀ; general L⁻ᵀ]`` to ``m_out`` (N + rows, N), the shifted bounds to
+    ``lo_out``/``up_out``, ``L⁻ᵀ`` to ``linv_t`` (1, N, N) and ``w`` to ``w``; returns False
+    when ``h`` is not safely positive definite (the same test as :func:`block_ldp`). The
+    factor and its inverse come from LAPACK (``potrf``, ``trtri``; call it with one BLAS
+    thread, :func:`~dqcontrol._blas.single_blas_thread`), the rest from one compiled pass.
+    """
+    try:
+        factor = np.linalg.cholesky(h)
+    except np.linalg.LinAlgError:
+        return False
+    pivots = np.diagonal(factor)
+    if not float(pivots.min()) ** 2 > 1e-12 * float(np.diagonal(h).max()):
+        return False
+    inverse, info = lapack.dtrtri(factor, lower=1)
+    if info != 0:
+        return False
+    linv_t[0] = inverse.T
+    _dense_rows(linv_t[0], c, lower, upper, general, m_out, lo_out, up_out, w)
+    return True
+
+
+@compiled
+def _dense_rows(
+    lt: np.ndarray,
+    c: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    general: np.ndarray,
+    m_out: np.ndarray,
+    lo_out: np.ndarray,
+    up_out: np.ndarray,
+    w: np.ndarray,
+) -> None:
+    """``w = L⁻ᵀ L⁻¹ c``, ``M = [L⁻ᵀ; general L⁻ᵀ]`` and the shifted bounds (clamped to
+    ±1e30) from ``lt = L⁻ᵀ`` (upper triangular)."""
+    n = lt.shape[0]
+    g = np.zeros(n)  # L⁻¹ c = (L⁻ᵀ)ᵀ c
+    for i in range(n):
+        ci = c[i]
+        for j in range(i, n):
+            g[j] += ci * lt[i, j]
+    for i in range(n):
+        acc = 0.0
+        for j in range(i, n):
+            acc += lt[i, j] * g[j]
+        w[i] = acc
+    for r in range(n):
+        for j in range(n):
+            m_out[r, j] = lt[r, j]
+        lo_out[r] = max(lower[r] + w[r], -1e30)
+        up_out[r] = min(upper[r] + w[r], 1e30)
+    for r in range(general.shape[0]):
+        row = n + r
+        for j in range(n):
+            m_out[row, j] = 0.0
+        shift = 0.0
+        for col in range(n):
+            val = general[r, col]
+            if val == 0.0:
+                continue
+            for j in range(col, n):  # L⁻ᵀ is upper triangular
+                m_out[row, j] += val * lt[col, j]
+            shift += val * w[col]
+        lo_out[row] = max(lower[row] + shift, -1e30)
+        up_out[row] = min(upper[row] + shift, 1e30)
 
 
 @compiled

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.joint_box import hard_interval_into
 from dqcontrol.controllers.problem import Bounds, DecisionLayout, Inequality, Limit
 
@@ -57,7 +58,7 @@ class AccelerationLimit(Limit):
         rows = np.arange((p - 1) * n)
         c[rows, idx[1:].ravel()] = 1.0
         c[rows, idx[:-1].ravel()] = -1.0
-        self._c = c
+        self._c = frozen(c)
         self._step_key: tuple = (None, None)
         self._step0 = np.zeros(n)
         self._dv_key: object = None
@@ -75,7 +76,7 @@ class AccelerationLimit(Limit):
     def _coupling(self, ctx: StepContext) -> np.ndarray:
         """``h_i a_max,i`` of every coupling row, cached while ``ctx.a_max`` is the same."""
         if ctx.a_max is not self._dv_key:
-            self._dv = (self.coupling_s[:, None] * ctx.a_max[1:]).ravel()
+            self._dv = frozen((self.coupling_s[:, None] * ctx.a_max[1:]).ravel())
             self._dv_key = ctx.a_max
         return self._dv
 
@@ -97,7 +98,7 @@ class AccelerationLimit(Limit):
 
     def rows(self, ctx: StepContext) -> tuple:
         """The first block's bounds and the coupling rows between consecutive blocks."""
-        step0 = ctx.period_s * ctx.a_max[0]
+        step0 = self._first_step(ctx)
         first = Bounds(
             "acceleration_first",
             self._first,
@@ -107,5 +108,5 @@ class AccelerationLimit(Limit):
         )
         if self._c.shape[0] == 0:
             return (first,)
-        dv = (self.coupling_s[:, None] * ctx.a_max[1:]).ravel()
+        dv = self._coupling(ctx)
         return first, Inequality("acceleration_coupling", self._c, -dv, dv)

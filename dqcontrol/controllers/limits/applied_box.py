@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.bounds import velocity_position_box
+from dqcontrol.controllers.bounds import braking_constants
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.joint_box import applied_box_into
 from dqcontrol.controllers.problem import Bounds, DecisionLayout, Limit
 
 __all__ = ["AppliedCommandBox"]
@@ -34,10 +35,22 @@ class AppliedCommandBox(Limit):
         self._index = layout.qd_index()[0]
         self.q_min, self.q_max, self.qd_max = q_min, q_max, qd_max
         self.period_s = float(period_s)
+        self._brake_key: object = None
+        self._brake = np.zeros((3, layout.num_joints))
+        self._own = np.arange(layout.num_joints)  # entries of lo/up the kernel merges into
+
+    def _braking(self, a_max: np.ndarray) -> np.ndarray:
+        """``[a T; 2 a; (a T)²]`` of the first block (kept while ``a_max`` is the same)."""
+        if a_max is not self._brake_key:
+            self._brake = np.array(braking_constants(a_max[0], self.period_s))
+            self._brake_key = a_max
+        return self._brake
 
     def rows(self, ctx: StepContext) -> Bounds:
-        """The bounds of the applied command's block."""
-        lo, up = velocity_position_box(
-            ctx.q, self.q_min, self.q_max, self.qd_max, self.period_s, ctx.a_max[0]
-        )
+        """The bounds of the applied block."""
+        n = self._index.size
+        lo, up = np.full(n, -np.inf), np.full(n, np.inf)
+        brake = self._braking(ctx.a_max)
+        values = (self.q_min, self.q_max, self.qd_max)
+        applied_box_into(ctx.q, *values, self.period_s, True, brake, self._own, lo, up)
         return Bounds(self.name, self._index, lo, up)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
 
 __all__ = ["PhaseEndLimit"]
@@ -24,9 +25,10 @@ class PhaseEndLimit(Limit):
     def __init__(self, layout: DecisionLayout) -> None:
         c = np.zeros((1, layout.num_vars))
         c[0, layout.s_index()] = layout.durations_s
-        self._c = c
+        self._c = frozen(c)
+        self._lower = frozen(np.array([-np.inf]))
 
     def rows(self, ctx: StepContext) -> Inequality:
         """The row that bounds the phase's advance by what is left of ``T_tot``, plus ``T``."""
         room = max(ctx.trajectory.duration - ctx.sigma, 0.0) + ctx.period_s
-        return Inequality(self.name, self._c, np.array([-np.inf]), np.array([room]))
+        return Inequality(self.name, self._c, self._lower, np.array([room]))

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
 
 __all__ = ["PredictedPositionLimit"]
@@ -56,8 +57,14 @@ class PredictedPositionLimit(Limit):
         self.q_max = np.asarray(q_max, dtype=float)
         self.qd_max = np.asarray(qd_max, dtype=float)
         self.terminal = bool(terminal)
+        p = layout.num_blocks
+        self._q_min_tiled = np.tile(self.q_min, p)
+        self._q_max_tiled = np.tile(self.q_max, p)
         self._weights: np.ndarray | None = None
         self._c: np.ndarray | None = None
+        self._terminal_key: tuple = (None, None)
+        self._terminal_rows: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
+        self._selections: dict[str, tuple[np.ndarray, bytes, np.ndarray]] = {}
 
     def widened(self, slack_rad: float) -> PredictedPositionLimit:
         """The same rows with the position bounds ``slack_rad`` [rad] looser on each side."""
@@ -80,33 +87,57 @@ class PredictedPositionLimit(Limit):
             for i in range(p):
                 for j in range(i + 1):
                     c[i * n + np.arange(n), idx[j]] = weights[i, j]
-            self._weights, self._c = weights, c
-            return c
+            self._weights, self._c = weights, frozen(c)
+            return self._c
         assert self._c is not None, "cached with the weights"
         return self._c
+
+    def _terminal(self, c: np.ndarray, a_max: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(c, the terminal rows' matrix)``, ``c = qd_max / (2 a_max)`` at the last state
+        (kept while ``c`` and ``a_max`` are the same arrays)."""
+        key = self._terminal_key
+        if key[0] is not c or key[1] is not a_max:
+            n = self.layout.num_joints
+            coeff = self.qd_max / (2.0 * a_max[-1])
+            last = c[-n:].copy()
+            last[np.arange(n), self.layout.qd_index()[-1]] += coeff
+            self._terminal_key = (c, a_max)
+            self._terminal_rows = (coeff, frozen(last))
+        return self._terminal_rows
+
+    def _selected(self, kind: str, c: np.ndarray, keep: np.ndarray) -> np.ndarray:
+        """``c[keep]`` (read-only), the same array while ``c`` and ``keep`` are the same."""
+        mask = keep.tobytes()
+        last = self._selections.get(kind)
+        if last is not None and last[0] is c and last[1] == mask:
+            return last[2]
+        rows = frozen(c[keep])
+        self._selections[kind] = (c, mask, rows)
+        return rows
 
     def rows(self, ctx: StepContext) -> tuple | None:
         """The position bounds of the predicted states, or ``None`` when none applies."""
         pred = ctx.prediction
         c = self._matrix(pred.weights)
         base = pred.q_base.ravel()
-        p, n = self.layout.num_blocks, self.layout.num_joints
-        lower = np.tile(self.q_min, p) - base
-        upper = np.tile(self.q_max, p) - base
+        lower = self._q_min_tiled - base
+        upper = self._q_max_tiled - base
         keep = self._reachable(pred.q_lin, 0.0)
         out = []
-        if keep is None or keep.any():
-            sel = slice(None) if keep is None else keep.ravel()
-            out.append(Inequality(self.name, c[sel], lower[sel], upper[sel]))
+        if keep is None:
+            out.append(Inequality(self.name, c, lower, upper))
+        elif keep.any():
+            sel = keep.ravel()
+            out.append(Inequality(self.name, self._selected("q", c, sel), lower[sel], upper[sel]))
         if self.terminal:
-            coeff = self.qd_max / (2.0 * ctx.a_max[-1])
+            coeff, last = self._terminal(c, ctx.a_max)
             near = self._reachable(pred.q_lin[-1:], coeff * self.qd_max)
             if near is None or near.any():
-                sel = slice(None) if near is None else near.ravel()
-                last = c[-n:].copy()
-                last[np.arange(n), self.layout.qd_index()[-1]] += coeff
                 lo, up = self.q_min - pred.q_base[-1], self.q_max - pred.q_base[-1]
-                out.append(Inequality("terminal_braking", last[sel], lo[sel], up[sel]))
+                if near is not None:
+                    sel = near.ravel()
+                    last, lo, up = self._selected("terminal", last, sel), lo[sel], up[sel]
+                out.append(Inequality("terminal_braking", last, lo, up))
         return tuple(out) or None
 
     def _reachable(self, q_lin: np.ndarray, extra: np.ndarray | float) -> np.ndarray | None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
 
 __all__ = ["TrustRegionLimit"]
@@ -47,6 +48,8 @@ class TrustRegionLimit(Limit):
         self.radius_rad = float(radius_rad)
         self.radius_phase_s = float(radius_phase_s)
         self._weights: np.ndarray | None = None
+        self._radii_q = np.repeat(self.radius_rad * self._growth, layout.num_joints)
+        self._radii_phase = self.radius_phase_s * self._growth
 
     @property
     def radii_rad(self) -> np.ndarray:
@@ -64,7 +67,7 @@ class TrustRegionLimit(Limit):
                 for j in range(i + 1):
                     cq[i * n + np.arange(n), idx[j]] = weights[i, j]
                     cs[i, sdx[j]] = phase[i, j]
-            self._weights, self._cq, self._cs = weights, cq, cs
+            self._weights, self._cq, self._cs = weights, frozen(cq), frozen(cs)
         return self._cq, self._cs
 
     def rows(self, ctx: StepContext) -> tuple:
@@ -74,10 +77,10 @@ class TrustRegionLimit(Limit):
         out = []
         if np.isfinite(self.radius_rad):
             centre = (pred.q_lin - pred.q_base).ravel()
-            r = np.repeat(self.radius_rad * self._growth, self.layout.num_joints)
+            r = self._radii_q
             out.append(Inequality("trust_region_q", cq, centre - r, centre + r))
         if np.isfinite(self.radius_phase_s):
             centre = pred.sigma_lin - pred.sigma_base
-            r = self.radius_phase_s * self._growth
+            r = self._radii_phase
             out.append(Inequality("trust_region_phase", cs, centre - r, centre + r))
         return tuple(out)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 
 __all__ = ["DampingTerm"]
@@ -38,7 +39,8 @@ class DampingTerm(Term):
         k = m if (include_scaling and layout.with_scaling) else n
         self._blocks = np.zeros((p, k, m))
         self._blocks[:, np.arange(k), np.arange(k)] = 1.0
-        self._b = np.zeros(p * k)
+        frozen(self._blocks)
+        self._b = frozen(np.zeros(p * k))
 
     def residual(self, ctx: StepContext) -> Residual:
         """The rows ``qd_i`` (and ``s_i`` with ``include_scaling``) of every block, ``b = 0``."""

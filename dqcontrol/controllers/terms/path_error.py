@@ -17,7 +17,9 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.problem import Residual, Term
+from dqcontrol.controllers.gram import frozen
+from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+from dqcontrol.controllers.terms.path_error_kernels import fill_path_rows, projectors_into
 from dqcontrol.dq.algebra import hamiplus8
 
 __all__ = ["PathErrorTerm", "tangent_projectors"]
@@ -34,7 +36,10 @@ _PROJECTOR_BASIS = np.array([_CONJ[k] * hamiplus8(np.eye(8)[k])[_PURE] for k in 
 def tangent_projectors(poses: np.ndarray) -> np.ndarray:
     """``E_i = P_pure H+8(x_i*)`` ``(p, 6, 8)`` for poses ``(p, 8)`` (one product for the
     batch)."""
-    return np.einsum("pk,kab->pab", np.asarray(poses), _PROJECTOR_BASIS)
+    poses = np.asarray(poses, dtype=float)
+    out = np.empty((poses.shape[0], 6, 8))
+    projectors_into(poses, _PROJECTOR_BASIS, out)
+    return out
 
 
 class PathErrorTerm(Term):
@@ -58,24 +63,32 @@ class PathErrorTerm(Term):
     def __init__(self, weight: float = 1.0, full_weight_time_s: float = 0.0) -> None:
         self.weight = float(weight)
         self.full_weight_time_s = float(full_weight_time_s)
+        self._weights_key: DecisionLayout | None = None
+        self._weights = np.ones(0)
+
+    def _row_weights(self, layout: DecisionLayout) -> np.ndarray:
+        """``min(1, (t_w / t_i)²)`` of every row, kept for the layout (read-only)."""
+        if self._weights_key is not layout:
+            ends = layout.instants_s + layout.durations_s
+            full = max(float(ends[0]), self.full_weight_time_s)
+            self._weights_key = layout
+            self._weights = frozen(np.repeat(np.minimum(1.0, (full / ends) ** 2), 6))
+        return self._weights
 
     def residual(self, ctx: StepContext) -> Residual:
         """The linearised tangent errors of the predicted states, weighted by their time."""
         pred = ctx.prediction
         layout = ctx.layout
         p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
-        proj = tangent_projectors(ctx.poses)  # (p, 6, 8)
-        pj = np.einsum("pab,pbn->pan", proj, ctx.jacobians)  # E_i J_i (p, 6, n)
+        proj = tangent_projectors(ctx.poses)  # E_i (p, 6, 8)
         pd = np.einsum("pab,pb->pa", proj, ctx.target_derivatives)  # E_i x_d' (p, 6)
         # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -sigma_weights[i, j] E_i x_d' on s_j
-        a: np.ndarray = np.empty((p, 6, p, m))
-        a[:, :, :, :n] = pred.weights[:, None, :, None] * pj[:, :, None, :]
-        a[:, :, :, n] = -pred.phase_weights[:, None, :] * pd[:, :, None]
-        a = a.reshape(6 * p, p * m)
+        pj = np.empty((p, 6, n))  # E_i J_i
+        blocks = np.empty((p, 6, p, m))
+        fill_path_rows(proj, ctx.jacobians, pred.weights, pred.phase_weights, pd, pj, blocks)
+        a = blocks.reshape(6 * p, p * m)
         gap = np.einsum("pab,pb->pa", proj, ctx.poses - ctx.targets)
         gap += np.einsum("pan,pn->pa", pj, pred.q_base - pred.q_lin)
         gap -= pd * (pred.sigma_base - pred.sigma_lin)[:, None]
-        ends = layout.instants_s + layout.durations_s
-        full = max(float(ends[0]), self.full_weight_time_s)
-        row_weights = np.repeat(np.minimum(1.0, (full / ends) ** 2), 6)
+        row_weights = self._row_weights(layout)
         return Residual(self.name, self.weight, -gap.ravel(), A=a, row_weights=row_weights)

@@ -12,6 +12,7 @@ import numpy as np
 
 from dqcontrol.controllers.base import check_positive
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 
 __all__ = ["PostureTerm"]
@@ -37,6 +38,7 @@ class PostureTerm(Term):
         p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
         self._blocks = np.zeros((p, n, m))
         self._blocks[:, np.arange(n), np.arange(n)] = 1.0
+        frozen(self._blocks)
         self.reference: np.ndarray | None = None
 
     def residual(self, ctx: StepContext) -> Residual:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 
 __all__ = ["ProgressTerm"]
@@ -40,6 +41,7 @@ class ProgressTerm(Term):
         self._blocks = np.zeros((p, 1, layout.block_size))
         self._blocks[:, 0, layout.num_joints] = -self._scale
         self._horizon = horizon
+        frozen(self._blocks)
 
     def reference(self, lag_s: float) -> float:
         """``s_ref``: 1, or up to ``s_max`` to recover a lag of ``lag_s`` [s]."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 
 __all__ = ["ScalingTerm"]
@@ -31,7 +32,8 @@ class ScalingTerm(Term):
         p, m = layout.num_blocks, layout.block_size
         self._blocks = np.zeros((p, 1, m))
         self._blocks[:, 0, layout.num_joints] = 1.0
-        self._b = np.ones(p)
+        frozen(self._blocks)
+        self._b = frozen(np.ones(p))
         layout.s_index()  # a layout without s is refused here
 
     def residual(self, ctx: StepContext) -> Residual:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 
 __all__ = ["ScalingSmoothnessTerm"]
@@ -30,7 +31,7 @@ class ScalingSmoothnessTerm(Term):
         a = np.zeros((p, layout.num_vars))
         a[np.arange(p), idx] = 1.0
         a[np.arange(1, p), idx[:-1]] = -1.0
-        self._a = a
+        self._a = frozen(a)
 
     def residual(self, ctx: StepContext) -> Residual:
         """The rows ``s_i - s_(i-1)`` (``s_0``: the applied ``s``)."""

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 from dqcontrol.controllers.terms.path_error import tangent_projectors
 
@@ -44,7 +45,8 @@ class SingularityDampingTerm(Term):
         p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
         self._blocks = np.zeros((p, n, m))
         self._blocks[:, np.arange(n), np.arange(n)] = 1.0
-        self._b = np.zeros(p * n)
+        frozen(self._blocks)
+        self._b = frozen(np.zeros(p * n))
         self.weight = 0.0
         self.sigma_min = np.inf
         self._ctx: StepContext | None = None

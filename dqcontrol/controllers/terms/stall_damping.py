@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 
 __all__ = ["StallDampingTerm"]
@@ -50,7 +51,8 @@ class StallDampingTerm(Term):
         p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
         self._blocks = np.zeros((p, n, m))
         self._blocks[:, np.arange(n), np.arange(n)] = 1.0
-        self._b = np.zeros(p * n)
+        frozen(self._blocks)
+        self._b = frozen(np.zeros(p * n))
         self._diag = np.arange(n)
         self.reset()
 

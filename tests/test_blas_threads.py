@@ -1,0 +1,56 @@
+"""One BLAS thread during a control step, the previous counts restored after it."""
+
+import numpy as np
+from threadpoolctl import threadpool_info
+
+from dqcontrol._blas import single_blas_thread
+
+
+def _blas_threads() -> list[int]:
+    return [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"]
+
+
+def test_one_thread_inside_and_the_counts_restored_after():
+    before = _blas_threads()
+    assert before, "numpy's BLAS is loaded"
+    with single_blas_thread():
+        assert _blas_threads() == [1] * len(before)
+        with single_blas_thread():  # nested: still one, and the outer exit restores
+            assert _blas_threads() == [1] * len(before)
+        assert _blas_threads() == [1] * len(before)
+    assert _blas_threads() == before
+
+
+def test_the_counts_are_restored_when_the_block_raises():
+    before = _blas_threads()
+    try:
+        with single_blas_thread():
+            raise RuntimeError("a failing step")
+    except RuntimeError:
+        pass
+    assert _blas_threads() == before
+
+
+def test_a_path_following_step_runs_with_one_thread(lbr4p):
+    from dqcontrol.controllers import PathFollowingController, levels
+    from dqcontrol.model import LBR4P_Q0
+    from dqcontrol.trajectories import Circle
+
+    seen = []
+    solve = levels._solve_levels
+
+    def spy(problem, backend):
+        seen.append(_blas_threads())
+        return solve(problem, backend)
+
+    levels._solve_levels = spy
+    try:
+        ctrl = PathFollowingController(lbr4p, Circle(2.0), 0.01, num_intervals=4)
+        ctrl.reset(LBR4P_Q0)
+        before = _blas_threads()
+        ctrl.step(LBR4P_Q0.copy())
+    finally:
+        levels._solve_levels = solve
+    assert seen and all(counts == [1] * len(before) for counts in seen)
+    assert _blas_threads() == before
+    assert np.all(np.isfinite(ctrl.qd_prev))

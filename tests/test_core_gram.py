@@ -1,0 +1,53 @@
+"""Products of constant rows: kept for read-only arrays, the same numbers as recomputed."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dqcontrol.controllers.gram import frozen, kept
+from dqcontrol.controllers.problem import DecisionLayout, Residual, objective
+
+
+def _layout() -> DecisionLayout:
+    return DecisionLayout(3, np.array([0.0, 0.1, 0.3]), np.array([0.1, 0.2, 0.2]))
+
+
+def _residuals(rng: np.random.Generator, freeze: bool) -> tuple[Residual, ...]:
+    layout = _layout()
+    mark = frozen if freeze else (lambda a: a)
+    blocks = mark(rng.normal(size=(3, 2, layout.block_size)))
+    b = mark(rng.normal(size=6))
+    a = mark(rng.normal(size=(5, layout.num_vars)))
+    rows = rng.normal(size=(4, layout.num_vars))
+    return (
+        Residual("blocks", 0.7, b, blocks=blocks),
+        Residual("dense", 1.3, rng.normal(size=5), A=a),
+        Residual("weighted", 2.0, rng.normal(size=4), A=rows, row_weights=rng.uniform(size=4)),
+    )
+
+
+def test_objective_of_frozen_rows_is_bit_identical_and_repeatable():
+    layout = _layout()
+    plain = objective(layout, _residuals(np.random.default_rng(3), False))
+    res = _residuals(np.random.default_rng(3), True)
+    for _ in range(2):  # computed, then kept
+        p_mat, c = objective(layout, res)
+        assert np.array_equal(p_mat, plain[0]) and np.array_equal(c, plain[1])
+
+
+def test_kept_only_for_read_only_operands():
+    a = np.arange(6.0).reshape(2, 3)
+    first = kept((a,), lambda x: x.T @ x)
+    assert first is not kept((a,), lambda x: x.T @ x)  # writable: recomputed
+    frozen(a)
+    twice = kept((a,), np.transpose)
+    assert twice is kept((a,), np.transpose) and not twice.flags.writeable
+    assert np.array_equal(twice, a.T)
+
+
+def test_dense_of_frozen_blocks_is_read_only_and_equal():
+    layout = _layout()
+    blocks = np.random.default_rng(1).normal(size=(3, 2, layout.block_size))
+    ref = Residual("r", 1.0, np.zeros(6), blocks=blocks.copy()).dense(layout)
+    dense = Residual("r", 1.0, np.zeros(6), blocks=frozen(blocks)).dense(layout)
+    assert np.array_equal(dense, ref) and not dense.flags.writeable
