@@ -191,11 +191,12 @@ def _narrowed(problem: Problem, k: int, basis: np.ndarray | None) -> np.ndarray:
     all variables)."""
     mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
     if basis is None:
-        basis = np.eye(problem.layout.num_vars)
+        if not mats:
+            return np.eye(problem.layout.num_vars)
+        return null_space(np.vstack(mats))
     if not mats or basis.shape[1] == 0:
         return basis
-    held = np.vstack(mats) @ basis
-    return basis @ null_space(held)
+    return basis @ null_space(np.vstack(mats) @ basis)
 
 
 def reduced_qp(
