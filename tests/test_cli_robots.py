@@ -55,6 +55,22 @@ def test_run_an_example_robot_data_arm(tmp_path, capsys, no_figures):
     assert robot_from_meta(log.meta).joint_names[0] == "shoulder_pan_joint"
 
 
+def test_an_arm_with_collada_collision_meshes_runs_in_the_kinematic_loop(
+    tmp_path, capsys, no_figures
+):
+    """example-robot-data's Kinova arm has COLLADA collision meshes: it loads and runs in
+    the kinematic loop; MuJoCo, which cannot read them, is refused before any run."""
+    argv = ["run", "--robot", "erd:kinova", "--ee-frame", "j2s6s200_end_effector",
+            "--short", "--controllers", "local", "--duration", "1"]  # fmt: skip
+    err = _bad([*argv, "--simulator", "mujoco", "--out", str(tmp_path / "mj")], capsys)
+    assert "MuJoCo cannot read '.dae' meshes" in err and "--simulator kinematic" in err
+    assert not (tmp_path / "mj").exists()
+    code = main([*argv, "--simulator", "kinematic", "--out", str(tmp_path)])
+    assert code in (0, 1)  # a run, whether or not this arm completes the circle
+    log, _record = load_run(tmp_path / "kinova_circle_T1s_kinematic" / "local.npz")
+    assert log.q.shape[1] == 6 and log.meta["erd"] == "kinova"
+
+
 def test_erd_panda_with_locks_is_the_shipped_panda():
     locks = (("panda_finger_joint1", 0.0), ("panda_finger_joint2", 0.0))
     robot, q0, meta = load_robot(RobotRequest("erd:panda", "panda_hand_tcp", locks))
@@ -125,7 +141,7 @@ def test_run_a_urdf_with_a_continuous_joint_and_meshes(tmp_path, capsys, no_figu
         ),
         (
             '<collision><geometry><mesh filename="meshes/base.dae"/></geometry></collision>',
-            ["'meshes/base.dae'", "accepted collision mesh formats: ['.obj', '.stl']"],
+            ["'meshes/base.dae'", "MuJoCo cannot read '.dae' meshes", "--simulator kinematic"],
         ),
     ],
 )

@@ -289,17 +289,18 @@ def _mesh_urdf(folder, mesh: str, text: str):
     return path
 
 
-def test_collision_mesh_mujoco_cannot_read_is_refused_at_load(tmp_path):
-    """A COLLADA collision mesh (no MuJoCo reader): refused by the robot loader, before any
-    simulation; the simulator's own guard refuses it too in a source that skipped the load
-    check. The same link with an OBJ mesh simulates with it."""
+def test_collision_mesh_mujoco_cannot_read_is_refused_by_the_simulator(tmp_path):
+    """A COLLADA collision mesh (coal reads it, MuJoCo does not): the robot loads, and the
+    simulator refuses to build its model, naming the link and the file, also from a source
+    that skipped the load check. The same link with an OBJ mesh simulates with it."""
     from dqcontrol.model.urdf_source import URDFSource
     from dqcontrol.sim.mjcf_builder import prepare_urdf_xml
 
     path = _mesh_urdf(tmp_path, "l1.dae", "<COLLADA/>")
-    pattern = r"link 'l1'.*'meshes/l1\.dae'.*accepted collision mesh formats: \['\.obj', '\.stl'\]"
+    robot = dqcontrol.RobotModel.from_urdf(path, "l1")
+    pattern = r"collision mesh 'meshes/l1\.dae' of link 'l1'.*cannot read '\.dae'"
     with pytest.raises(URDFError, match=pattern):
-        dqcontrol.RobotModel.from_urdf(path, "l1")
+        MujocoSimulation(robot)
     unchecked = URDFSource(path.read_text(), path, ())
     with pytest.raises(URDFError, match=r"l1\.dae.*cannot read '\.dae'"):
         prepare_urdf_xml(unchecked)

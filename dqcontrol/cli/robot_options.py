@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 __all__ = [
+    "check_mujoco_meshes",
     "ERD_PREFIX",
     "RobotRequest",
     "add_robot_options",
@@ -293,6 +294,20 @@ def _resolve(request: RobotRequest) -> _Resolved:
             f"links of this robot: {_link_names(path)}"
         )
     return _Resolved(path, kind, dirs, request.ee_frame, locked, {})
+
+
+def check_mujoco_meshes(parser: argparse.ArgumentParser, robot) -> None:
+    """A parser error (exit 2) when MuJoCo cannot read one of ``robot``'s collision meshes
+    (a COLLADA file: the robot runs in the kinematic loop, not in MuJoCo)."""
+    from dqcontrol.errors import URDFError
+    from dqcontrol.sim.mjcf_builder import prepare_urdf_xml
+
+    if robot.source is None:
+        return
+    try:
+        prepare_urdf_xml(robot.source)
+    except URDFError as exc:
+        parser.error(f"--simulator mujoco: {exc} (--simulator kinematic runs this robot)")
 
 
 def load_robot(request: RobotRequest):

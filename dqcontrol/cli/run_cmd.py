@@ -24,7 +24,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from dqcontrol.cli.robot_options import RobotRequest, load_robot, robot_label
+from dqcontrol.cli.robot_options import (
+    RobotRequest,
+    check_mujoco_meshes,
+    load_robot,
+    robot_label,
+)
 from dqcontrol.cli.run_options import add_run_options, float_list
 from dqcontrol.cli.run_output import (
     TABLE_LEGEND,
@@ -211,6 +216,8 @@ def _check_options(args) -> tuple:
         velocity = np.broadcast_to(np.array(values, dtype=float), (n,)).copy()
     if args.period > args.duration:
         parser.error(f"--period T = {args.period:g} s is longer than T_tot = {args.duration:g} s")
+    if args.simulator == "mujoco" and not args.connect:
+        check_mujoco_meshes(parser, robot)
     if args.simulator == "mujoco":
         steps = round(args.period / PHYSICS_DT_S)
         if steps < 1 or abs(args.period - steps * PHYSICS_DT_S) > 1e-9:

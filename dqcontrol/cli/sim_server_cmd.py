@@ -50,7 +50,7 @@ def register(subparsers) -> None:
 
 def _main(args: argparse.Namespace) -> int:
     from dqcontrol.cli._extras import check_simulator
-    from dqcontrol.cli.robot_options import RobotRequest, load_robot
+    from dqcontrol.cli.robot_options import RobotRequest, check_mujoco_meshes, load_robot
     from dqcontrol.sim import JointDriver, MujocoDriver, PayloadDriver
     from dqcontrol.sim.bridge import SimServer
 
@@ -59,6 +59,7 @@ def _main(args: argparse.Namespace) -> int:
         robot, _q0, _meta = load_robot(RobotRequest.from_args(args))
     except ValueError as exc:
         args._parser.error(str(exc))
+    check_mujoco_meshes(args._parser, robot)
     if args.payload < 0.0:
         args._parser.error(f"--payload must be >= 0 kg, got {args.payload}")
     driver: JointDriver = MujocoDriver(robot, args.period, motor=args.motor)

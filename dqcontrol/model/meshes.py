@@ -21,9 +21,12 @@ The file found must also be of a format that every consumer of its element reads
   draws ``.stl``, ``.obj`` and ``.dae`` files) and by MuJoCo when it can (the simulator
   drops a visual mesh it cannot read: it only matters for drawing), so
   :data:`VISUAL_FORMATS` are the viewer's.
-- ``<collision>`` meshes are MuJoCo's contact geometry (``.stl``, ``.obj``, ``.msh``) and
-  the collision model's convex hulls (coal reads ``.stl``, ``.obj``, ``.dae``, not
-  ``.msh``), so :data:`COLLISION_FORMATS` are those both read.
+- ``<collision>`` meshes are the collision model's convex hulls (coal reads ``.stl``,
+  ``.obj`` and ``.dae``), so :data:`COLLISION_FORMATS` are coal's. MuJoCo's contact geometry
+  reads ``.stl`` and ``.obj`` only: a robot with COLLADA collision meshes loads and runs in
+  the kinematic loop and the viewer, and the MuJoCo model refuses it when it is built
+  (:func:`~dqcontrol.sim.mjcf_builder.prepare_urdf_xml`, naming the link and the file; the
+  commands check it before any run).
 
 The format is judged by the file's extension (any case). :func:`absolute_mesh_xml` gives
 the URDF with every mesh replaced by the file found here, so that the viewer, the collision
@@ -50,13 +53,13 @@ __all__ = [
 
 #: Mesh formats accepted in a ``<visual>``: those the viewer draws (Meshcat via Pinocchio).
 VISUAL_FORMATS = frozenset({".stl", ".obj", ".dae"})
-#: Mesh formats accepted in a ``<collision>``: those MuJoCo and coal both read.
-COLLISION_FORMATS = frozenset({".stl", ".obj"})
+#: Mesh formats accepted in a ``<collision>``: those the collision model (coal) reads.
+COLLISION_FORMATS = frozenset({".stl", ".obj", ".dae"})
 
 _FORMATS = {"visual": VISUAL_FORMATS, "collision": COLLISION_FORMATS}
 _READERS = {
     "visual": "the viewer (Meshcat)",
-    "collision": "the simulator (MuJoCo) and the collision model (coal)",
+    "collision": "the collision model (coal)",
 }
 _PACKAGE = "package://"
 _FILE = "file://"
