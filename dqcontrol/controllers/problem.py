@@ -486,7 +486,7 @@ def _read_only_rows(residuals: tuple[Residual, ...]) -> tuple[np.ndarray, ...] |
     out: list[np.ndarray] = []
     for r in residuals:
         kind = _kind(r)
-        arrays = (r.blocks,) if kind == "blocks" else (r.A,)
+        arrays: tuple[np.ndarray | None, ...] = (r.blocks,) if kind == "blocks" else (r.A,)
         if kind == "weighted":
             arrays = (r.A, r.row_weights)
         for a in arrays:

@@ -136,6 +136,7 @@ class PredictedPositionLimit(Limit):
         pred = ctx.prediction
         q_lin, q_base = pred.q_lin, pred.q_base
         p, n = q_lin.shape
+        assert self.reach_rad is not None, "called with a reach"
         reach = self.reach_rad[-p:]
         keep = np.empty((p, n), dtype=np.bool_)
         lower, upper = np.empty(p * n), np.empty(p * n)
