@@ -18,7 +18,18 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["add_diagonal_blocks", "block_gram", "block_lin", "dense_gram", "frozen", "kept"]
+__all__ = [
+    "add_diagonal_blocks",
+    "add_scaled",
+    "block_gram",
+    "block_lin",
+    "dense_gram",
+    "frozen",
+    "kept",
+    "selector_rows",
+    "subtract_block_lin",
+    "subtract_scaled",
+]
 
 #: How many products are kept at most (a few per controller).
 _CAPACITY = 256
@@ -32,18 +43,26 @@ def frozen(array: np.ndarray) -> np.ndarray:
     return array
 
 
-def kept(operands: tuple[np.ndarray, ...], compute: Callable[..., np.ndarray]) -> np.ndarray:
-    """``compute(*operands)``, kept while every operand lives when all are read-only."""
-    if any(a.flags.writeable for a in operands):
-        return compute(*operands)
-    key = (compute, *(id(a) for a in operands))
+def kept(
+    operands: tuple[np.ndarray, ...], compute: Callable[..., np.ndarray], params: tuple = ()
+) -> np.ndarray:
+    """``compute(*operands, *params)``, kept while every operand lives when all are
+    read-only (``params``: hashable values the result also depends on, part of the key)."""
+    for a in operands:
+        if a.flags.writeable:
+            return compute(*operands, *params)
+    key = (compute, params, *map(id, operands))
     entry = _KEPT.get(key)
-    if entry is not None and all(r() is a for r, a in zip(entry[0], operands, strict=True)):
-        return entry[1]
+    if entry is not None:
+        for ref, a in zip(entry[0], operands, strict=True):
+            if ref() is not a:
+                break
+        else:
+            return entry[1]
     if len(_KEPT) >= _CAPACITY:  # the oldest entries go first
         for old in list(_KEPT)[: _CAPACITY // 2]:
             del _KEPT[old]
-    value = frozen(compute(*operands))
+    value = frozen(compute(*operands, *params))
     _KEPT[key] = (tuple(weakref.ref(a) for a in operands), value)
     return value
 
@@ -87,3 +106,62 @@ def add_diagonal_blocks(hessian: np.ndarray, gram: np.ndarray, w2: float) -> Non
         for a in range(m):
             for b in range(m):
                 hessian[o + a, o + b] += w2 * gram[i, a, b]
+
+
+@compiled
+def add_scaled(out: np.ndarray, values: np.ndarray, w2: float) -> None:
+    """``out += w2 values`` in place (2-D): the product rounded, then the sum, as numpy's
+    ``out += w2 * values``."""
+    for a in range(out.shape[0]):
+        for b in range(out.shape[1]):
+            out[a, b] += w2 * values[a, b]
+
+
+@compiled
+def subtract_scaled(out: np.ndarray, values: np.ndarray, w2: float) -> None:
+    """``out -= w2 values`` in place (1-D), as numpy's ``out -= w2 * values``."""
+    for a in range(out.shape[0]):
+        out[a] -= w2 * values[a]
+
+
+def _selector_rows(blocks: np.ndarray) -> np.ndarray:
+    """Per block and column the one row with a non-zero entry (``-1``: none) ``(p, m)``;
+    empty where some column has more than one."""
+    nonzero = blocks != 0.0
+    if np.any(nonzero.sum(axis=1) > 1):
+        return np.zeros(0, dtype=np.int64)
+    return np.where(nonzero.any(axis=1), nonzero.argmax(axis=1), -1).astype(np.int64)
+
+
+def selector_rows(blocks: np.ndarray) -> np.ndarray:
+    """:func:`_selector_rows` of read-only ``blocks`` (kept), empty for writable ones."""
+    if blocks.flags.writeable:
+        return np.zeros(0, dtype=np.int64)
+    return kept((blocks,), _selector_rows)
+
+
+@compiled
+def _subtract_selected(
+    c: np.ndarray, blocks: np.ndarray, rows: np.ndarray, b: np.ndarray, w2: float
+) -> None:
+    """``c -= w2 A_iᵀ b_i`` for blocks with one non-zero entry per column at most:
+    ``rows[i, k]`` (``-1``: none)."""
+    p, r, m = blocks.shape
+    for i in range(p):
+        for k in range(m):
+            j = rows[i, k]
+            if j >= 0:
+                c[i * m + k] -= w2 * (blocks[i, j, k] * b[i * r + j])
+
+
+def subtract_block_lin(c: np.ndarray, blocks: np.ndarray, b: np.ndarray, w2: float) -> None:
+    """``c -= w2 A_iᵀ b_i`` of every block in place, as ``c -= w2 * block_lin(blocks, b)``.
+
+    Where each column of a read-only block has one non-zero entry at most (a selection of
+    variables, a scaled one), each sum of ``A_iᵀ b_i`` has one non-zero product: exact
+    whatever the order of the sum, so one compiled pass gives the same numbers."""
+    rows = selector_rows(blocks)
+    if rows.size:
+        _subtract_selected(c, blocks, rows, b, w2)
+    else:
+        subtract_scaled(c, block_lin(blocks, b), w2)

@@ -53,6 +53,7 @@ from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
     interval_breakpoints,
 )
+from dqcontrol.controllers.prediction.distance import max_abs_difference
 from dqcontrol.controllers.problem import Level, Limit, Problem, Term
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.path_error import PathErrorTerm, tangent_projectors
@@ -394,7 +395,7 @@ class PathFollowingController(Controller):
     def _disturbed(self, q: np.ndarray) -> bool:
         if self._expected_q is None:
             return True
-        return float(np.max(np.abs(q - self._expected_q))) > self.tuning.relinearise_threshold_rad
+        return max_abs_difference(q, self._expected_q) > self.tuning.relinearise_threshold_rad
 
     def _mismatch(self, q: np.ndarray, problem: Problem, z: np.ndarray) -> float:
         """How far the linearised path error of the first predicted state is from the
@@ -408,7 +409,7 @@ class PathFollowingController(Controller):
         if float(x1 @ xd1) < 0.0:
             x1 = -x1
         true = tangent_projectors(x1[None, :])[0] @ (x1 - xd1)
-        return float(np.max(np.abs(true - linear)))
+        return max_abs_difference(true, linear)
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         with single_blas_thread():  # the dense levels' products and factorisations
@@ -453,7 +454,7 @@ class PathFollowingController(Controller):
             qd_plan, s_plan = layout.split(result.solution.x)
             assert s_plan is not None, "path following always scales time"
             qd_cmd = np.minimum(np.maximum(qd_plan[0], lo0), up0)
-            s_plan = np.clip(s_plan, 0.0, self.s_max)
+            s_plan = np.minimum(np.maximum(s_plan, 0.0), self.s_max)
             s_now = float(s_plan[0])
             plan_qd = qd_plan.copy()
             plan_qd[0] = qd_cmd

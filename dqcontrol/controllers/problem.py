@@ -34,11 +34,13 @@ import numpy as np
 
 from dqcontrol.controllers.gram import (
     add_diagonal_blocks,
+    add_scaled,
     block_gram,
-    block_lin,
     dense_gram,
     frozen,
     kept,
+    subtract_block_lin,
+    subtract_scaled,
 )
 from dqcontrol.controllers.joint_box import hard_into, intersect_into
 from dqcontrol.errors import ParameterError
@@ -452,28 +454,86 @@ class Problem:
 def objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
     """``(P, c)`` with ``½ zᵀ P z + cᵀ z = Σ w ‖A z - b‖²`` up to a constant.
 
-    The products of read-only rows are computed once (:mod:`~dqcontrol.controllers.gram`);
+    The products of read-only rows are computed once (:mod:`~dqcontrol.controllers.gram`),
+    and so is ``P`` itself (read-only then) when every weighted term's rows are read-only;
     the sums are the same, in the same order, at every step."""
     nv = layout.num_vars
-    p_mat = np.zeros((nv, nv))
+    live = tuple(r for r in residuals if 2.0 * r.weight != 0.0)
+    operands = _read_only_rows(live)
     c = np.zeros(nv)
-    for r in residuals:
-        w2 = 2.0 * r.weight
-        if w2 == 0.0:
-            continue
-        if r.blocks is not None:
-            add_diagonal_blocks(p_mat, block_gram(r.blocks), w2)
-            c -= w2 * block_lin(r.blocks, r.b)
-            continue
-        a = r.dense(layout)
-        if r.row_weights is None:
-            p_mat += w2 * dense_gram(a)
-            c -= w2 * (a.T @ r.b)
-        else:
-            a_w = a * r.row_weights[:, None]
-            p_mat += w2 * (a_w.T @ a)
-            c -= w2 * (a_w.T @ r.b)
+    if operands is None:
+        p_mat = np.zeros((nv, nv))
+        for r in live:
+            _add_residual(layout, r, p_mat, c)
+        return p_mat, c
+    kinds = tuple((_kind(r), 2.0 * r.weight) for r in live)
+    p_mat = kept(operands, _hessian, (nv, kinds))
+    for r in live:
+        _add_residual(layout, r, None, c)
     return p_mat, c
+
+
+def _kind(r: Residual) -> str:
+    """How ``r`` enters the objective: ``"blocks"``, ``"dense"`` or ``"weighted"``."""
+    if r.blocks is not None:
+        return "blocks"
+    return "dense" if r.row_weights is None else "weighted"
+
+
+def _read_only_rows(residuals: tuple[Residual, ...]) -> tuple[np.ndarray, ...] | None:
+    """The arrays ``P`` is computed from (the rows, and the row weights of weighted ones),
+    or ``None`` if one of them is writable."""
+    out: list[np.ndarray] = []
+    for r in residuals:
+        kind = _kind(r)
+        arrays: tuple[np.ndarray | None, ...] = (r.blocks,) if kind == "blocks" else (r.A,)
+        if kind == "weighted":
+            arrays = (r.A, r.row_weights)
+        for a in arrays:
+            if a is None or a.flags.writeable:
+                return None
+            out.append(a)
+    return tuple(out)
+
+
+def _hessian(*args) -> np.ndarray:
+    """``P`` from the arrays of :func:`_read_only_rows` followed by ``(nv, kinds)``: the
+    same sums, in the same order, as :func:`_add_residual`'s."""
+    *arrays, nv, kinds = args
+    p_mat = np.zeros((nv, nv))
+    rest = iter(arrays)
+    for kind, w2 in kinds:
+        a = next(rest)
+        if kind == "blocks":
+            add_diagonal_blocks(p_mat, block_gram(a), w2)
+        elif kind == "dense":
+            add_scaled(p_mat, dense_gram(a), w2)
+        else:
+            add_scaled(p_mat, (a * next(rest)[:, None]).T @ a, w2)
+    return p_mat
+
+
+def _add_residual(
+    layout: DecisionLayout, r: Residual, p_mat: np.ndarray | None, c: np.ndarray
+) -> None:
+    """Add ``2 w AᵀA`` to ``p_mat`` (``None``: not) and subtract ``2 w Aᵀ b`` from ``c``
+    (each row weighted by ``row_weights`` where given), in place."""
+    w2 = 2.0 * r.weight
+    if r.blocks is not None:
+        if p_mat is not None:
+            add_diagonal_blocks(p_mat, block_gram(r.blocks), w2)
+        subtract_block_lin(c, r.blocks, r.b, w2)
+        return
+    a = r.dense(layout)
+    if r.row_weights is None:
+        if p_mat is not None:
+            add_scaled(p_mat, dense_gram(a), w2)
+        subtract_scaled(c, a.T @ r.b, w2)
+        return
+    a_w = a * r.row_weights[:, None]
+    if p_mat is not None:
+        add_scaled(p_mat, a_w.T @ a, w2)
+    subtract_scaled(c, a_w.T @ r.b, w2)
 
 
 def _entries(values, index: np.ndarray) -> np.ndarray:

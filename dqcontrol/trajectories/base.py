@@ -26,6 +26,7 @@ from scipy.spatial import cKDTree
 from dqcontrol.dq.algebra import dq_conj, dq_mul, dq_normalize, hamiplus8, translation
 from dqcontrol.errors import ParameterError
 from dqcontrol.trajectories._checks import positive, unit_dq
+from dqcontrol.trajectories._kernels import value_range
 
 __all__ = ["Trajectory"]
 
@@ -208,8 +209,7 @@ class Trajectory(ABC):
             raise ParameterError(f"sigmas must be a 1-D array [s], got shape {s.shape}")
         if s.shape[0] == 0:
             return np.empty((0, 8)), np.empty((0, 8))
-        lo = float(s.min())
-        hi = float(s.max())
+        lo, hi = value_range(s)
         if not (math.isfinite(lo) and math.isfinite(hi)):  # NaN propagates through min/max
             raise ParameterError(f"sigmas must be finite [s], got {s!r}")
         duration = self._duration

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from dqcontrol.trajectories._checks import positive
+from dqcontrol.trajectories._kernels import circle_rows_into
 from dqcontrol.trajectories.base import Trajectory
 
 __all__ = ["Circle"]
@@ -75,15 +76,9 @@ class Circle(Trajectory):
     def local_poses(self, sigmas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Vectorized :meth:`local_pose` and :meth:`local_derivative`."""
         angle = self._omega * np.asarray(sigmas, dtype=float)
-        c = np.cos(angle)
-        s = np.sin(angle)
-        poses = np.zeros((angle.shape[0], 8))
-        poses[:, 0] = 1.0
-        poses[:, 5] = self._half_r * c
-        poses[:, 6] = self._half_r * s
-        derivatives = np.zeros((angle.shape[0], 8))
-        derivatives[:, 5] = -self._half_r_omega * s
-        derivatives[:, 6] = self._half_r_omega * c
+        poses, derivatives = np.empty((angle.shape[0], 8)), np.empty((angle.shape[0], 8))
+        hr, hw = self._half_r, self._half_r_omega
+        circle_rows_into(np.cos(angle), np.sin(angle), hr, hw, poses, derivatives)
         return poses, derivatives
 
     kind = "circle"

@@ -22,6 +22,7 @@ import numpy as np
 
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
+from dqcontrol.controllers.limits.position_kernels import reachable_rows_into
 from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
 
 __all__ = ["PredictedPositionLimit"]
@@ -65,6 +66,7 @@ class PredictedPositionLimit(Limit):
         self._terminal_key: tuple = (None, None)
         self._terminal_rows: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
         self._selections: dict[str, tuple[np.ndarray, bytes, np.ndarray]] = {}
+        self._no_extra = np.zeros(layout.num_joints)  # the states' rows: the reach alone
 
     def widened(self, slack_rad: float) -> PredictedPositionLimit:
         """The same rows with the position bounds ``slack_rad`` [rad] looser on each side."""
@@ -119,30 +121,44 @@ class PredictedPositionLimit(Limit):
         """The position bounds of the predicted states, or ``None`` when none applies."""
         pred = ctx.prediction
         c = self._matrix(pred.weights)
+        if self.reach_rad is not None:
+            return self._reachable_rows(ctx, c)
         base = pred.q_base.ravel()
-        lower = self._q_min_tiled - base
-        upper = self._q_max_tiled - base
-        keep = self._reachable(pred.q_lin, 0.0)
+        out = [Inequality(self.name, c, self._q_min_tiled - base, self._q_max_tiled - base)]
+        if self.terminal:
+            last = self._terminal(c, ctx.a_max)[1]
+            lo, up = self.q_min - pred.q_base[-1], self.q_max - pred.q_base[-1]
+            out.append(Inequality("terminal_braking", last, lo, up))
+        return tuple(out)
+
+    def _reachable_rows(self, ctx: StepContext, c: np.ndarray) -> tuple | None:
+        """The rows the states can reach (``reach_rad``) in one compiled pass each."""
+        pred = ctx.prediction
+        q_lin, q_base = pred.q_lin, pred.q_base
+        p, n = q_lin.shape
+        assert self.reach_rad is not None, "called with a reach"
+        reach = self.reach_rad[-p:]
+        keep = np.empty((p, n), dtype=np.bool_)
+        lower, upper = np.empty(p * n), np.empty(p * n)
+        bounds = (self.q_min, self.q_max)
+        count = reachable_rows_into(
+            q_lin, q_base, *bounds, reach, self._no_extra, keep, lower, upper
+        )
         out = []
-        if keep is None:
-            out.append(Inequality(self.name, c, lower, upper))
-        elif keep.any():
-            sel = keep.ravel()
-            out.append(Inequality(self.name, self._selected("q", c, sel), lower[sel], upper[sel]))
+        if count == p * n:
+            out.append(Inequality(self.name, self._selected("q", c, keep.ravel()), lower, upper))
+        elif count:
+            rows = self._selected("q", c, keep.ravel())
+            out.append(Inequality(self.name, rows, lower[:count], upper[:count]))
         if self.terminal:
             coeff, last = self._terminal(c, ctx.a_max)
-            near = self._reachable(pred.q_lin[-1:], coeff * self.qd_max)
-            if near is None or near.any():
-                lo, up = self.q_min - pred.q_base[-1], self.q_max - pred.q_base[-1]
-                if near is not None:
-                    sel = near.ravel()
-                    last, lo, up = self._selected("terminal", last, sel), lo[sel], up[sel]
-                out.append(Inequality("terminal_braking", last, lo, up))
+            near = np.empty((1, n), dtype=np.bool_)
+            lo, up = np.empty(n), np.empty(n)
+            extra = coeff * self.qd_max
+            count = reachable_rows_into(
+                q_lin[-1:], q_base[-1:], *bounds, reach[-1:], extra, near, lo, up
+            )
+            if count:
+                rows = self._selected("terminal", last, near.ravel())
+                out.append(Inequality("terminal_braking", rows, lo[:count], up[:count]))
         return tuple(out) or None
-
-    def _reachable(self, q_lin: np.ndarray, extra: np.ndarray | float) -> np.ndarray | None:
-        """Which (state, joint) rows a state can reach (``None``: all, reach unknown)."""
-        if self.reach_rad is None:
-            return None
-        reach = self.reach_rad[-q_lin.shape[0] :, None] + extra
-        return (q_lin + reach >= self.q_max) | (q_lin - reach <= self.q_min)

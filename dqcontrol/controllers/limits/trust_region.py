@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dqcontrol._compiled import compiled
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
@@ -76,11 +77,27 @@ class TrustRegionLimit(Limit):
         cq, cs = self._matrices(pred.weights, pred.phase_weights)
         out = []
         if np.isfinite(self.radius_rad):
-            centre = (pred.q_lin - pred.q_base).ravel()
-            r = self._radii_q
-            out.append(Inequality("trust_region_q", cq, centre - r, centre + r))
+            lower, upper = _band(pred.q_lin.ravel(), pred.q_base.ravel(), self._radii_q)
+            out.append(Inequality("trust_region_q", cq, lower, upper))
         if np.isfinite(self.radius_phase_s):
-            centre = pred.sigma_lin - pred.sigma_base
-            r = self._radii_phase
-            out.append(Inequality("trust_region_phase", cs, centre - r, centre + r))
+            lower, upper = _band(pred.sigma_lin, pred.sigma_base, self._radii_phase)
+            out.append(Inequality("trust_region_phase", cs, lower, upper))
         return tuple(out)
+
+
+def _band(point: np.ndarray, base: np.ndarray, radius: np.ndarray) -> tuple:
+    """``(c - r, c + r)`` with ``c = point - base`` (1-D arrays)."""
+    lower, upper = np.empty(point.shape[0]), np.empty(point.shape[0])
+    band_into(point, base, radius, lower, upper)
+    return lower, upper
+
+
+@compiled
+def band_into(
+    point: np.ndarray, base: np.ndarray, radius: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> None:
+    """``lower = c - r``, ``upper = c + r`` with ``c = point - base``, entry by entry."""
+    for k in range(point.shape[0]):
+        centre = point[k] - base[k]
+        lower[k] = centre - radius[k]
+        upper[k] = centre + radius[k]

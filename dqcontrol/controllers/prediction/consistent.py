@@ -144,19 +144,19 @@ class ConsistentPrediction(PredictionModel):
     def _base(self, q: np.ndarray) -> np.ndarray:
         """The states with a zero decision ``(p, n)``: ``q`` plus the measured velocity's
         share behind a lagging velocity loop."""
-        p = self.layout.num_blocks
         if not self._lagging:
-            return np.broadcast_to(q, (p, q.size))
+            return np.repeat(q[None, :], self.layout.num_blocks, axis=0)
         return q + self._v0_weights[:, None] * self.qd_measured
 
     def state_after_first(self, q: np.ndarray, qd_0: np.ndarray) -> np.ndarray:
         """``q_1`` after the first interval with the command ``qd_0`` [rad]."""
-        return self._base(q)[0] + self.weights[0, 0] * qd_0
+        start = q if not self._lagging else q + self._v0_weights[0] * self.qd_measured
+        return start + self.weights[0, 0] * qd_0
 
     def predict(self, q: np.ndarray, sigma: float) -> Prediction:
         """The prediction linearised at the previous plan, shifted by one period."""
         qd_lin = self._shift @ self.plan_qd
-        s_lin = np.clip(self._shift @ self.plan_s, 0.0, self.s_max)
+        s_lin = np.minimum(np.maximum(self._shift @ self.plan_s, 0.0), self.s_max)
         return self.at(q, sigma, qd_lin, s_lin)
 
     def commit(self, qd: np.ndarray, s: np.ndarray) -> None:
