@@ -36,7 +36,7 @@ import numpy as np
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.problem import Inequality, Limit
 from dqcontrol.errors import ParameterError
-from dqcontrol.model.collision import CollisionModel, PairDistance
+from dqcontrol.model.collision import CollisionModel
 
 __all__ = ["CollisionLimit"]
 
@@ -124,28 +124,26 @@ class CollisionLimit(Limit):
             key += pred.q_lin.tobytes() + pred.q_base.tobytes() + pred.weights.tobytes()
         if key == self._key:  # the same step asked again (set-up, then bounds)
             return self._rows
-        if consistent:
-            out = self._predicted(ctx)
-        else:
-            now = _usable(self.collision.query(ctx.q, self.influence_m))
-            self.last_min_distance_m = min((p.distance_m for p in now), default=math.inf)
-            out = self._damper(ctx, now)
+        out = self._predicted(ctx) if consistent else self._damper(ctx)
         self._key, self._rows = key, out
         self.last_rows = 0 if out is None else int(out.lower.size)
         return out
 
     # ------------------------------------------------------------------ the two forms
-    def _damper(self, ctx: StepContext, now: tuple[PairDistance, ...]) -> Inequality | None:
+    def _damper(self, ctx: StepContext) -> Inequality | None:
         """``∇dᵀ q̇_0 ≥ -k max(d - d_s, 0)`` for the pairs within ``d_i`` at the measured
-        ``q``."""
-        self.pairs_in_influence = len(now)
-        if not now:
+        ``q`` (a pair whose penetration query failed gives no row)."""
+        batch = self.collision.query_batch(ctx.q[None, :], self.influence_m)
+        usable = np.isfinite(batch.distance_m)
+        d, grads = batch.distance_m[usable], batch.gradient[usable]
+        self.last_min_distance_m = float(d.min()) if d.size else math.inf
+        self.pairs_in_influence = int(d.size)
+        if not d.size:
             return None
         layout = ctx.layout
         rate = min(self.gain_m_per_s / (self.influence_m - self.safety_m), 1.0 / ctx.period_s)
-        c = np.zeros((len(now), layout.num_vars))
-        c[:, layout.qd_index()[0]] = np.array([p.gradient for p in now])
-        d = np.array([p.distance_m for p in now])
+        c = np.zeros((d.size, layout.num_vars))
+        c[:, layout.qd_index()[0]] = grads
         lower = -rate * np.maximum(d - self.safety_m, 0.0)
         return Inequality(self.name, c, lower, np.full(d.size, np.inf))
 
@@ -175,8 +173,3 @@ class CollisionLimit(Limit):
         offset = np.einsum("kj,kj->k", grads, pred.q_lin[block] - pred.q_base[block])
         lower = floor - d_bar + offset
         return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
-
-
-def _usable(found: tuple[PairDistance, ...]) -> tuple[PairDistance, ...]:
-    """The pairs with a finite distance (a failed penetration query gives no row)."""
-    return tuple(p for p in found if math.isfinite(p.distance_m))
