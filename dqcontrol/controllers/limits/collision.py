@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.limits.collision_rows import damper_rows, predicted_rows
 from dqcontrol.controllers.problem import Inequality, Limit
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.collision import CollisionModel
@@ -134,18 +135,21 @@ class CollisionLimit(Limit):
         """``∇dᵀ q̇_0 ≥ -k max(d - d_s, 0)`` for the pairs within ``d_i`` at the measured
         ``q`` (a pair whose penetration query failed gives no row)."""
         batch = self.collision.query_batch(ctx.q[None, :], self.influence_m)
-        usable = np.isfinite(batch.distance_m)
-        d, grads = batch.distance_m[usable], batch.gradient[usable]
-        self.last_min_distance_m = float(d.min()) if d.size else math.inf
-        self.pairs_in_influence = int(d.size)
-        if not d.size:
-            return None
         layout = ctx.layout
         rate = min(self.gain_m_per_s / (self.influence_m - self.safety_m), 1.0 / ctx.period_s)
-        c = np.zeros((d.size, layout.num_vars))
-        c[:, layout.qd_index()[0]] = grads
-        lower = -rate * np.maximum(d - self.safety_m, 0.0)
-        return Inequality(self.name, c, lower, np.full(d.size, np.inf))
+        c, lower, closest = damper_rows(
+            batch.distance_m,
+            batch.gradient,
+            self.safety_m,
+            rate,
+            layout.qd_index()[0],
+            layout.num_vars,
+        )
+        self.last_min_distance_m = closest
+        self.pairs_in_influence = int(lower.size)
+        if not lower.size:
+            return None
+        return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
 
     def _predicted(self, ctx: StepContext) -> Inequality | None:
         """``∇d(q̄_i)ᵀ Σ_j W_ij q̇_j ≥ min(d_s, d(q)) - d(q̄_i) + ∇d(q̄_i)ᵀ (q̄_i - q_base,i)``
@@ -154,22 +158,21 @@ class CollisionLimit(Limit):
         pred, layout = ctx.prediction, ctx.layout
         qs = np.vstack([ctx.q[None, :], pred.q_lin])
         batch = self.collision.query_batch(qs, self.influence_m)
-        usable = np.isfinite(batch.distance_m)
-        state, pair = batch.state[usable], batch.pair[usable]
-        dist, grads = batch.distance_m[usable], batch.gradient[usable]
-        now = state == 0
-        self.last_min_distance_m = float(dist[now].min()) if now.any() else math.inf
-        current = np.full(self.collision.num_pairs, math.inf)
-        current[pair[now]] = dist[now]
-        ahead = ~now
-        self.pairs_in_influence = int(ahead.sum())
-        if not ahead.any():
+        c, lower, closest = predicted_rows(
+            batch.state,
+            batch.pair,
+            batch.distance_m,
+            batch.gradient,
+            pred.weights,
+            pred.q_lin,
+            pred.q_base,
+            self.safety_m,
+            self.collision.num_pairs,
+            layout.block_size,
+            layout.num_vars,
+        )
+        self.last_min_distance_m = closest
+        self.pairs_in_influence = int(lower.size)
+        if not lower.size:
             return None
-        block = state[ahead] - 1
-        grads, d_bar, pair = grads[ahead], dist[ahead], pair[ahead]
-        floor = np.minimum(self.safety_m, current[pair])
-        c = np.zeros((block.size, layout.num_vars))
-        c[:, layout.qd_index()] = pred.weights[block][:, :, None] * grads[:, None, :]
-        offset = np.einsum("kj,kj->k", grads, pred.q_lin[block] - pred.q_base[block])
-        lower = floor - d_bar + offset
         return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
