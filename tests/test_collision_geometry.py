@@ -316,13 +316,13 @@ def test_batched_kinematics_are_pinocchio(lbr4p, panda):
 
 @pytest.mark.parametrize("robot_name", ["lbr4p", "panda"])
 def test_the_filter_never_drops_a_pair_within_reach(robot_name, lbr4p, panda):
-    """The bounding balls give lower bounds of every pair's distance, so no pair within the
-    influence distance is filtered out."""
+    """The bounding capsules and support functions give lower bounds of every pair's
+    distance, so no pair within the influence distance is filtered out."""
     robot = lbr4p if robot_name == "lbr4p" else panda
     cm = CollisionModel(robot, OBSTACLES)
     qs = robot.random_configurations(20, 7, margin_rad=0.1)
     rot, trans, _ = cm._kinematics_batch(qs)
-    bounds = cm._gaps(rot, trans)
+    bounds = cm._gaps(rot, trans, math.inf)
     for i, q in enumerate(qs):
         true = np.full(cm.num_pairs, np.inf)
         for p in cm.query(q, math.inf):

@@ -40,6 +40,14 @@ import numpy as np
 import pinocchio as pin
 
 from dqcontrol.errors import ParameterError
+from dqcontrol.model.collision_bounds import bounding_capsule, pair_levers, support_form
+from dqcontrol.model.collision_kernels import (
+    FORM_SIZE,
+    capsule_gaps,
+    chain_kinematics,
+    collect_pairs,
+    motion_gaps,
+)
 from dqcontrol.model.pinocchio_model import build_angle_model, lock_joints
 from dqcontrol.model.robot import RobotModel
 
@@ -64,15 +72,8 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 #: Largest accepted obstacle coordinate or size [m] (as for a URDF's origins).
 MAX_EXTENT_M = 1e4
 
-#: A distance below this [m] is coal's sign that the penetration solver (EPA) failed (it
-#: returns ``-DBL_MAX`` on some deep penetrations); such a pair is reported at ``-inf`` with
-#: NaN witness points and normal and a zero gradient.
-FAILED_DISTANCE_M = -1e3
-
-_NAN3 = np.full(3, np.nan)
-
-#: Shapes further apart than this [m] take their normal from the witness points.
-SEPARATED_M = 1e-6
+_EMPTY_INT = np.zeros(0, dtype=np.int64)
+_EMPTY33 = np.zeros((0, 3, 3))
 
 
 def _finite_vector(name: str, value, size: int) -> tuple[float, ...]:
@@ -435,6 +436,7 @@ class CollisionModel:
         self._joint_of = np.array([go.parentJoint for go in geometry.geometryObjects], dtype=int)
         self._bounds()
         self._tables()
+        self._references()
         #: distance queries made since construction (pairs solved by coal)
         self.query_count = 0
 
@@ -482,21 +484,26 @@ class CollisionModel:
         return out
 
     def _bounds(self) -> None:
-        """Bounding spheres of the shapes in their own frames (centre, radius) [m]."""
+        """Bounding capsules of the shapes in their joints' frames (segment ends ``(g, 2,
+        3)`` and radii [m]), their support functions there (:func:`support_form`) and the
+        half-spaces' planes."""
         count = self.geometry.ngeoms
-        self._centres_local = np.zeros((count, 3))
+        self._ends = np.zeros((count, 2, 3))
         self._radii = np.zeros(count)
         self._plane = np.zeros(count, dtype=bool)
+        self._forms = np.zeros((count, FORM_SIZE))
         for k, go in enumerate(self.geometry.geometryObjects):
             shape = go.geometry
             if isinstance(shape, coal.Halfspace):
                 self._plane[k] = True
                 continue
-            shape.computeLocalAABB()
-            self._centres_local[k] = np.asarray(shape.aabb_center)
-            self._radii[k] = float(shape.aabb_radius)
-            if isinstance(shape, coal.Sphere):  # the ball itself, not its box's
-                self._radii[k] = float(shape.radius)
+            capsule = bounding_capsule(shape)
+            start, end, self._radii[k] = capsule
+            self._ends[k] = [go.placement.act(start), go.placement.act(end)]
+            centre, spans, axis, disc, ball = support_form(shape, capsule)
+            rotation = go.placement.rotation
+            placed = [go.placement.act(centre), *(spans @ rotation.T), rotation @ axis]
+            self._forms[k] = np.concatenate([*placed, [disc, ball]])
         self._normals = np.zeros((count, 3))
         self._offsets = np.zeros(count)
         for k, obs in enumerate(self.obstacles):
@@ -506,8 +513,8 @@ class CollisionModel:
 
     def _tables(self) -> None:
         """The joints that move shapes, the columns that move each joint's body (``support``
-        ``(njoints, n)``, 1 where joint ``k`` carries joint ``j``'s body), the bounding
-        spheres' centres in their joints' frames, and which pairs end on a plane."""
+        ``(njoints, n)``, 1 where joint ``k`` carries joint ``j``'s body) and the revolute
+        chain's constants."""
         model = self.model
         n = self.robot.nq
         self._support = np.zeros((model.njoints, n))
@@ -518,14 +525,18 @@ class CollisionModel:
                 k = model.parents[k]
         self._moving_joints = sorted({int(j) for j in self._joint_of if j > 0})
         self._revolute = self._revolute_tables()
-        self._centres_joint = np.array(
-            [
-                go.placement.act(self._centres_local[k])
-                for k, go in enumerate(self.geometry.geometryObjects)
-            ]
-        )
-        self._plane_pair = self._plane[self._b] if self._b.size else np.zeros(0, dtype=bool)
-        self._radius_sum = self._radii[self._a] + self._radii[self._b]
+
+    def _references(self) -> None:
+        """The last distance solved of each pair and its configuration (none yet), and the
+        joints' levers on each pair (:func:`pair_levers`; revolute chains only, where
+        :meth:`_kinematics_batch` is compiled)."""
+        self._levers = None
+        if self._revolute is not None:
+            self._levers = pair_levers(
+                self.model, self._joint_of, self._ends, self._radii, self._a, self._b
+            )
+        self._reference_q = np.zeros((self.num_pairs, self.robot.nq))
+        self._reference_m = np.full(self.num_pairs, -math.inf)
 
     # ------------------------------------------------------------------ queries
     @property
@@ -547,7 +558,7 @@ class CollisionModel:
         return min((p.distance_m for p in found), default=math.inf)
 
     def candidates(self, influence_m: float) -> np.ndarray:
-        """Indices of the pairs whose bounding spheres are within ``influence_m`` at the
+        """Indices of the pairs whose bounding capsules are within ``influence_m`` at the
         configuration of the last :meth:`update` (a conservative filter)."""
         placements = self.data.oMi
         rot = np.empty((self.model.njoints, 3, 3))
@@ -557,7 +568,7 @@ class CollisionModel:
             rot[j] = m.rotation
             trans[j] = m.translation
         rot[0], trans[0] = np.eye(3), np.zeros(3)
-        gap = self._gaps(rot[None], trans[None])[0]
+        gap = self._gaps(rot[None], trans[None], influence_m)[0]
         return np.flatnonzero(gap < influence_m)
 
     def update(self, q: np.ndarray) -> None:
@@ -568,110 +579,109 @@ class CollisionModel:
     def query(self, q: np.ndarray, influence_m: float) -> tuple[PairDistance, ...]:
         """Unchecked :meth:`distances`: ``q`` a valid ``(n,)`` float array."""
         self.update(q)
-        chosen = self.candidates(influence_m)
-        if chosen.size == 0:
-            return ()
-        gm, gd = self.geometry, self.geometry_data
-        compute = pin.computeDistance
-        found, dist, pa, pb, normal = [], [], [], [], []
-        failed = False
-        for k in chosen.tolist():
-            res = compute(gm, gd, k)
-            d = res.min_distance
-            if not d > FAILED_DISTANCE_M:  # EPA gave up on a deep penetration
-                failed = True
-                found.append(k)
-                dist.append(-math.inf)
-                pa.append(_NAN3)
-                pb.append(_NAN3)
-                normal.append(_NAN3)
-            elif d < influence_m:
-                found.append(k)
-                dist.append(d)
-                pa.append(res.getNearestPoint1())
-                pb.append(res.getNearestPoint2())
-                normal.append(res.normal)
-        self.query_count += chosen.size
-        if not found:
-            return ()
-        idx = np.array(found)
-        pa_m, pb_m = np.array(pa), np.array(pb)
-        normals = _separation_normals(np.array(dist), pa_m, pb_m, np.array(normal))
-        grad = self._gradients(idx, pa_m, pb_m, normals)
-        if failed:
-            grad[np.isnan(grad)] = 0.0
+        _, pair, distance, points, grad = self._solve(q[None, :], influence_m, placed=0)
         return tuple(
-            PairDistance(int(k), float(dk), pa_m[i], pb_m[i], normals[i], grad[i])
-            for i, (k, dk) in enumerate(zip(found, dist, strict=True))
+            PairDistance(int(k), float(d), p[0], p[1], p[2], g)
+            for k, d, p, g in zip(pair.tolist(), distance.tolist(), points, grad, strict=True)
         )
 
-    def _gradients(
-        self,
-        idx: np.ndarray,
-        pa: np.ndarray,
-        pb: np.ndarray,
-        normal: np.ndarray,
-        jacobians: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """``∇d = (J_b(p_b) - J_a(p_a))ᵀ n`` for the pairs ``idx`` ``(k, n)`` [m/rad].
+    def query_batch(self, qs: np.ndarray, influence_m: float) -> DistanceBatch:
+        """Every pair closer than ``influence_m`` [m] at each configuration of ``qs``
+        ``(N, n)`` (unchecked): the same distances and gradients as :meth:`query`, with one
+        bounding-capsule filter for the whole batch (the path-following controller's
+        predicted states)."""
+        state, pair, distance, _, grad = self._solve(qs, influence_m)
+        return DistanceBatch(state, pair, distance, grad)
 
-        With the world-frame joint Jacobian ``[J_v; J_ω]`` (the velocity of the body point at
-        the world origin), the velocity of a body point at ``p`` is ``J_v q̇ + J_ω q̇ × p``
-        on the columns of the joints that carry the body, so
-        ``nᵀ J_p = (nᵀ J_v + (p × n)ᵀ J_ω)`` on those columns. ``jacobians``: one ``(6, n)``
-        world Jacobian per pair ``(k, 6, n)`` (default: the last :meth:`update`'s)."""
-        ja = self._support[self._joint_of[self._a[idx]]]
-        jb = self._support[self._joint_of[self._b[idx]]]
-        if jacobians is None:
-            jac = self.data.J
-            n_v = normal @ jac[:3]
-            grad_b = (n_v + _cross(pb, normal) @ jac[3:]) * jb
-            grad_a = (n_v + _cross(pa, normal) @ jac[3:]) * ja
-        else:
-            jv, jw = jacobians[:, :3], jacobians[:, 3:]
-            n_v = np.einsum("ki,kij->kj", normal, jv)
-            grad_b = (n_v + np.einsum("ki,kij->kj", _cross(pb, normal), jw)) * jb
-            grad_a = (n_v + np.einsum("ki,kij->kj", _cross(pa, normal), jw)) * ja
-        return grad_b - grad_a
+    def _solve(self, qs: np.ndarray, influence_m: float, placed: int = -1) -> tuple:
+        """The pairs within ``influence_m`` at each configuration of ``qs`` ``(N, n)``:
+        configuration ``(k,)``, pair ``(k,)``, distance ``(k,)``, witness points ``a``,
+        ``b`` and normal ``(k, 3, 3)``, gradients ``(k, n)``, ordered by configuration then
+        pair.
+
+        The capsules' lower bounds and the pairs' last solved distances choose the pairs
+        that coal solves; ``placed``: the configuration whose shapes are already placed in
+        :attr:`geometry_data`."""
+        rot, trans, jac = self._kinematics_batch(qs)
+        gaps = self._gaps(rot, trans, influence_m)
+        if self._levers is not None:
+            motion_gaps(qs, self._reference_q, self._reference_m, self._levers, gaps)
+        states, pairs = np.nonzero(gaps < influence_m)
+        self.query_count += states.size
+        solved, hits, points = self._narrow_phase(qs, states, pairs, influence_m, placed)
+        return collect_pairs(
+            qs,
+            states,
+            pairs,
+            solved,
+            hits,
+            points,
+            jac,
+            self._support,
+            self._joint_of,
+            self._a,
+            self._b,
+            self._reference_q,
+            self._reference_m,
+            self._levers is not None,
+        )
+
+    def _narrow_phase(
+        self,
+        qs: np.ndarray,
+        states: np.ndarray,
+        pairs: np.ndarray,
+        influence_m: float,
+        placed: int,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The distance coal solves for each ``(states[k], pairs[k])`` (grouped by
+        configuration) ``(K,)``, the indices of those closer than ``influence_m`` (or
+        failed), and their witness points ``a``, ``b`` and coal's normal ``(k, 3, 3)``."""
+        model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
+        compute = pin.computeDistance
+        solved, hits, points = [], [], []
+        last = placed
+        for m, (i, k) in enumerate(zip(states.tolist(), pairs.tolist(), strict=True)):
+            if i != last:
+                pin.forwardKinematics(model, data, qs[i])
+                pin.updateGeometryPlacements(model, data, gm, gd)
+                last = i
+            res = compute(gm, gd, k)
+            d = res.min_distance
+            solved.append(d)
+            if d < influence_m:  # a failed query too: far below any distance
+                hits.append(m)
+                points.append((res.getNearestPoint1(), res.getNearestPoint2(), res.normal))
+        if not hits:
+            return np.array(solved), _EMPTY_INT, _EMPTY33
+        return np.array(solved), np.array(hits), np.array(points)
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians
-        ``(N, 6, n)`` (as Pinocchio's ``data.J``) of a batch of configurations.
-
-        A chain of 1-DoF revolute joints is computed for the whole batch in numpy:
-        ``R_j = R_parent R_p,j Rot(a_j, q_j)``, ``t_j = R_parent t_p,j + t_parent``, and
-        joint ``j``'s column ``[t_j × ω_j; ω_j]`` with ``ω_j = R_j a_j``; other models loop
-        over Pinocchio."""
+        ``(N, 6, n)`` (as Pinocchio's ``data.J``) of a batch of configurations: a chain of
+        1-DoF revolute joints in the compiled :func:`chain_kinematics`, other models
+        through Pinocchio."""
         count, nj = qs.shape[0], self.model.njoints
         rot = np.empty((count, nj, 3, 3))
         trans = np.empty((count, nj, 3))
-        rot[:, 0], trans[:, 0] = np.eye(3), 0.0
         jac = np.zeros((count, 6, self.robot.nq))
-        if self._revolute is None:
-            model, data = self.model, self.data
-            for i in range(count):
-                pin.computeJointJacobians(model, data, qs[i])
-                jac[i] = data.J
-                for j in range(1, nj):
-                    m = data.oMi[j]
-                    rot[i, j] = m.rotation
-                    trans[i, j] = m.translation
+        if self._revolute is not None:
+            parents, rotations, shifts, k1, k2, axes, iq = self._revolute
+            chain_kinematics(qs, parents, rotations, shifts, k1, k2, axes, iq, rot, trans, jac)
             return rot, trans, jac
-        parents, rotations, shifts, k1, k2, axes, iq = self._revolute
-        for j in range(1, nj):
-            angle = qs[:, iq[j]]
-            local = rotations[j] + np.sin(angle)[:, None, None] * k1[j]
-            local += (1.0 - np.cos(angle))[:, None, None] * k2[j]
-            up = rot[:, parents[j]]
-            rot[:, j] = up @ local
-            trans[:, j] = up @ shifts[j] + trans[:, parents[j]]
-            omega = rot[:, j] @ axes[j]
-            jac[:, 3:, iq[j]] = omega
-            jac[:, :3, iq[j]] = _cross(trans[:, j], omega)
+        rot[:, 0], trans[:, 0] = np.eye(3), 0.0
+        model, data = self.model, self.data
+        for i in range(count):
+            pin.computeJointJacobians(model, data, qs[i])
+            jac[i] = data.J
+            for j in range(1, nj):
+                m = data.oMi[j]
+                rot[i, j] = m.rotation
+                trans[i, j] = m.translation
         return rot, trans, jac
 
     def _revolute_tables(self) -> tuple | None:
-        """Constant tables of :meth:`_kinematics_batch` for a chain of 1-DoF revolute
+        """Constant tables of :func:`chain_kinematics` for a chain of 1-DoF revolute
         joints (``None`` otherwise): each joint's parent, placement ``(R_p, t_p)``,
         ``R_p K`` and ``R_p K²`` (``K`` the cross-product matrix of its unit axis ``a``),
         ``a`` and its index in ``q``."""
@@ -681,7 +691,7 @@ class CollisionModel:
         nj = model.njoints
         rotations, shifts = np.zeros((nj, 3, 3)), np.zeros((nj, 3))
         k1, k2, axes = np.zeros((nj, 3, 3)), np.zeros((nj, 3, 3)), np.zeros((nj, 3))
-        iq = np.zeros(nj, dtype=int)
+        iq = np.zeros(nj, dtype=np.int64)
         for j in range(1, nj):
             axis = _revolute_axis(model.joints[j])
             if axis is None or model.joints[j].nq != 1:
@@ -691,100 +701,28 @@ class CollisionModel:
             rotations[j], shifts[j] = placement.rotation, placement.translation
             k1[j], k2[j], axes[j] = rotations[j] @ k, rotations[j] @ k @ k, axis
             iq[j] = model.idx_qs[j]
-        parents = np.array([int(model.parents[j]) for j in range(nj)])
+        parents = np.array([int(model.parents[j]) for j in range(nj)], dtype=np.int64)
         return parents, rotations, shifts, k1, k2, axes, iq
 
-    def _gaps(self, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
+    def _gaps(self, rot: np.ndarray, trans: np.ndarray, influence_m: float) -> np.ndarray:
         """Lower bounds of every pair's distance ``(N, pairs)`` [m] from the joint placements
-        ``(N, njoints, 3, 3)``, ``(N, njoints, 3)``: each shape is inside a ball (the
-        sphere itself, else the ball around its bounding box), and two balls are their
-        centres' distance less the radii apart; a half-space takes the ball's height."""
-        joints = self._joint_of
-        centres = np.einsum("ngij,gj->ngi", rot[:, joints], self._centres_joint)
-        centres += trans[:, joints]
-        a, b = self._a, self._b
-        between = centres[:, a] - centres[:, b]
-        gap = np.sqrt(np.einsum("npi,npi->np", between, between)) - self._radius_sum
-        plane = self._plane_pair
-        if plane.any():
-            gap[:, plane] = (
-                np.einsum("pi,npi->np", self._normals[b[plane]], centres[:, a[plane]])
-                - self._offsets[b[plane]]
-                - self._radii[a[plane]]
-            )
-        return gap
-
-    def query_batch(self, qs: np.ndarray, influence_m: float) -> DistanceBatch:
-        """Every pair closer than ``influence_m`` [m] at each configuration of ``qs``
-        ``(N, n)`` (unchecked): the same distances and gradients as :meth:`query`, with one
-        bounding-sphere filter for the whole batch (the path-following controller's
-        predicted states)."""
-        model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
-        rot, trans, jac = self._kinematics_batch(qs)
-        gap = self._gaps(rot, trans)
-        states, pairs = np.nonzero(gap < influence_m)
-        self.query_count += states.size
-        compute = pin.computeDistance
-        found_state, found, dist, pa, pb, normal = [], [], [], [], [], []
-        last = -1
-        for i, k in zip(states.tolist(), pairs.tolist(), strict=True):
-            if i != last:
-                pin.forwardKinematics(model, data, qs[i])
-                pin.updateGeometryPlacements(model, data, gm, gd)
-                last = i
-            res = compute(gm, gd, k)
-            d = res.min_distance
-            if not d > FAILED_DISTANCE_M:
-                found_state.append(i)
-                found.append(k)
-                dist.append(-math.inf)
-                pa.append(_NAN3)
-                pb.append(_NAN3)
-                normal.append(_NAN3)
-            elif d < influence_m:
-                found_state.append(i)
-                found.append(k)
-                dist.append(d)
-                pa.append(res.getNearestPoint1())
-                pb.append(res.getNearestPoint2())
-                normal.append(res.normal)
-        n = self.robot.nq
-        if not found:
-            empty = np.zeros(0, dtype=int)
-            return DistanceBatch(empty, empty, np.zeros(0), np.zeros((0, n)))
-        state = np.array(found_state)
-        idx = np.array(found)
-        distance = np.array(dist)
-        pa_m, pb_m = np.array(pa), np.array(pb)
-        normals = _separation_normals(distance, pa_m, pb_m, np.array(normal))
-        grad = self._gradients(idx, pa_m, pb_m, normals, jac[state])
-        grad[~np.isfinite(distance)] = 0.0
-        return DistanceBatch(state, idx, distance, grad)
-
-
-def _separation_normals(
-    distance: np.ndarray, pa: np.ndarray, pb: np.ndarray, normal: np.ndarray
-) -> np.ndarray:
-    """``(p_b - p_a)/d`` where the shapes are apart (``d > SEPARATED_M``): the direction in
-    which the distance grows, whichever witness points GJK chose on parallel faces (coal's own
-    normal there depends on its warm start); coal's normal where they touch or overlap."""
-    apart = distance > SEPARATED_M
-    if apart.any():
-        normal = normal.copy()
-        normal[apart] = (pb[apart] - pa[apart]) / distance[apart, None]
-    return normal
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise ``a × b`` of ``(k, 3)`` arrays (``np.cross`` costs tens of µs for small ones)."""
-    return np.stack(
-        (
-            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
-        ),
-        axis=1,
-    )
+        ``(N, njoints, 3, 3)``, ``(N, njoints, 3)``: the distances of the shapes' bounding
+        capsules, tightened by their support functions below ``influence_m`` [m]
+        (:func:`capsule_gaps`)."""
+        return capsule_gaps(
+            rot,
+            trans,
+            self._joint_of,
+            self._ends,
+            self._radii,
+            self._forms,
+            self._a,
+            self._b,
+            self._normals,
+            self._offsets,
+            self._plane,
+            influence_m,
+        )
 
 
 def _robot_geometry(robot: RobotModel) -> pin.GeometryModel:

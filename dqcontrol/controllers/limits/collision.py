@@ -34,9 +34,10 @@ import math
 import numpy as np
 
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.limits.collision_rows import damper_rows, predicted_rows
 from dqcontrol.controllers.problem import Inequality, Limit
 from dqcontrol.errors import ParameterError
-from dqcontrol.model.collision import CollisionModel, PairDistance
+from dqcontrol.model.collision import CollisionModel
 
 __all__ = ["CollisionLimit"]
 
@@ -124,30 +125,31 @@ class CollisionLimit(Limit):
             key += pred.q_lin.tobytes() + pred.q_base.tobytes() + pred.weights.tobytes()
         if key == self._key:  # the same step asked again (set-up, then bounds)
             return self._rows
-        if consistent:
-            out = self._predicted(ctx)
-        else:
-            now = _usable(self.collision.query(ctx.q, self.influence_m))
-            self.last_min_distance_m = min((p.distance_m for p in now), default=math.inf)
-            out = self._damper(ctx, now)
+        out = self._predicted(ctx) if consistent else self._damper(ctx)
         self._key, self._rows = key, out
         self.last_rows = 0 if out is None else int(out.lower.size)
         return out
 
     # ------------------------------------------------------------------ the two forms
-    def _damper(self, ctx: StepContext, now: tuple[PairDistance, ...]) -> Inequality | None:
+    def _damper(self, ctx: StepContext) -> Inequality | None:
         """``∇dᵀ q̇_0 ≥ -k max(d - d_s, 0)`` for the pairs within ``d_i`` at the measured
-        ``q``."""
-        self.pairs_in_influence = len(now)
-        if not now:
-            return None
+        ``q`` (a pair whose penetration query failed gives no row)."""
+        batch = self.collision.query_batch(ctx.q[None, :], self.influence_m)
         layout = ctx.layout
         rate = min(self.gain_m_per_s / (self.influence_m - self.safety_m), 1.0 / ctx.period_s)
-        c = np.zeros((len(now), layout.num_vars))
-        c[:, layout.qd_index()[0]] = np.array([p.gradient for p in now])
-        d = np.array([p.distance_m for p in now])
-        lower = -rate * np.maximum(d - self.safety_m, 0.0)
-        return Inequality(self.name, c, lower, np.full(d.size, np.inf))
+        c, lower, closest = damper_rows(
+            batch.distance_m,
+            batch.gradient,
+            self.safety_m,
+            rate,
+            layout.qd_index()[0],
+            layout.num_vars,
+        )
+        self.last_min_distance_m = closest
+        self.pairs_in_influence = int(lower.size)
+        if not lower.size:
+            return None
+        return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
 
     def _predicted(self, ctx: StepContext) -> Inequality | None:
         """``∇d(q̄_i)ᵀ Σ_j W_ij q̇_j ≥ min(d_s, d(q)) - d(q̄_i) + ∇d(q̄_i)ᵀ (q̄_i - q_base,i)``
@@ -156,27 +158,21 @@ class CollisionLimit(Limit):
         pred, layout = ctx.prediction, ctx.layout
         qs = np.vstack([ctx.q[None, :], pred.q_lin])
         batch = self.collision.query_batch(qs, self.influence_m)
-        usable = np.isfinite(batch.distance_m)
-        state, pair = batch.state[usable], batch.pair[usable]
-        dist, grads = batch.distance_m[usable], batch.gradient[usable]
-        now = state == 0
-        self.last_min_distance_m = float(dist[now].min()) if now.any() else math.inf
-        current = np.full(self.collision.num_pairs, math.inf)
-        current[pair[now]] = dist[now]
-        ahead = ~now
-        self.pairs_in_influence = int(ahead.sum())
-        if not ahead.any():
+        c, lower, closest = predicted_rows(
+            batch.state,
+            batch.pair,
+            batch.distance_m,
+            batch.gradient,
+            pred.weights,
+            pred.q_lin,
+            pred.q_base,
+            self.safety_m,
+            self.collision.num_pairs,
+            layout.block_size,
+            layout.num_vars,
+        )
+        self.last_min_distance_m = closest
+        self.pairs_in_influence = int(lower.size)
+        if not lower.size:
             return None
-        block = state[ahead] - 1
-        grads, d_bar, pair = grads[ahead], dist[ahead], pair[ahead]
-        floor = np.minimum(self.safety_m, current[pair])
-        c = np.zeros((block.size, layout.num_vars))
-        c[:, layout.qd_index()] = pred.weights[block][:, :, None] * grads[:, None, :]
-        offset = np.einsum("kj,kj->k", grads, pred.q_lin[block] - pred.q_base[block])
-        lower = floor - d_bar + offset
         return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
-
-
-def _usable(found: tuple[PairDistance, ...]) -> tuple[PairDistance, ...]:
-    """The pairs with a finite distance (a failed penetration query gives no row)."""
-    return tuple(p for p in found if math.isfinite(p.distance_m))

@@ -1,0 +1,376 @@
+"""Compiled kernels of the collision queries: the kinematics of a batch of configurations, the
+capsule lower bounds of every pair's distance, and the distance gradients.
+
+Each works on a handful of small arrays per configuration, where numpy's per-call cost would
+be most of the time; they are written out on floats and compiled with Numba.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dqcontrol._compiled import compiled
+
+__all__ = [
+    "FAILED_DISTANCE_M",
+    "SEPARATED_M",
+    "capsule_gaps",
+    "chain_kinematics",
+    "collect_pairs",
+    "distance_gradients",
+    "motion_gaps",
+    "segment_distance",
+]
+
+#: Below this ``sin²`` of the angle between two segments they are taken as parallel.
+_PARALLEL_SIN2 = 1e-12
+
+#: A distance below this [m] is coal's sign that the penetration solver (EPA) failed (it
+#: returns ``-DBL_MAX`` on some deep penetrations); such a pair is reported at ``-inf`` with
+#: NaN witness points and normal and a zero gradient.
+FAILED_DISTANCE_M = -1e3
+
+#: Shapes further apart than this [m] take their normal from the witness points.
+SEPARATED_M = 1e-6
+
+
+@compiled
+def chain_kinematics(
+    qs: np.ndarray,
+    parents: np.ndarray,
+    rotations: np.ndarray,
+    shifts: np.ndarray,
+    k1: np.ndarray,
+    k2: np.ndarray,
+    axes: np.ndarray,
+    iq: np.ndarray,
+    rot: np.ndarray,
+    trans: np.ndarray,
+    jac: np.ndarray,
+) -> None:
+    """Joint placements and world Jacobians of a chain of 1-DoF revolute joints.
+
+    For every configuration ``i`` and joint ``j``: ``R_j = R_parent (R_p + sin q K_p +
+    (1 - cos q) K²_p)``, ``t_j = R_parent t_p + t_parent``, and joint ``j``'s Jacobian column
+    ``[t_j × ω_j; ω_j]`` with ``ω_j = R_j a_j`` (Pinocchio's ``data.J``). Writes ``rot``
+    ``(N, njoints, 3, 3)``, ``trans`` ``(N, njoints, 3)`` and ``jac`` ``(N, 6, n)``; joint 0
+    is the world (identity)."""
+    count, nj = qs.shape[0], rotations.shape[0]
+    for i in range(count):
+        rot[i, 0] = 0.0
+        trans[i, 0] = 0.0
+        for r in range(3):
+            rot[i, 0, r, r] = 1.0
+        for j in range(1, nj):
+            p = parents[j]
+            angle = qs[i, iq[j]]
+            s, c1 = math.sin(angle), 1.0 - math.cos(angle)
+            for r in range(3):
+                for c in range(3):
+                    acc = 0.0
+                    for m in range(3):
+                        local = rotations[j, m, c] + s * k1[j, m, c] + c1 * k2[j, m, c]
+                        acc += rot[i, p, r, m] * local
+                    rot[i, j, r, c] = acc
+                acc = trans[i, p, r]
+                for m in range(3):
+                    acc += rot[i, p, r, m] * shifts[j, m]
+                trans[i, j, r] = acc
+            w0 = rot[i, j, 0, 0] * axes[j, 0] + rot[i, j, 0, 1] * axes[j, 1]
+            w0 += rot[i, j, 0, 2] * axes[j, 2]
+            w1 = rot[i, j, 1, 0] * axes[j, 0] + rot[i, j, 1, 1] * axes[j, 1]
+            w1 += rot[i, j, 1, 2] * axes[j, 2]
+            w2 = rot[i, j, 2, 0] * axes[j, 0] + rot[i, j, 2, 1] * axes[j, 1]
+            w2 += rot[i, j, 2, 2] * axes[j, 2]
+            t0, t1, t2 = trans[i, j, 0], trans[i, j, 1], trans[i, j, 2]
+            col = iq[j]
+            jac[i, 0, col] = t1 * w2 - t2 * w1
+            jac[i, 1, col] = t2 * w0 - t0 * w2
+            jac[i, 2, col] = t0 * w1 - t1 * w0
+            jac[i, 3, col] = w0
+            jac[i, 4, col] = w1
+            jac[i, 5, col] = w2
+
+
+@compiled
+def segment_distance(
+    ends: np.ndarray, first: int, second: int
+) -> tuple[float, float, float, float]:
+    """The distance [m] between the segments ``ends[first]`` and ``ends[second]`` (each
+    ``(2, 3)``: its two ends), less a rounding allowance so that it is never above the exact
+    distance, and the vector from the second segment's nearest point to the first's
+    (Ericson, *Real-Time Collision Detection*, §5.1.9).
+
+    Segments within ``1e-6`` rad of parallel are solved as parallel (one end's parameter set
+    to 0, the other clamped, then the first re-clamped): the distance is then off by at most
+    the angle times the segment's length, which the allowance covers, as it covers the
+    rounding of the general case."""
+    p1x, p1y, p1z = ends[first, 0, 0], ends[first, 0, 1], ends[first, 0, 2]
+    p2x, p2y, p2z = ends[second, 0, 0], ends[second, 0, 1], ends[second, 0, 2]
+    d1x, d1y, d1z = ends[first, 1, 0] - p1x, ends[first, 1, 1] - p1y, ends[first, 1, 2] - p1z
+    d2x, d2y, d2z = ends[second, 1, 0] - p2x, ends[second, 1, 1] - p2y, ends[second, 1, 2] - p2z
+    rx, ry, rz = p1x - p2x, p1y - p2y, p1z - p2z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    s, t = 0.0, 0.0
+    if a > 0.0 or e > 0.0:
+        if a == 0.0:
+            t = min(max(f / e, 0.0), 1.0)
+        else:
+            c = d1x * rx + d1y * ry + d1z * rz
+            if e == 0.0:
+                s = min(max(-c / a, 0.0), 1.0)
+            else:
+                b = d1x * d2x + d1y * d2y + d1z * d2z
+                denom = a * e - b * b
+                if denom > _PARALLEL_SIN2 * a * e:
+                    s = min(max((b * f - c * e) / denom, 0.0), 1.0)
+                t = (b * s + f) / e
+                if t < 0.0:
+                    t = 0.0
+                    s = min(max(-c / a, 0.0), 1.0)
+                elif t > 1.0:
+                    t = 1.0
+                    s = min(max((b - c) / a, 0.0), 1.0)
+    gx = rx + s * d1x - t * d2x
+    gy = ry + s * d1y - t * d2y
+    gz = rz + s * d1z - t * d2z
+    allowance = 1e-9 + 1e-6 * (math.sqrt(a) + math.sqrt(e))
+    return math.sqrt(gx * gx + gy * gy + gz * gz) - allowance, gx, gy, gz
+
+
+#: Columns of a shape's support form (:func:`support`): centre, three half-spans, disc axis,
+#: disc radius, ball radius.
+FORM_SIZE = 17
+
+
+@compiled
+def support(forms: np.ndarray, g: int, ux: float, uy: float, uz: float) -> float:
+    """Shape ``g``'s support ``h(u) = uᵀc + Σ_i |uᵀs_i| + ρ √(1 - (uᵀa)²) + r`` [m] along the
+    unit ``u``; ``forms[g]``: ``c, s_0, s_1, s_2, a, ρ, r`` in the world
+    (:func:`~dqcontrol.model.collision_bounds.support_form`)."""
+    h = ux * forms[g, 0] + uy * forms[g, 1] + uz * forms[g, 2] + forms[g, 16]
+    for i in range(3, 12, 3):
+        h += abs(ux * forms[g, i] + uy * forms[g, i + 1] + uz * forms[g, i + 2])
+    if forms[g, 15] > 0.0:
+        along = ux * forms[g, 12] + uy * forms[g, 13] + uz * forms[g, 14]
+        h += forms[g, 15] * math.sqrt(max(1.0 - along * along, 0.0))
+    return h
+
+
+@compiled
+def separation(forms: np.ndarray, a: int, b: int, vx: float, vy: float, vz: float) -> float:
+    """``-h_b(-u) - h_a(u)`` [m] with ``u = v/|v|`` (from ``a`` towards ``b``): a lower
+    bound of the shapes' distance, less a rounding allowance (``-inf`` for a zero ``v``)."""
+    norm = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if not norm > 1e-12:
+        return -np.inf
+    ux, uy, uz = vx / norm, vy / norm, vz / norm
+    return -support(forms, b, -ux, -uy, -uz) - support(forms, a, ux, uy, uz) - 1e-9
+
+
+@compiled
+def _place_shapes(
+    rot: np.ndarray,
+    trans: np.ndarray,
+    joint_of: np.ndarray,
+    ends: np.ndarray,
+    forms_local: np.ndarray,
+    ends_w: np.ndarray,
+    forms: np.ndarray,
+) -> None:
+    """The capsules' ends ``ends_w`` ``(g, 2, 3)`` and support forms ``forms`` ``(g, 17)`` in
+    the world, from those in the joints' frames and one configuration's joint placements
+    ``rot`` ``(njoints, 3, 3)``, ``trans`` ``(njoints, 3)``: the centre and the ends are
+    points, the half-spans and the disc axis directions; the radii are kept."""
+    for g in range(ends.shape[0]):
+        j = joint_of[g]
+        for r in range(3):
+            r0, r1, r2 = rot[j, r, 0], rot[j, r, 1], rot[j, r, 2]
+            for e in range(2):
+                ends_w[g, e, r] = trans[j, r] + (
+                    r0 * ends[g, e, 0] + r1 * ends[g, e, 1] + r2 * ends[g, e, 2]
+                )
+            for v in range(5):  # centre, three half-spans, disc axis
+                c = 3 * v
+                x = r0 * forms_local[g, c] + r1 * forms_local[g, c + 1]
+                x += r2 * forms_local[g, c + 2]
+                forms[g, c + r] = x + trans[j, r] if v == 0 else x
+        forms[g, 15], forms[g, 16] = forms_local[g, 15], forms_local[g, 16]
+
+
+@compiled
+def capsule_gaps(
+    rot: np.ndarray,
+    trans: np.ndarray,
+    joint_of: np.ndarray,
+    ends: np.ndarray,
+    radii: np.ndarray,
+    forms_local: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    plane_normals: np.ndarray,
+    plane_offsets: np.ndarray,
+    is_plane: np.ndarray,
+    influence_m: float,
+) -> np.ndarray:
+    """Lower bounds of every pair's distance ``(N, pairs)`` [m] from the joint placements
+    ``rot`` ``(N, njoints, 3, 3)``, ``trans`` ``(N, njoints, 3)``.
+
+    Shape ``g`` is inside the capsule of radius ``radii[g]`` around the segment ``ends[g]``
+    ``(2, 3)`` in the frame of joint ``joint_of[g]``, with the support function
+    ``forms_local[g]`` there (:func:`support`). A pair ``(first[p], second[p])`` is at least
+    the largest of: its segments' distance less both radii, and the support gap along the
+    segments' nearest points and along the centres. A half-space ``second[p]``
+    (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset`` away. The support
+    gaps are only tried for pairs whose capsules are within ``influence_m``."""
+    count, shapes, pairs = rot.shape[0], ends.shape[0], first.shape[0]
+    ends_w = np.empty((shapes, 2, 3))
+    forms = np.empty((shapes, FORM_SIZE))
+    out = np.empty((count, pairs))
+    for i in range(count):
+        _place_shapes(rot[i], trans[i], joint_of, ends, forms_local, ends_w, forms)
+        for p in range(pairs):
+            a, b = first[p], second[p]
+            if is_plane[b]:
+                nx, ny, nz = plane_normals[b, 0], plane_normals[b, 1], plane_normals[b, 2]
+                out[i, p] = -support(forms, a, -nx, -ny, -nz) - plane_offsets[b] - 1e-9
+                continue
+            gap, gx, gy, gz = segment_distance(ends_w, a, b)
+            best = gap - radii[a] - radii[b]
+            if best >= influence_m:
+                out[i, p] = best
+                continue
+            best = max(best, separation(forms, a, b, -gx, -gy, -gz))
+            vx = forms[b, 0] - forms[a, 0]
+            vy = forms[b, 1] - forms[a, 1]
+            vz = forms[b, 2] - forms[a, 2]
+            out[i, p] = max(best, separation(forms, a, b, vx, vy, vz))
+    return out
+
+
+@compiled
+def distance_gradients(
+    state: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    point_a: np.ndarray,
+    point_b: np.ndarray,
+    normal: np.ndarray,
+    jac: np.ndarray,
+    support: np.ndarray,
+    joint_of: np.ndarray,
+) -> np.ndarray:
+    """``∇d = (J_b(p_b) - J_a(p_a))ᵀ n`` ``(k, n)`` [m/rad] of ``k`` pairs of shapes
+    ``(first, second)`` at configurations ``state``, with witness points ``point_a``,
+    ``point_b`` and normals ``normal`` ``(k, 3)``.
+
+    With the world Jacobian ``[J_v; J_ω]`` of configuration ``state[k]`` ``jac`` ``(N, 6,
+    n)``, a body point at ``p`` moves at ``J_v q̇ + J_ω q̇ × p`` on the columns of the joints
+    that carry the body (``support`` ``(njoints, n)``, 1 there), so ``nᵀ J_p = nᵀ J_v +
+    (p × n)ᵀ J_ω`` on those columns. A non-finite normal (a failed query) gives zero."""
+    k_count, n = first.shape[0], jac.shape[2]
+    out = np.zeros((k_count, n))
+    for k in range(k_count):
+        nx, ny, nz = normal[k, 0], normal[k, 1], normal[k, 2]
+        if not (math.isfinite(nx) and math.isfinite(ny) and math.isfinite(nz)):
+            continue
+        i = state[k]
+        ax, ay, az = point_a[k, 0], point_a[k, 1], point_a[k, 2]
+        bx, by, bz = point_b[k, 0], point_b[k, 1], point_b[k, 2]
+        # p × n for both points
+        cax, cay, caz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
+        cbx, cby, cbz = by * nz - bz * ny, bz * nx - bx * nz, bx * ny - by * nx
+        sa, sb = support[joint_of[first[k]]], support[joint_of[second[k]]]
+        for c in range(n):
+            nv = nx * jac[i, 0, c] + ny * jac[i, 1, c] + nz * jac[i, 2, c]
+            wa = cax * jac[i, 3, c] + cay * jac[i, 4, c] + caz * jac[i, 5, c]
+            wb = cbx * jac[i, 3, c] + cby * jac[i, 4, c] + cbz * jac[i, 5, c]
+            out[k, c] = (nv + wb) * sb[c] - (nv + wa) * sa[c]
+    return out
+
+
+@compiled
+def motion_gaps(
+    qs: np.ndarray,
+    reference_q: np.ndarray,
+    reference_m: np.ndarray,
+    levers_m: np.ndarray,
+    gaps: np.ndarray,
+) -> None:
+    """Raise the lower bounds ``gaps`` ``(N, pairs)`` [m] to what each pair's distance at a
+    reference configuration allows.
+
+    Pair ``p`` was ``reference_m[p]`` apart at ``reference_q[p]`` (``-inf``: unknown). Turning
+    joint ``c`` by ``Δq_c`` moves no point of the pair's shapes, relative to the other shape,
+    by more than ``levers_m[p, c] |Δq_c|``, so the distance at ``qs[i]`` is at least
+    ``reference_m[p] - Σ_c levers_m[p, c] |qs[i, c] - reference_q[p, c]|`` (less an allowance
+    for the reference's solver tolerance)."""
+    count, pairs, n = qs.shape[0], reference_m.shape[0], qs.shape[1]
+    for i in range(count):
+        for p in range(pairs):
+            bound = reference_m[p] - 1e-6
+            if bound <= gaps[i, p]:
+                continue
+            for c in range(n):
+                bound -= levers_m[p, c] * abs(qs[i, c] - reference_q[p, c])
+            if bound > gaps[i, p]:
+                gaps[i, p] = bound
+
+
+@compiled
+def collect_pairs(
+    qs: np.ndarray,
+    states: np.ndarray,
+    pairs: np.ndarray,
+    solved_m: np.ndarray,
+    hits: np.ndarray,
+    points: np.ndarray,
+    jac: np.ndarray,
+    support: np.ndarray,
+    joint_of: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    reference_q: np.ndarray,
+    reference_m: np.ndarray,
+    remember: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs found close from the distances solved for ``(states[m], pairs[m])``
+    (``solved_m`` ``(K,)``; ``hits`` ``(k,)`` the close ones, with coal's witness points
+    ``a``, ``b`` and normal ``points`` ``(k, 3, 3)``): configuration, pair, distance,
+    points (with the separation normal) and gradients ``(k, n)``.
+
+    A failed query (below :data:`FAILED_DISTANCE_M`) is reported at ``-inf`` with NaN points
+    and a zero gradient. Where the shapes are apart (``d > SEPARATED_M``) the normal is
+    ``(p_b - p_a)/d``: the direction in which the distance grows, whichever witness points
+    GJK chose on parallel faces; coal's normal where they touch or overlap. With
+    ``remember``, each solved pair's distance and configuration become its reference
+    (:func:`motion_gaps`; a failed one unknown, ``-inf``)."""
+    count = hits.shape[0]
+    state = np.empty(count, dtype=np.int64)
+    pair = np.empty(count, dtype=np.int64)
+    distance = np.empty(count)
+    out = points.copy()
+    for k in range(count):
+        m = hits[k]
+        state[k], pair[k] = states[m], pairs[m]
+        d = solved_m[m]
+        if not d > FAILED_DISTANCE_M:
+            d = -np.inf
+            out[k] = np.nan
+        elif d > SEPARATED_M:
+            for r in range(3):
+                out[k, 2, r] = (out[k, 1, r] - out[k, 0, r]) / d
+        distance[k] = d
+    grads = distance_gradients(
+        state, first[pair], second[pair], out[:, 0], out[:, 1], out[:, 2], jac, support, joint_of
+    )
+    if remember:
+        for m in range(states.shape[0]):  # in order: the last configuration stays
+            d = solved_m[m]
+            reference_m[pairs[m]] = d if d > FAILED_DISTANCE_M else -np.inf
+            reference_q[pairs[m]] = qs[states[m]]
+    return state, pair, distance, out, grads
