@@ -345,8 +345,9 @@ def _cell_obstacles(robot: RobotModel) -> tuple:
 
 def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
     """The collision limit's cost at ``period_s`` with three obstacles and self-collision:
-    pairs, pairs within the influence distance and rows per step, the limit's own time
-    and the whole step, for the local controller and the path-following one (p = 10)."""
+    pairs, pairs within the influence distance, rows and coal distance queries per step,
+    the limit's own time and the whole step, for the local controller and the
+    path-following one (p = 10)."""
     from dqcontrol.controllers.limits.collision import CollisionLimit
     from dqcontrol.model.collision import CollisionModel
 
@@ -356,7 +357,7 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
     out: dict = {"pairs": len(model.pairs)}
     for name in ("local", "pf10"):
         limit = CollisionLimit(model)
-        rows, limit_times, influence, step_times_s = [], [], [], []
+        rows, limit_times, influence, step_times_s, queries = [], [], [], [], []
         timed_rows = limit.rows
 
         def rows_timed(ctx, _rows=timed_rows, _times=limit_times):
@@ -372,7 +373,9 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
         q = LBR4P_Q0.copy()
         ctrl.reset(q)
         for _ in range(steps):
+            before = model.query_count
             res = ctrl.step(q)
+            queries.append(model.query_count - before)
             step_times_s.append(res.diagnostics.step_time_s)
             rows.append(limit.last_rows)
             influence.append(limit.pairs_in_influence)
@@ -387,6 +390,7 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
             "limit_median_us": float(np.median(limit_times) * 1e6),
             "rows_mean": float(np.mean(rows)),
             "pairs_in_influence_mean": float(np.mean(influence)),
+            "distance_queries_mean": float(np.mean(queries)),
         }
     return out
 
@@ -819,15 +823,16 @@ def _collision_lines(col: dict | None) -> list[str]:
     lines = [
         "",
         f"collision limit (three obstacles + self-collision, {col['pairs']} pairs) [µs]: "
-        "step median (and without the limit), the limit's rows() median, rows and pairs "
-        "within the influence distance",
+        "step median (and without the limit), the limit's rows() median, rows, pairs "
+        "within the influence distance and distance queries (coal) per step",
     ]
     for name in ("local", "pf10"):
         v = col[name]
         lines.append(
             f"  {name}: step {v['step_median_us']:.0f} (without the limit "
             f"{v['step_without_limit_median_us']:.0f}), limit rows {v['limit_median_us']:.0f}, "
-            f"{v['rows_mean']:.1f} rows, {v['pairs_in_influence_mean']:.1f} pairs"
+            f"{v['rows_mean']:.1f} rows, {v['pairs_in_influence_mean']:.1f} pairs, "
+            f"{v['distance_queries_mean']:.1f} queries"
         )
     return lines
 
