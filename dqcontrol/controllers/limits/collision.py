@@ -145,11 +145,7 @@ class CollisionLimit(Limit):
             layout.qd_index()[0],
             layout.num_vars,
         )
-        self.last_min_distance_m = closest
-        self.pairs_in_influence = int(lower.size)
-        if not lower.size:
-            return None
-        return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
+        return self._inequality(c, lower, closest)
 
     def _predicted(self, ctx: StepContext) -> Inequality | None:
         """``∇d(q̄_i)ᵀ Σ_j W_ij q̇_j ≥ min(d_s, d(q)) - d(q̄_i) + ∇d(q̄_i)ᵀ (q̄_i - q_base,i)``
@@ -171,7 +167,12 @@ class CollisionLimit(Limit):
             layout.block_size,
             layout.num_vars,
         )
-        self.last_min_distance_m = closest
+        return self._inequality(c, lower, closest)
+
+    def _inequality(self, c: np.ndarray, lower: np.ndarray, closest_m: float) -> Inequality | None:
+        """The rows ``c z ≥ lower`` (``None`` without any), remembering the closest
+        distance [m] and the number of pairs within the influence distance."""
+        self.last_min_distance_m = closest_m
         self.pairs_in_influence = int(lower.size)
         if not lower.size:
             return None
