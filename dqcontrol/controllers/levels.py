@@ -190,13 +190,14 @@ def _narrowed(problem: Problem, k: int, basis: np.ndarray | None) -> np.ndarray:
     """The basis of the null space of level ``k``'s held rows within ``basis`` (``None``:
     all variables)."""
     mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
+    if not mats:
+        return np.eye(problem.layout.num_vars) if basis is None else basis
+    held = mats[0] if len(mats) == 1 else np.vstack(mats)
     if basis is None:
-        if not mats:
-            return np.eye(problem.layout.num_vars)
-        return null_space(np.vstack(mats))
-    if not mats or basis.shape[1] == 0:
+        return null_space(held)
+    if basis.shape[1] == 0:
         return basis
-    return basis @ null_space(np.vstack(mats) @ basis)
+    return basis @ null_space(held @ basis)
 
 
 def reduced_qp(
