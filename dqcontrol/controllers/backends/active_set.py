@@ -1,0 +1,173 @@
+"""A dense QP solved on a guessed active set, and the check that the guess was right
+(docs/theory.md §7.5).
+
+For ``min ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with ``P`` positive definite, a set
+``W`` of rows held at one of their bounds (``b_W``) gives the equality-constrained optimum
+
+    z = -P⁻¹ (c + A_Wᵀ λ),   (A_W P⁻¹ A_Wᵀ) λ = -(b_W + A_W P⁻¹ c),
+
+computed with the Cholesky factor ``P = L Lᵀ`` (``Y = L⁻¹ A_Wᵀ``, ``g = L⁻¹ c``: the
+system is ``YᵀY λ = -(b_W + Yᵀ g)`` and ``z = -L⁻ᵀ (g + Y λ)``). It is *the* optimum of
+the QP exactly when the KKT conditions hold: every row within its bounds and every
+multiplier of the right sign (``λ ≥ 0`` at an upper bound, ``≤ 0`` at a lower one, free
+where both bounds are equal). From one control step to the next the active set rarely
+changes, so the last step's set is a good guess, and checking it costs a factorisation
+and one pass over the rows, where an active-set solver given new data would start by
+transforming every row.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dqcontrol._compiled import compiled
+
+__all__ = ["solve_on_active_set"]
+
+#: Returned by :func:`solve_on_active_set`.
+SOLVED, NOT_POSITIVE_DEFINITE, DEPENDENT_ROWS, INFEASIBLE, WRONG_SIGN = 0, 1, 2, 3, 4
+
+
+@compiled
+def _cholesky_lower(a: np.ndarray, out: np.ndarray, share: float) -> bool:
+    """``out`` = the lower Cholesky factor of the symmetric ``a``; False when a squared
+    pivot is not above ``share`` times the largest diagonal entry (or is NaN)."""
+    n = a.shape[0]
+    scale = 0.0
+    for i in range(n):
+        scale = max(scale, a[i, i])
+    for j in range(n):
+        s = a[j, j]
+        for k in range(j):
+            s -= out[j, k] * out[j, k]
+        if not s > share * scale:
+            return False
+        d = math.sqrt(s)
+        out[j, j] = d
+        for i in range(j + 1, n):
+            t = a[i, j]
+            for k in range(j):
+                t -= out[i, k] * out[j, k]
+            out[i, j] = t / d
+    return True
+
+
+@compiled
+def _forward(factor: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out = L⁻¹ b`` for the lower triangular ``factor``."""
+    for i in range(b.shape[0]):
+        s = b[i]
+        for k in range(i):
+            s -= factor[i, k] * out[k]
+        out[i] = s / factor[i, i]
+
+
+@compiled
+def _backward(factor: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out = L⁻ᵀ b`` for the lower triangular ``factor``."""
+    n = b.shape[0]
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for k in range(i + 1, n):
+            s -= factor[k, i] * out[k]
+        out[i] = s / factor[i, i]
+
+
+@compiled
+def solve_on_active_set(
+    factor: np.ndarray,
+    c: np.ndarray,
+    a: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    active: np.ndarray,
+    at_upper: np.ndarray,
+    primal_tol: float,
+    dual_tol: float,
+    z: np.ndarray,
+    duals: np.ndarray,
+) -> int:
+    """The optimum on the active set ``active`` (row indices of ``a``; ``at_upper[j]``: the
+    row ``active[j]`` is held at its upper bound, else its lower one), and its check.
+
+    ``factor`` is ``L`` with ``P = L Lᵀ``. Writes ``z`` and ``duals`` (one per row of ``a``,
+    zero off the active set; positive at an upper bound). Returns ``SOLVED`` (0) when the
+    KKT conditions hold: every row within ``primal_tol`` times its norm of its bounds, and
+    every multiplier of the right sign to ``dual_tol`` times the largest; otherwise the
+    reason: ``DEPENDENT_ROWS`` (the active rows are not independent enough to give unique
+    multipliers), ``INFEASIBLE`` (a row out of its bounds) or ``WRONG_SIGN``.
+    """
+    n, k = c.shape[0], active.shape[0]
+    g = np.empty(n)
+    _forward(factor, c, g)
+    y = np.empty((k, n))  # rows of Yᵀ: L⁻¹ a_j
+    for j in range(k):
+        _forward(factor, a[active[j]], y[j])
+    schur = np.empty((k, k))
+    rhs = np.empty(k)
+    for i in range(k):
+        row = active[i]
+        bound = upper[row] if at_upper[i] else lower[row]
+        s = 0.0
+        for m in range(n):
+            s += y[i, m] * g[m]
+        rhs[i] = -(bound + s)
+        for j in range(i + 1):
+            t = 0.0
+            for m in range(n):
+                t += y[i, m] * y[j, m]
+            schur[i, j] = t
+            schur[j, i] = t
+    lam = np.zeros(k)
+    if k:
+        schur_factor = np.zeros((k, k))
+        if not _cholesky_lower(schur, schur_factor, 1e-12):
+            return DEPENDENT_ROWS
+        half = np.empty(k)
+        _forward(schur_factor, rhs, half)
+        _backward(schur_factor, half, lam)
+    v = g.copy()
+    for j in range(k):
+        for m in range(n):
+            v[m] += y[j, m] * lam[j]
+    _backward(factor, v, z)
+    for m in range(n):
+        z[m] = -z[m]
+    return _check(a, lower, upper, active, at_upper, lam, primal_tol, dual_tol, z, duals)
+
+
+@compiled
+def _check(
+    a: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    active: np.ndarray,
+    at_upper: np.ndarray,
+    lam: np.ndarray,
+    primal_tol: float,
+    dual_tol: float,
+    z: np.ndarray,
+    duals: np.ndarray,
+) -> int:
+    """The KKT check of :func:`solve_on_active_set`, and the duals written out."""
+    for r in range(a.shape[0]):
+        value, norm2 = 0.0, 0.0
+        for m in range(z.shape[0]):
+            value += a[r, m] * z[m]
+            norm2 += a[r, m] * a[r, m]
+        slack = primal_tol * math.sqrt(norm2)
+        if not (lower[r] - slack <= value <= upper[r] + slack):
+            return INFEASIBLE
+    largest = 0.0
+    for j in range(lam.shape[0]):
+        largest = max(largest, abs(lam[j]))
+    duals[:] = 0.0
+    for j in range(lam.shape[0]):
+        row = active[j]
+        signed = lam[j] if at_upper[j] else -lam[j]
+        if lower[row] != upper[row] and signed < -dual_tol * largest:
+            return WRONG_SIGN
+        duals[row] = lam[j]
+    return SOLVED
