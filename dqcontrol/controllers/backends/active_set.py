@@ -55,11 +55,13 @@ def _cholesky_lower(a: np.ndarray, out: np.ndarray, share: float) -> bool:
 
 
 @compiled
-def _forward(factor: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    """``out = L⁻¹ b`` for the lower triangular ``factor``."""
-    for i in range(b.shape[0]):
+def _forward(factor: np.ndarray, b: np.ndarray, out: np.ndarray, first: int = 0) -> None:
+    """``out = L⁻¹ b`` for the lower triangular ``factor``, where ``b`` is zero before the
+    index ``first``."""
+    out[:first] = 0.0
+    for i in range(first, b.shape[0]):
         s = b[i]
-        for k in range(i):
+        for k in range(first, i):
             s -= factor[i, k] * out[k]
         out[i] = s / factor[i, i]
 
@@ -92,7 +94,8 @@ def solve_on_active_set(
     """The optimum on the active set ``active`` (row indices of ``a``; ``at_upper[j]``: the
     row ``active[j]`` is held at its upper bound, else its lower one), and its check.
 
-    ``factor`` is ``L`` with ``P = L Lᵀ``. Writes ``z`` and ``duals`` (one per row of ``a``,
+    ``factor`` is ``L`` with ``P = L Lᵀ``; the first ``len(z)`` rows of ``a`` are the
+    identity (a backend's ``A = [I; C]``). Writes ``z`` and ``duals`` (one per row of ``a``,
     zero off the active set; positive at an upper bound). Returns ``SOLVED`` (0) when the
     KKT conditions hold: every row within ``primal_tol`` times its norm of its bounds, and
     every multiplier of the right sign to ``dual_tol`` times the largest; otherwise the
@@ -104,7 +107,8 @@ def solve_on_active_set(
     _forward(factor, c, g)
     y = np.empty((k, n))  # rows of Yᵀ: L⁻¹ a_j
     for j in range(k):
-        _forward(factor, a[active[j]], y[j])
+        row = active[j]
+        _forward(factor, a[row], y[j], row if row < n else 0)
     schur = np.empty((k, k))
     rhs = np.empty(k)
     for i in range(k):
@@ -152,7 +156,11 @@ def _check(
     duals: np.ndarray,
 ) -> int:
     """The KKT check of :func:`solve_on_active_set`, and the duals written out."""
-    for r in range(a.shape[0]):
+    n = z.shape[0]
+    for r in range(n):
+        if not (lower[r] - primal_tol <= z[r] <= upper[r] + primal_tol):
+            return INFEASIBLE
+    for r in range(n, a.shape[0]):
         value, norm2 = 0.0, 0.0
         for m in range(z.shape[0]):
             value += a[r, m] * z[m]
