@@ -88,20 +88,65 @@ def solve_on_active_set(
     at_upper: np.ndarray,
     primal_tol: float,
     dual_tol: float,
+    max_changes: int,
     z: np.ndarray,
     duals: np.ndarray,
-) -> int:
-    """The optimum on the active set ``active`` (row indices of ``a``; ``at_upper[j]``: the
-    row ``active[j]`` is held at its upper bound, else its lower one), and its check.
+) -> tuple[int, np.ndarray, np.ndarray, int]:
+    """The optimum from the guessed active set ``active`` (row indices of ``a``;
+    ``at_upper[j]``: the row ``active[j]`` is held at its upper bound, else its lower one),
+    checked, and mended up to ``max_changes`` times.
 
     ``factor`` is ``L`` with ``P = L Lᵀ``; the first ``len(z)`` rows of ``a`` are the
-    identity (a backend's ``A = [I; C]``). Writes ``z`` and ``duals`` (one per row of ``a``,
-    zero off the active set; positive at an upper bound). Returns ``SOLVED`` (0) when the
-    KKT conditions hold: every row within ``primal_tol`` times its norm of its bounds, and
-    every multiplier of the right sign to ``dual_tol`` times the largest; otherwise the
-    reason: ``DEPENDENT_ROWS`` (the active rows are not independent enough to give unique
-    multipliers), ``INFEASIBLE`` (a row out of its bounds) or ``WRONG_SIGN``.
+    identity (a backend's ``A = [I; C]``). The point is the optimum when the KKT
+    conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
+    bounds, every multiplier of the right sign to ``dual_tol`` times the largest. Where
+    they fail, the most broken row joins the set at the bound it breaks or, with every row
+    met, the multiplier of the most wrong sign leaves it, and the check runs again. Writes
+    ``z`` and ``duals`` (one per row of ``a``, zero off the set; positive at an upper
+    bound) and returns ``(status,
+    active, at_upper, changes)``: ``SOLVED`` (0) with the set of the optimum and how many
+    rows joined or left it, or why the last set failed: ``DEPENDENT_ROWS`` (its rows are
+    not independent enough to give unique multipliers), ``INFEASIBLE`` (a row out of its
+    bounds) or ``WRONG_SIGN``.
     """
+    status = SOLVED
+    for changes in range(max_changes + 1):
+        lam = np.zeros(active.shape[0])
+        if not _equality_optimum(factor, c, a, lower, upper, active, at_upper, z, lam):
+            return DEPENDENT_ROWS, active, at_upper, changes
+        row, above = _worst_row(a, lower, upper, z, primal_tol)
+        if row >= 0:
+            status = INFEASIBLE
+            active = np.append(active, row)
+            at_upper = np.append(at_upper, above)
+            continue
+        j = _worst_multiplier(lower, upper, active, at_upper, lam, dual_tol)
+        if j >= 0:
+            status = WRONG_SIGN
+            keep = np.arange(active.shape[0]) != j
+            active, at_upper = active[keep], at_upper[keep]
+            continue
+        duals[:] = 0.0
+        for i in range(active.shape[0]):
+            duals[active[i]] = lam[i]
+        return SOLVED, active, at_upper, changes
+    return status, active, at_upper, max_changes + 1
+
+
+@compiled
+def _equality_optimum(
+    factor: np.ndarray,
+    c: np.ndarray,
+    a: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    active: np.ndarray,
+    at_upper: np.ndarray,
+    z: np.ndarray,
+    lam: np.ndarray,
+) -> bool:
+    """``z`` and the multipliers ``lam`` of the optimum with the rows ``active`` held at
+    their bounds; False when those rows are not independent enough."""
     n, k = c.shape[0], active.shape[0]
     g = np.empty(n)
     _forward(factor, c, g)
@@ -124,11 +169,10 @@ def solve_on_active_set(
                 t += y[i, m] * y[j, m]
             schur[i, j] = t
             schur[j, i] = t
-    lam = np.zeros(k)
     if k:
         schur_factor = np.zeros((k, k))
         if not _cholesky_lower(schur, schur_factor, 1e-12):
-            return DEPENDENT_ROWS
+            return False
         half = np.empty(k)
         _forward(schur_factor, rhs, half)
         _backward(schur_factor, half, lam)
@@ -139,43 +183,59 @@ def solve_on_active_set(
     _backward(factor, v, z)
     for m in range(n):
         z[m] = -z[m]
-    return _check(a, lower, upper, active, at_upper, lam, primal_tol, dual_tol, z, duals)
+    return True
 
 
 @compiled
-def _check(
-    a: np.ndarray,
+def _worst_row(
+    a: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, primal_tol: float
+) -> tuple[int, bool]:
+    """The row furthest out of its bounds beyond ``primal_tol`` (distances over the row's
+    norm, or over 1 for a row shorter than that: a row that vanishes in a reduced level
+    keeps an absolute tolerance) and whether it is above its upper bound; ``(-1, False)``
+    when every row is within its bounds."""
+    n = z.shape[0]
+    worst, row, above = primal_tol, -1, False
+    for r in range(n):
+        if z[r] - upper[r] > worst:
+            worst, row, above = z[r] - upper[r], r, True
+        elif lower[r] - z[r] > worst:
+            worst, row, above = lower[r] - z[r], r, False
+        elif not (z[r] == z[r]):
+            return r, False
+    for r in range(n, a.shape[0]):
+        value, norm2 = 0.0, 0.0
+        for m in range(n):
+            value += a[r, m] * z[m]
+            norm2 += a[r, m] * a[r, m]
+        norm = max(math.sqrt(norm2), 1.0)
+        if value - upper[r] > worst * norm:
+            worst, row, above = (value - upper[r]) / norm, r, True
+        elif lower[r] - value > worst * norm:
+            worst, row, above = (lower[r] - value) / norm, r, False
+    return row, above
+
+
+@compiled
+def _worst_multiplier(
     lower: np.ndarray,
     upper: np.ndarray,
     active: np.ndarray,
     at_upper: np.ndarray,
     lam: np.ndarray,
-    primal_tol: float,
     dual_tol: float,
-    z: np.ndarray,
-    duals: np.ndarray,
 ) -> int:
-    """The KKT check of :func:`solve_on_active_set`, and the duals written out."""
-    n = z.shape[0]
-    for r in range(n):
-        if not (lower[r] - primal_tol <= z[r] <= upper[r] + primal_tol):
-            return INFEASIBLE
-    for r in range(n, a.shape[0]):
-        value, norm2 = 0.0, 0.0
-        for m in range(z.shape[0]):
-            value += a[r, m] * z[m]
-            norm2 += a[r, m] * a[r, m]
-        slack = primal_tol * math.sqrt(norm2)
-        if not (lower[r] - slack <= value <= upper[r] + slack):
-            return INFEASIBLE
+    """The position in ``active`` of the multiplier of the most wrong sign beyond
+    ``dual_tol`` times the largest (free where a row's bounds are equal), or -1."""
     largest = 0.0
     for j in range(lam.shape[0]):
         largest = max(largest, abs(lam[j]))
-    duals[:] = 0.0
+    worst, position = dual_tol * largest, -1
     for j in range(lam.shape[0]):
         row = active[j]
-        signed = lam[j] if at_upper[j] else -lam[j]
-        if lower[row] != upper[row] and signed < -dual_tol * largest:
-            return WRONG_SIGN
-        duals[row] = lam[j]
-    return SOLVED
+        if lower[row] == upper[row]:
+            continue
+        wrong = -lam[j] if at_upper[j] else lam[j]
+        if wrong > worst:
+            worst, position = wrong, j
+    return position

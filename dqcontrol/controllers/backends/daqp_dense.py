@@ -40,6 +40,8 @@ SPARSE_ROWS_SHARE = 0.25
 #: A multiplier of the reused active set counts as of the wrong sign beyond this share of
 #: the largest one (rounding of a weakly active row stays within it).
 ACTIVE_SET_DUAL_SHARE = 1e-9
+#: How many rows may join or leave the last active set before DAQP takes over.
+ACTIVE_SET_CHANGES = 4
 #: ``P`` counts as safely positive definite when every squared pivot of its Cholesky factor
 #: is above this share of its largest diagonal entry.
 PIVOT_SHARE = 1e-12
@@ -53,9 +55,9 @@ class DaqpBackend:
         least_distance: hand DAQP the least-distance form of QPs whose Hessian is positive
             definite and whose general rows are sparse (the same optimum, found cheaper);
             ``False`` gives DAQP every QP as it is.
-        reuse_active_set: first solve a key's QP on the active set of its last solve and
-            keep that point when it meets the KKT conditions (positive definite ``P``
-            only); ``False`` always calls DAQP.
+        reuse_active_set: first solve a key's QP on the active set of its last solve,
+            mended a few rows at a time, and keep that point when it meets the KKT
+            conditions (positive definite ``P`` only); ``False`` always calls DAQP.
     """
 
     name = "daqp"
@@ -115,20 +117,23 @@ class DaqpBackend:
     def _on_last_active_set(
         self, key: object, qp: DenseQP, factor: np.ndarray, start: float
     ) -> Solution | None:
-        """The optimum on the key's last active set, or ``None`` when it fails the KKT
-        check (or there is none for this shape)."""
+        """The optimum from the key's last active set (mended up to
+        :data:`ACTIVE_SET_CHANGES` times), or ``None`` when it fails the KKT check (or there
+        is none for this shape)."""
         entry = self._active.get(key)
         if entry is None or entry[0] != qp.A.shape:
             return None
         a = np.ascontiguousarray(qp.A)
         z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
-        status = solve_on_active_set(
+        status, active, at_upper, changes = solve_on_active_set(
             factor, np.ascontiguousarray(qp.c), a, qp.lower, qp.upper, entry[1], entry[2],
-            self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE, z, duals,
+            self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES,
+            z, duals,
         )  # fmt: skip
         if status != SOLVED or not np.isfinite(z).all():
             return None
-        return Solution(True, "solved", 0, _since(start), z, duals)
+        self._active[key] = (qp.A.shape, active, at_upper)
+        return Solution(True, "solved", changes, _since(start), z, duals)
 
     def _remember_active_set(self, key: object, qp: DenseQP, sol: Solution) -> None:
         if not sol.ok or sol.duals is None or sol.duals.size != qp.A.shape[0]:
