@@ -165,3 +165,16 @@ def test_every_accepted_set_gives_the_optimum(seed):
             np.testing.assert_allclose(z, ref.x, atol=1e-9)
             np.testing.assert_allclose(duals, ref.duals, atol=1e-8)
     assert accepted >= 5, "guesses near the optimum's set must be mended to it"
+
+
+@pytest.mark.parametrize("n", [3, 20, 40, 41, 80])
+def test_the_factor_is_cholesky_and_refuses_a_singular_matrix(n):
+    """The compiled factorisation (small ``P``) and LAPACK's (large) give numpy's factor,
+    and neither accepts a matrix that is not safely positive definite."""
+    rng = np.random.default_rng(n)
+    g = rng.standard_normal((n + 2, n))
+    p_mat = g.T @ g + 1e-3 * np.eye(n)
+    np.testing.assert_allclose(_factor(p_mat), np.linalg.cholesky(p_mat), atol=1e-10)
+    low_rank = g.T[:, : n // 2] @ g.T[:, : n // 2].T  # rank n/2
+    assert _factor(low_rank) is None
+    assert _factor(-p_mat) is None

@@ -24,14 +24,14 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["solve_on_active_set"]
+__all__ = ["cholesky_into", "solve_on_active_set"]
 
 #: Returned by :func:`solve_on_active_set`.
 SOLVED, NOT_POSITIVE_DEFINITE, DEPENDENT_ROWS, INFEASIBLE, WRONG_SIGN = 0, 1, 2, 3, 4
 
 
 @compiled
-def _cholesky_lower(a: np.ndarray, out: np.ndarray, share: float) -> bool:
+def cholesky_into(a: np.ndarray, out: np.ndarray, share: float) -> bool:
     """``out`` = the lower Cholesky factor of the symmetric ``a``; False when a squared
     pivot is not above ``share`` times the largest diagonal entry (or is NaN)."""
     n = a.shape[0]
@@ -153,7 +153,7 @@ def _equality_optimum(
     y = np.empty((k, n))  # rows of Yᵀ: L⁻¹ a_j
     for j in range(k):
         row = active[j]
-        _forward(factor, a[row], y[j], row if row < n else 0)
+        _forward(factor, a[row], y[j], row if row < n else _first_nonzero(a[row]))
     schur = np.empty((k, k))
     rhs = np.empty(k)
     for i in range(k):
@@ -171,7 +171,7 @@ def _equality_optimum(
             schur[j, i] = t
     if k:
         schur_factor = np.zeros((k, k))
-        if not _cholesky_lower(schur, schur_factor, 1e-12):
+        if not cholesky_into(schur, schur_factor, 1e-12):
             return False
         half = np.empty(k)
         _forward(schur_factor, rhs, half)
@@ -204,9 +204,13 @@ def _worst_row(
         elif not (z[r] == z[r]):
             return r, False
     for r in range(n, a.shape[0]):
-        value, norm2 = 0.0, 0.0
+        value = 0.0
         for m in range(n):
             value += a[r, m] * z[m]
+        if lower[r] - worst <= value <= upper[r] + worst:
+            continue  # within the bounds' tolerance for any norm of at least 1
+        norm2 = 0.0
+        for m in range(n):
             norm2 += a[r, m] * a[r, m]
         norm = max(math.sqrt(norm2), 1.0)
         if value - upper[r] > worst * norm:
@@ -214,6 +218,15 @@ def _worst_row(
         elif lower[r] - value > worst * norm:
             worst, row, above = (lower[r] - value) / norm, r, False
     return row, above
+
+
+@compiled
+def _first_nonzero(values: np.ndarray) -> int:
+    """The index of the first non-zero entry of ``values`` (its length if none)."""
+    for i in range(values.shape[0]):
+        if values[i] != 0.0:
+            return i
+    return values.shape[0]
 
 
 @compiled

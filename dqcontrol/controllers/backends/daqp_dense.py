@@ -21,7 +21,7 @@ from ctypes import c_int
 import numpy as np
 from scipy.linalg import lapack
 
-from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
+from dqcontrol.controllers.backends.active_set import SOLVED, cholesky_into, solve_on_active_set
 from dqcontrol.controllers.problem import DenseQP, Solution
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
 from dqcontrol.errors import ParameterError
@@ -37,6 +37,9 @@ _EXIT = {-1: "primal_infeasible", -2: "cycling", -3: "unbounded", -4: "iteration
 _BIG = 1e30
 #: Largest share of non-zero entries in the general rows for the least-distance form.
 SPARSE_ROWS_SHARE = 0.25
+#: Up to this many variables ``P`` is factorised by a compiled loop, beyond by LAPACK (whose
+#: call costs more than the whole factorisation of a small matrix).
+SMALL_FACTOR = 40
 #: A multiplier of the reused active set counts as of the wrong sign beyond this share of
 #: the largest one (rounding of a weakly active row stays within it).
 ACTIVE_SET_DUAL_SHARE = 1e-9
@@ -235,6 +238,9 @@ def _factor(p_mat: np.ndarray) -> np.ndarray | None:
     """The lower Cholesky factor of ``p_mat``, or ``None`` when it is not safely positive
     definite (a squared pivot at most :data:`PIVOT_SHARE` of its largest diagonal entry,
     or NaN)."""
+    if p_mat.shape[0] <= SMALL_FACTOR:
+        factor = np.zeros(p_mat.shape)
+        return factor if cholesky_into(p_mat, factor, PIVOT_SHARE) else None
     # the upper factor of ``p_matᵀ = p_mat`` in Fortran order is ``L`` in C order
     upper, info = lapack.dpotrf(p_mat.T, lower=0, clean=1)
     if info != 0:
