@@ -165,7 +165,7 @@ def block_ldp(
 
 
 def dense_ldp(
-    h: np.ndarray,
+    factor: np.ndarray,
     c: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
@@ -176,22 +176,16 @@ def dense_ldp(
     linv_t: np.ndarray,
     w: np.ndarray,
 ) -> bool:
-    """:func:`block_ldp` for a dense ``h`` (N, N), one block, with the general rows given
-    dense (``general`` (rows, N); their zero entries are skipped).
+    """:func:`block_ldp` for a dense ``h = L Lᵀ`` (N, N), one block, given its lower
+    Cholesky factor ``factor``, with the general rows given dense (``general`` (rows, N);
+    their zero entries are skipped).
 
     Writes ``M = [L⁻ᵀ; general L⁻ᵀ]`` to ``m_out`` (N + rows, N), the shifted bounds to
     ``lo_out``/``up_out``, ``L⁻ᵀ`` to ``linv_t`` (1, N, N) and ``w`` to ``w``; returns False
-    when ``h`` is not safely positive definite (the same test as :func:`block_ldp`). The
-    factor and its inverse come from LAPACK (``potrf``, ``trtri``; call it with one BLAS
-    thread, :func:`~dqcontrol._blas.single_blas_thread`), the rest from one compiled pass.
+    when LAPACK cannot invert the factor. The inverse comes from LAPACK (``trtri``; call it
+    with one BLAS thread, :func:`~dqcontrol._blas.single_blas_thread`), the rest from one
+    compiled pass.
     """
-    try:
-        factor = np.linalg.cholesky(h)
-    except np.linalg.LinAlgError:
-        return False
-    pivots = np.diagonal(factor)
-    if not float(pivots.min()) ** 2 > 1e-12 * float(np.diagonal(h).max()):
-        return False
     inverse, info = lapack.dtrtri(factor, lower=1)
     if info != 0:
         return False

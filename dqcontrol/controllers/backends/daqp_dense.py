@@ -7,6 +7,10 @@ compiled), so that DAQP's ``H`` stays the identity for the workspace's life: for
 ``C L⁻ᵀ`` then costs one pass over the non-zeros of ``C``, where DAQP, given the new ``H``,
 would form ``A R⁻¹`` over every entry. With dense rows (a level reduced to the null space
 of the levels above) DAQP's own handling costs the same and is kept.
+
+Before DAQP, a level is solved on the active set of its last solve and the KKT conditions
+are checked (:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set`): when
+the set has not changed, that is the optimum, found without DAQP's update.
 """
 
 from __future__ import annotations
@@ -15,7 +19,9 @@ import time
 from ctypes import c_int
 
 import numpy as np
+from scipy.linalg import lapack
 
+from dqcontrol.controllers.backends.active_set import SOLVED, cholesky_into, solve_on_active_set
 from dqcontrol.controllers.problem import DenseQP, Solution
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
 from dqcontrol.errors import ParameterError
@@ -31,6 +37,17 @@ _EXIT = {-1: "primal_infeasible", -2: "cycling", -3: "unbounded", -4: "iteration
 _BIG = 1e30
 #: Largest share of non-zero entries in the general rows for the least-distance form.
 SPARSE_ROWS_SHARE = 0.25
+#: Up to this many variables ``P`` is factorised by a compiled loop, beyond by LAPACK (whose
+#: call costs more than the whole factorisation of a small matrix).
+SMALL_FACTOR = 40
+#: A multiplier of the reused active set counts as of the wrong sign beyond this share of
+#: the largest one (rounding of a weakly active row stays within it).
+ACTIVE_SET_DUAL_SHARE = 1e-9
+#: How many rows may join or leave the last active set before DAQP takes over.
+ACTIVE_SET_CHANGES = 4
+#: ``P`` counts as safely positive definite when every squared pivot of its Cholesky factor
+#: is above this share of its largest diagonal entry.
+PIVOT_SHARE = 1e-12
 
 
 class DaqpBackend:
@@ -41,11 +58,19 @@ class DaqpBackend:
         least_distance: hand DAQP the least-distance form of QPs whose Hessian is positive
             definite and whose general rows are sparse (the same optimum, found cheaper);
             ``False`` gives DAQP every QP as it is.
+        reuse_active_set: first solve a key's QP on the active set of its last solve,
+            mended a few rows at a time, and keep that point when it meets the KKT
+            conditions (positive definite ``P`` only); ``False`` always calls DAQP.
     """
 
     name = "daqp"
 
-    def __init__(self, settings: dict | None = None, least_distance: bool = True) -> None:
+    def __init__(
+        self,
+        settings: dict | None = None,
+        least_distance: bool = True,
+        reuse_active_set: bool = True,
+    ) -> None:
         import daqp
 
         self._daqp = daqp
@@ -58,13 +83,16 @@ class DaqpBackend:
                 f"{sorted(daqp.Model().settings)}"
             )
         self.least_distance = bool(least_distance)
+        self.reuse_active_set = bool(reuse_active_set)
         self._models: dict = {}
         self._ldp: dict = {}
+        self._active: dict = {}
 
     def reset(self) -> None:
-        """Forget every level's workspace."""
+        """Forget every level's workspace and active set."""
         self._models.clear()
         self._ldp.clear()
+        self._active.clear()
 
     def solve(self, key: object, qp: DenseQP) -> Solution:
         """Solve level ``key``'s QP with DAQP (warm start: its previous active set)."""
@@ -72,11 +100,50 @@ class DaqpBackend:
         if not (qp.lower <= qp.upper).all():
             bad = np.flatnonzero(~(qp.lower <= qp.upper))[:5].tolist()
             return Solution(False, f"invalid_bounds: lower > upper or NaN in rows {bad}")
-        if self.least_distance and _sparse_rows(qp):
-            buffers = self._least_distance(key, qp)
-            if buffers is not None:
-                return self._solve_ldp(key, buffers, start)
-        return self._solve_as_is(key, qp, start)
+        factor = None
+        if self.reuse_active_set and key in self._active:
+            factor = _factor(qp.P)
+            kept = None if factor is None else self._on_last_active_set(key, qp, factor, start)
+            if kept is not None:
+                return kept
+        sparse = self.least_distance and _sparse_rows(qp)
+        if sparse and factor is None:
+            factor = _factor(qp.P)
+        buffers = self._least_distance(key, qp, factor) if factor is not None and sparse else None
+        if buffers is not None:
+            sol = self._solve_ldp(key, buffers, start)
+        else:
+            sol = self._solve_as_is(key, qp, start)
+        self._remember_active_set(key, qp, sol)
+        return sol
+
+    def _on_last_active_set(
+        self, key: object, qp: DenseQP, factor: np.ndarray, start: float
+    ) -> Solution | None:
+        """The optimum from the key's last active set (mended up to
+        :data:`ACTIVE_SET_CHANGES` times), or ``None`` when it fails the KKT check (or there
+        is none for this shape)."""
+        entry = self._active.get(key)
+        if entry is None or entry[0] != qp.A.shape:
+            return None
+        a = np.ascontiguousarray(qp.A)
+        z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
+        status, active, at_upper, changes = solve_on_active_set(
+            factor, np.ascontiguousarray(qp.c), a, qp.lower, qp.upper, entry[1], entry[2],
+            self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES,
+            z, duals,
+        )  # fmt: skip
+        if status != SOLVED or not np.isfinite(z).all():
+            return None
+        self._active[key] = (qp.A.shape, active, at_upper)
+        return Solution(True, "solved", changes, _since(start), z, duals)
+
+    def _remember_active_set(self, key: object, qp: DenseQP, sol: Solution) -> None:
+        if not sol.ok or sol.duals is None or sol.duals.size != qp.A.shape[0]:
+            self._active.pop(key, None)
+            return
+        active = np.flatnonzero(sol.duals)
+        self._active[key] = (qp.A.shape, active, sol.duals[active] > 0.0)
 
     def _solve_as_is(self, key: object, qp: DenseQP, start: float) -> Solution:
         nv = qp.c.size
@@ -110,9 +177,9 @@ class DaqpBackend:
             return Solution(False, f"error: {exc}", 0, _since(start))
         return self._answer(self._models, key, x, flag, info, start)
 
-    def _least_distance(self, key: object, qp: DenseQP) -> dict | None:
-        """The least-distance form of ``qp`` in this key's buffers, or ``None`` when ``P``
-        is not safely positive definite."""
+    def _least_distance(self, key: object, qp: DenseQP, factor: np.ndarray) -> dict | None:
+        """The least-distance form of ``qp`` in this key's buffers (``factor``: the Cholesky
+        factor of ``P``), or ``None`` when LAPACK cannot invert the factor."""
         nv = qp.c.size
         rows = qp.A.shape[0]
         entry = self._ldp.get(key)
@@ -124,7 +191,7 @@ class DaqpBackend:
             self._ldp[key] = entry
         general = np.ascontiguousarray(qp.A[nv:])
         ok = dense_ldp(
-            np.ascontiguousarray(qp.P), np.ascontiguousarray(qp.c), qp.lower, qp.upper,
+            factor, np.ascontiguousarray(qp.c), qp.lower, qp.upper,
             general, entry["m"], entry["lo"], entry["up"], entry["linv_t"], entry["w"],
         )  # fmt: skip
         return entry if ok else None
@@ -165,6 +232,24 @@ class DaqpBackend:
             return Solution(False, status, iterations, _since(start))
         duals = np.asarray(info.get("lam")) if isinstance(info, dict) and "lam" in info else None
         return Solution(True, "solved", iterations, _since(start), np.array(x), duals)
+
+
+def _factor(p_mat: np.ndarray) -> np.ndarray | None:
+    """The lower Cholesky factor of ``p_mat``, or ``None`` when it is not safely positive
+    definite (a squared pivot at most :data:`PIVOT_SHARE` of its largest diagonal entry,
+    or NaN)."""
+    if p_mat.shape[0] <= SMALL_FACTOR:
+        factor = np.zeros(p_mat.shape)
+        return factor if cholesky_into(p_mat, factor, PIVOT_SHARE) else None
+    # the upper factor of ``p_matᵀ = p_mat`` in Fortran order is ``L`` in C order
+    upper, info = lapack.dpotrf(p_mat.T, lower=0, clean=1)
+    if info != 0:
+        return None
+    factor = upper.T
+    pivots = np.diagonal(factor)
+    if not float(pivots.min()) ** 2 > PIVOT_SHARE * float(np.diagonal(p_mat).max()):
+        return None
+    return factor
 
 
 def _sparse_rows(qp: DenseQP) -> bool:

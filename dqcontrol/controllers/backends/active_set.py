@@ -1,0 +1,254 @@
+"""A dense QP solved on a guessed active set, and the check that the guess was right
+(docs/theory.md §7.5).
+
+For ``min ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with ``P`` positive definite, a set
+``W`` of rows held at one of their bounds (``b_W``) gives the equality-constrained optimum
+
+    z = -P⁻¹ (c + A_Wᵀ λ),   (A_W P⁻¹ A_Wᵀ) λ = -(b_W + A_W P⁻¹ c),
+
+computed with the Cholesky factor ``P = L Lᵀ`` (``Y = L⁻¹ A_Wᵀ``, ``g = L⁻¹ c``: the
+system is ``YᵀY λ = -(b_W + Yᵀ g)`` and ``z = -L⁻ᵀ (g + Y λ)``). It is *the* optimum of
+the QP exactly when the KKT conditions hold: every row within its bounds and every
+multiplier of the right sign (``λ ≥ 0`` at an upper bound, ``≤ 0`` at a lower one, free
+where both bounds are equal). From one control step to the next the active set rarely
+changes, so the last step's set is a good guess, and checking it costs a factorisation
+and one pass over the rows, where an active-set solver given new data would start by
+transforming every row.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dqcontrol._compiled import compiled
+
+__all__ = ["cholesky_into", "solve_on_active_set"]
+
+#: Returned by :func:`solve_on_active_set`.
+SOLVED, NOT_POSITIVE_DEFINITE, DEPENDENT_ROWS, INFEASIBLE, WRONG_SIGN = 0, 1, 2, 3, 4
+
+
+@compiled
+def cholesky_into(a: np.ndarray, out: np.ndarray, share: float) -> bool:
+    """``out`` = the lower Cholesky factor of the symmetric ``a``; False when a squared
+    pivot is not above ``share`` times the largest diagonal entry (or is NaN)."""
+    n = a.shape[0]
+    scale = 0.0
+    for i in range(n):
+        scale = max(scale, a[i, i])
+    for j in range(n):
+        s = a[j, j]
+        for k in range(j):
+            s -= out[j, k] * out[j, k]
+        if not s > share * scale:
+            return False
+        d = math.sqrt(s)
+        out[j, j] = d
+        for i in range(j + 1, n):
+            t = a[i, j]
+            for k in range(j):
+                t -= out[i, k] * out[j, k]
+            out[i, j] = t / d
+    return True
+
+
+@compiled
+def _forward(factor: np.ndarray, b: np.ndarray, out: np.ndarray, first: int = 0) -> None:
+    """``out = L⁻¹ b`` for the lower triangular ``factor``, where ``b`` is zero before the
+    index ``first``."""
+    out[:first] = 0.0
+    for i in range(first, b.shape[0]):
+        s = b[i]
+        for k in range(first, i):
+            s -= factor[i, k] * out[k]
+        out[i] = s / factor[i, i]
+
+
+@compiled
+def _backward(factor: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out = L⁻ᵀ b`` for the lower triangular ``factor``."""
+    n = b.shape[0]
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for k in range(i + 1, n):
+            s -= factor[k, i] * out[k]
+        out[i] = s / factor[i, i]
+
+
+@compiled
+def solve_on_active_set(
+    factor: np.ndarray,
+    c: np.ndarray,
+    a: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    active: np.ndarray,
+    at_upper: np.ndarray,
+    primal_tol: float,
+    dual_tol: float,
+    max_changes: int,
+    z: np.ndarray,
+    duals: np.ndarray,
+) -> tuple[int, np.ndarray, np.ndarray, int]:
+    """The optimum from the guessed active set ``active`` (row indices of ``a``;
+    ``at_upper[j]``: the row ``active[j]`` is held at its upper bound, else its lower one),
+    checked, and mended up to ``max_changes`` times.
+
+    ``factor`` is ``L`` with ``P = L Lᵀ``; the first ``len(z)`` rows of ``a`` are the
+    identity (a backend's ``A = [I; C]``). The point is the optimum when the KKT
+    conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
+    bounds, every multiplier of the right sign to ``dual_tol`` times the largest. Where
+    they fail, the most broken row joins the set at the bound it breaks or, with every row
+    met, the multiplier of the most wrong sign leaves it, and the check runs again. Writes
+    ``z`` and ``duals`` (one per row of ``a``, zero off the set; positive at an upper
+    bound) and returns ``(status,
+    active, at_upper, changes)``: ``SOLVED`` (0) with the set of the optimum and how many
+    rows joined or left it, or why the last set failed: ``DEPENDENT_ROWS`` (its rows are
+    not independent enough to give unique multipliers), ``INFEASIBLE`` (a row out of its
+    bounds) or ``WRONG_SIGN``.
+    """
+    status = SOLVED
+    for changes in range(max_changes + 1):
+        lam = np.zeros(active.shape[0])
+        if not _equality_optimum(factor, c, a, lower, upper, active, at_upper, z, lam):
+            return DEPENDENT_ROWS, active, at_upper, changes
+        row, above = _worst_row(a, lower, upper, z, primal_tol)
+        if row >= 0:
+            status = INFEASIBLE
+            active = np.append(active, row)
+            at_upper = np.append(at_upper, above)
+            continue
+        j = _worst_multiplier(lower, upper, active, at_upper, lam, dual_tol)
+        if j >= 0:
+            status = WRONG_SIGN
+            keep = np.arange(active.shape[0]) != j
+            active, at_upper = active[keep], at_upper[keep]
+            continue
+        duals[:] = 0.0
+        for i in range(active.shape[0]):
+            duals[active[i]] = lam[i]
+        return SOLVED, active, at_upper, changes
+    return status, active, at_upper, max_changes + 1
+
+
+@compiled
+def _equality_optimum(
+    factor: np.ndarray,
+    c: np.ndarray,
+    a: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    active: np.ndarray,
+    at_upper: np.ndarray,
+    z: np.ndarray,
+    lam: np.ndarray,
+) -> bool:
+    """``z`` and the multipliers ``lam`` of the optimum with the rows ``active`` held at
+    their bounds; False when those rows are not independent enough."""
+    n, k = c.shape[0], active.shape[0]
+    g = np.empty(n)
+    _forward(factor, c, g)
+    y = np.empty((k, n))  # rows of Yᵀ: L⁻¹ a_j
+    for j in range(k):
+        row = active[j]
+        _forward(factor, a[row], y[j], row if row < n else _first_nonzero(a[row]))
+    schur = np.empty((k, k))
+    rhs = np.empty(k)
+    for i in range(k):
+        row = active[i]
+        bound = upper[row] if at_upper[i] else lower[row]
+        s = 0.0
+        for m in range(n):
+            s += y[i, m] * g[m]
+        rhs[i] = -(bound + s)
+        for j in range(i + 1):
+            t = 0.0
+            for m in range(n):
+                t += y[i, m] * y[j, m]
+            schur[i, j] = t
+            schur[j, i] = t
+    if k:
+        schur_factor = np.zeros((k, k))
+        if not cholesky_into(schur, schur_factor, 1e-12):
+            return False
+        half = np.empty(k)
+        _forward(schur_factor, rhs, half)
+        _backward(schur_factor, half, lam)
+    v = g.copy()
+    for j in range(k):
+        for m in range(n):
+            v[m] += y[j, m] * lam[j]
+    _backward(factor, v, z)
+    for m in range(n):
+        z[m] = -z[m]
+    return True
+
+
+@compiled
+def _worst_row(
+    a: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, primal_tol: float
+) -> tuple[int, bool]:
+    """The row furthest out of its bounds beyond ``primal_tol`` (distances over the row's
+    norm, or over 1 for a row shorter than that: a row that vanishes in a reduced level
+    keeps an absolute tolerance) and whether it is above its upper bound; ``(-1, False)``
+    when every row is within its bounds."""
+    n = z.shape[0]
+    worst, row, above = primal_tol, -1, False
+    for r in range(n):
+        if z[r] - upper[r] > worst:
+            worst, row, above = z[r] - upper[r], r, True
+        elif lower[r] - z[r] > worst:
+            worst, row, above = lower[r] - z[r], r, False
+        elif not (z[r] == z[r]):
+            return r, False
+    for r in range(n, a.shape[0]):
+        value = 0.0
+        for m in range(n):
+            value += a[r, m] * z[m]
+        if lower[r] - worst <= value <= upper[r] + worst:
+            continue  # within the bounds' tolerance for any norm of at least 1
+        norm2 = 0.0
+        for m in range(n):
+            norm2 += a[r, m] * a[r, m]
+        norm = max(math.sqrt(norm2), 1.0)
+        if value - upper[r] > worst * norm:
+            worst, row, above = (value - upper[r]) / norm, r, True
+        elif lower[r] - value > worst * norm:
+            worst, row, above = (lower[r] - value) / norm, r, False
+    return row, above
+
+
+@compiled
+def _first_nonzero(values: np.ndarray) -> int:
+    """The index of the first non-zero entry of ``values`` (its length if none)."""
+    for i in range(values.shape[0]):
+        if values[i] != 0.0:
+            return i
+    return values.shape[0]
+
+
+@compiled
+def _worst_multiplier(
+    lower: np.ndarray,
+    upper: np.ndarray,
+    active: np.ndarray,
+    at_upper: np.ndarray,
+    lam: np.ndarray,
+    dual_tol: float,
+) -> int:
+    """The position in ``active`` of the multiplier of the most wrong sign beyond
+    ``dual_tol`` times the largest (free where a row's bounds are equal), or -1."""
+    largest = 0.0
+    for j in range(lam.shape[0]):
+        largest = max(largest, abs(lam[j]))
+    worst, position = dual_tol * largest, -1
+    for j in range(lam.shape[0]):
+        row = active[j]
+        if lower[row] == upper[row]:
+            continue
+        wrong = -lam[j] if at_upper[j] else lam[j]
+        if wrong > worst:
+            worst, position = wrong, j
+    return position
