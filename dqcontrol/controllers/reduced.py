@@ -1,0 +1,232 @@
+"""A level's objective and rows in the null space of the levels above (docs/theory.md §7.4).
+
+With ``z = z₀ + Z y``, a residual's rows ``A z - b`` become ``(A Z) y + (A z₀ - b)``: the
+reduced level's Hessian and gradient are sums over the rows of ``A Z`` and ``A z₀ - b``
+(each residual's ``2 w`` and row weights), never the ``n × n`` Hessian of the whole
+level. ``A Z`` is computed from the residual's own form: per block for block-diagonal rows,
+skipping zeros for sparse rows. The general rows of the limits ``C Z`` skip ``C``'s zeros
+too (the coupling of neighbouring intervals, a trust region: a few entries per row); a
+read-only ``C`` gives its non-zero entries once (:func:`~dqcontrol.controllers.gram.kept`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from dqcontrol._compiled import compiled
+from dqcontrol.controllers.gram import kept
+from dqcontrol.controllers.problem import DecisionLayout, Residual
+
+__all__ = [
+    "ReducedObjective",
+    "nonzero_entries",
+    "reduced_objective",
+    "rows_in_basis",
+    "sparse_product",
+]
+
+
+class ReducedObjective(NamedTuple):
+    """A level's ``½ yᵀ H y + gᵀ y`` in the basis, and its held rows ``R Z`` there."""
+
+    hessian: np.ndarray
+    gradient: np.ndarray
+    held: np.ndarray
+
+
+@compiled
+def _blocks_product(blocks: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
+    """``out = blockdiag(blocks) @ right`` (``blocks`` ``(p, r, m)``, ``right`` at least
+    ``p m`` rows), skipping the blocks' zeros."""
+    p, r, m = blocks.shape
+    cols = right.shape[1]
+    for i in range(p):
+        for a in range(r):
+            row = i * r + a
+            for c in range(cols):
+                out[row, c] = 0.0
+            for b in range(m):
+                v = blocks[i, a, b]
+                if v != 0.0:
+                    for c in range(cols):
+                        out[row, c] += v * right[i * m + b, c]
+
+
+@compiled
+def _dense_sparse_product(a: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
+    """``out = a @ right`` skipping the zeros of ``a``."""
+    rows, n = a.shape
+    cols = right.shape[1]
+    for i in range(rows):
+        for c in range(cols):
+            out[i, c] = 0.0
+        for j in range(n):
+            v = a[i, j]
+            if v != 0.0:
+                for c in range(cols):
+                    out[i, c] += v * right[j, c]
+
+
+@compiled
+def _entries_product(entries: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
+    """``out = a @ right`` from the non-zero entries of ``a`` (:func:`nonzero_entries`)."""
+    cols = right.shape[1]
+    for i in range(out.shape[0]):
+        for c in range(cols):
+            out[i, c] = 0.0
+    for e in range(entries.shape[0]):
+        i = int(entries[e, 0])
+        j = int(entries[e, 1])
+        v = entries[e, 2]
+        for c in range(cols):
+            out[i, c] += v * right[j, c]
+
+
+@compiled
+def _nonzero_entries(a: np.ndarray) -> np.ndarray:
+    count = 0
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            count += a[i, j] != 0.0
+    out = np.empty((count, 3))
+    e = 0
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            if a[i, j] != 0.0:
+                out[e, 0] = i
+                out[e, 1] = j
+                out[e, 2] = a[i, j]
+                e += 1
+    return out
+
+
+def nonzero_entries(a: np.ndarray) -> np.ndarray:
+    """The non-zero entries of ``a`` row by row, ``(nnz, 3)``: row, column, value (the
+    indices exact as floats); computed once for a read-only ``a``."""
+    return kept((a,), _nonzero_entries)
+
+
+def sparse_product(a: np.ndarray, right: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``a @ right`` (``right`` 2-D) skipping the zeros of ``a``: each entry of the result
+    sums its non-zero products in column order."""
+    if out is None:
+        out = np.empty((a.shape[0], right.shape[1]))
+    if a.flags.writeable:
+        _dense_sparse_product(a, right, out)
+    else:
+        _entries_product(nonzero_entries(a), right, out)
+    return out
+
+
+def _rows_product(layout: DecisionLayout, r: Residual, right: np.ndarray, out: np.ndarray) -> None:
+    """``out = A right`` for the residual's rows ``A``."""
+    if r.blocks is not None:
+        _blocks_product(r.blocks, right, out)
+    else:
+        assert r.A is not None, "a residual has A or blocks"
+        sparse_product(r.A, right, out)
+
+
+@compiled
+def _weighted_gram(rows: np.ndarray, scale: np.ndarray, hessian: np.ndarray, gradient: np.ndarray):
+    """``hessian = Mᵀ S M`` and ``gradient = Mᵀ S e`` for ``rows = [M | e]`` and
+    ``S = diag(scale)`` (one product; ``hessian`` symmetric, from its upper triangle)."""
+    dim = hessian.shape[0]
+    weighted = np.empty((rows.shape[0], dim))
+    for k in range(rows.shape[0]):
+        for a in range(dim):
+            weighted[k, a] = scale[k] * rows[k, a]
+    both = weighted.T @ rows
+    for a in range(dim):
+        gradient[a] = both[a, dim]
+        for b in range(dim):
+            hessian[a, b] = both[a, b] if b >= a else both[b, a]
+
+
+def reduced_objective(
+    layout: DecisionLayout, residuals: tuple[Residual, ...], point: np.ndarray, basis: np.ndarray
+) -> ReducedObjective:
+    """``Σ w ‖A (point + basis y) - b‖²`` as ``½ yᵀ H y + gᵀ y`` up to a constant, and
+    the held rows ``A basis`` of the held residuals stacked in order."""
+    used = [r for r in residuals if r.held] + [
+        r for r in residuals if not r.held and 2.0 * r.weight != 0.0
+    ]
+    dim = basis.shape[1]
+    sizes = [r.b.size for r in used]
+    total = int(sum(sizes))
+    right = np.empty((basis.shape[0], dim + 1))
+    right[:, :dim] = basis
+    right[:, dim] = point
+    rows = np.empty((total, dim + 1))  # [A basis | A point - b] of every residual used
+    scale = np.empty(total)  # 2 w times the row's weight
+    start = 0
+    held = 0
+    for r, size in zip(used, sizes, strict=True):
+        part = rows[start : start + size]
+        _rows_product(layout, r, right, part)
+        part[:, dim] -= r.b
+        if r.row_weights is None:
+            scale[start : start + size] = 2.0 * r.weight
+        else:
+            np.multiply(r.row_weights, 2.0 * r.weight, out=scale[start : start + size])
+        held += size if r.held else 0
+        start += size
+    hessian = np.empty((dim, dim))
+    gradient = np.empty(dim)
+    _weighted_gram(rows, scale, hessian, gradient)
+    return ReducedObjective(hessian, gradient, rows[:held, :dim])
+
+
+@compiled
+def _rows_in_basis(
+    entries: np.ndarray,
+    basis: np.ndarray,
+    point: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    rows: np.ndarray,
+    lower_out: np.ndarray,
+    upper_out: np.ndarray,
+) -> None:
+    """:func:`rows_in_basis` into ``rows``, ``lower_out``, ``upper_out``."""
+    nv, dim = basis.shape
+    rows[:] = 0.0
+    for a in range(dim):
+        rows[a, a] = 1.0
+        lower_out[a] = -np.inf
+        upper_out[a] = np.inf
+    for j in range(nv):
+        for c in range(dim):
+            rows[dim + j, c] = basis[j, c]
+        lower_out[dim + j] = lower[j] - point[j]
+        upper_out[dim + j] = upper[j] - point[j]
+    shift = np.zeros(lower.size - nv)
+    for e in range(entries.shape[0]):
+        i = int(entries[e, 0])
+        j = int(entries[e, 1])
+        v = entries[e, 2]
+        for c in range(dim):
+            rows[dim + nv + i, c] += v * basis[j, c]
+        shift[i] += v * point[j]
+    for i in range(shift.size):
+        lower_out[dim + nv + i] = lower[nv + i] - shift[i]
+        upper_out[dim + nv + i] = upper[nv + i] - shift[i]
+
+
+def rows_in_basis(
+    general: np.ndarray, basis: np.ndarray, point: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rows ``[I; C]`` bounding ``z`` (``general``: ``C``; ``lower``/``upper`` theirs)
+    in ``y`` with ``z = point + basis y``: ``y``'s own rows ``I`` without bounds, then
+    ``[basis; C basis]`` with the bounds shifted by ``[point; C point]``; ``C``'s zeros
+    are skipped."""
+    nv, dim = basis.shape
+    size = dim + nv + general.shape[0]
+    rows = np.empty((size, dim))
+    lower_out = np.empty(size)
+    upper_out = np.empty(size)
+    entries = nonzero_entries(general)
+    _rows_in_basis(entries, basis, point, lower, upper, rows, lower_out, upper_out)
+    return rows, lower_out, upper_out
