@@ -1,16 +1,25 @@
 """The null space of the rows a level holds (docs/theory.md §7.4).
 
-An orthonormal basis of ``{y : R y = 0}`` from a QR factorisation of ``Rᵀ`` (LAPACK):
-without pivoting (``dgeqrf``, and ``dormqr`` applies ``Q`` to the last columns of the
-identity) where every pivot is clearly non-zero, which is the usual case; otherwise with
-column pivoting (``dgeqp3``/``dorgqr``), which reveals the rank, so that dependent rows (a
-level whose rows repeat each other) cost nothing and break nothing.
+An orthonormal basis of ``{y : R y = 0}`` from a QR factorisation of ``Rᵀ``: without
+pivoting where every pivot is clearly non-zero, which is the usual case; otherwise with
+column pivoting (LAPACK's ``dgeqp3``/``dorgqr``), which reveals the rank, so that dependent
+rows (a level whose rows repeat each other) cost nothing and break nothing.
+
+Without pivoting, the basis is ``Q`` applied to the last columns of the identity. Where
+the rows reach fewer variables than all (a row of a predictive controller's path level
+depends on the commands up to its instant only), each Householder vector is as short as
+the rows reached so far: a compiled QR that follows that profile (:func:`_profile_qr`) does
+a fraction of the work of a dense one; otherwise LAPACK's (``dgeqrf``, ``dormqr``).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.linalg import lapack
+
+from dqcontrol._compiled import compiled
 
 __all__ = ["RANK_TOLERANCE", "null_space"]
 
@@ -18,6 +27,8 @@ __all__ = ["RANK_TOLERANCE", "null_space"]
 RANK_TOLERANCE = 1e-10
 #: Without pivoting, the smallest pivot must be at least this share of the largest.
 _FULL_RANK_SHARE = 1e-8
+#: The profile QR is used where its work is at most this share of a dense QR's.
+_PROFILE_SHARE = 0.5
 
 
 def null_space(rows: np.ndarray) -> np.ndarray:
@@ -34,12 +45,157 @@ def null_space(rows: np.ndarray) -> np.ndarray:
 
 def _full_rank_complement(rows: np.ndarray) -> np.ndarray | None:
     """The basis when the ``r < n`` rows are clearly independent, else ``None``."""
+    outcome, basis = _profile_complement(np.ascontiguousarray(rows.T))
+    if outcome == _DONE:
+        return basis
+    return None if outcome == _DEPENDENT else _lapack_complement(rows)
+
+
+#: Outcomes of :func:`_profile_complement`.
+_DONE, _DEPENDENT, _DENSE = 0, 1, 2
+
+
+@compiled
+def _clearly_independent(pivots: np.ndarray) -> bool:
+    """Every pivot of the QR at least :data:`_FULL_RANK_SHARE` of the largest (not NaN)."""
+    smallest = np.inf
+    largest = 0.0
+    for p in pivots:
+        smallest = min(smallest, abs(p))
+        largest = max(largest, abs(p))
+        if p != p:
+            return False
+    return smallest >= _FULL_RANK_SHARE * largest and largest > 0.0
+
+
+@compiled
+def _profile(columns: np.ndarray) -> np.ndarray:
+    """Per column ``j`` of ``columns`` ``(n, r)`` the last row its Householder vector
+    reaches: the last non-zero row of columns ``0 … j``, and at least ``j``."""
+    n, r = columns.shape
+    reach = np.empty(r, dtype=np.int64)
+    last = -1
+    for j in range(r):
+        for i in range(n - 1, last, -1):
+            if columns[i, j] != 0.0:
+                last = i
+                break
+        reach[j] = max(last, j)
+    return reach
+
+
+@compiled
+def _profile_work(reach: np.ndarray, n: int) -> int:
+    """The multiply-adds of :func:`_profile_qr` and of forming the basis (``n``
+    variables)."""
+    r = reach.size
+    work = 0
+    for j in range(r):
+        work += (reach[j] - j + 1) * (r - 1 - j + n - r)
+    return work
+
+
+@compiled
+def _profile_complement(columns: np.ndarray) -> tuple[int, np.ndarray]:
+    """``(outcome, basis)`` of the rows ``columns`` ``(n, r)`` (``Rᵀ``, overwritten):
+    :data:`_DENSE` where the profile saves too little (the basis is then empty),
+    :data:`_DEPENDENT` where a pivot is not clearly non-zero, :data:`_DONE` with the basis."""
+    n, r = columns.shape
+    reach = _profile(columns)
+    dense = _profile_work(np.full(r, n - 1), n)
+    if _profile_work(reach, n) > _PROFILE_SHARE * dense:
+        return _DENSE, np.zeros((n, 0))
+    tau, pivots = _profile_qr(columns, reach)
+    if not _clearly_independent(pivots):
+        return _DEPENDENT, np.zeros((n, 0))
+    return _DONE, _applied_q(columns, reach, tau)
+
+
+@compiled
+def _reflect(
+    mat: np.ndarray, top: int, start: int, vector: np.ndarray, tau: float, w: np.ndarray
+) -> None:
+    """``B -= tau v (vᵀ B)`` for the block ``B`` of ``mat`` from row ``top`` and column
+    ``start`` over ``vector.size + 1`` rows, ``v = [1; vector]`` (``w``: a buffer as long as
+    a row). The inner loops run along rows of the C-ordered ``mat``, from 0: the form the
+    compiler vectorises."""
+    size = mat.shape[1] - start
+    first = mat[top, start:]
+    for k in range(size):
+        w[k] = first[k]
+    for i in range(vector.size):
+        v = vector[i]
+        row = mat[top + 1 + i, start:]
+        for k in range(size):
+            w[k] += v * row[k]
+    for k in range(size):
+        first[k] -= tau * w[k]
+    for i in range(vector.size):
+        v = tau * vector[i]
+        row = mat[top + 1 + i, start:]
+        for k in range(size):
+            row[k] -= v * w[k]
+
+
+@compiled
+def _profile_qr(columns: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Householder QR of ``columns`` ``(n, r)`` in place, each vector ``j`` over rows
+    ``j … reach[j]`` (LAPACK's reflectors: ``v[0] = 1`` implied, the rest below the
+    diagonal, ``R`` on and above it). Returns ``tau`` and the diagonal of ``R``."""
+    r = columns.shape[1]
+    tau = np.zeros(r)
+    pivots = np.empty(r)
+    w = np.empty(r)
+    vector = np.empty(columns.shape[0])
+    for j in range(r):
+        end = reach[j] + 1
+        alpha = columns[j, j]
+        tail = 0.0
+        for i in range(j + 1, end):
+            tail += columns[i, j] * columns[i, j]
+        pivots[j] = alpha
+        if tail == 0.0:
+            continue
+        beta = -math.copysign(math.sqrt(alpha * alpha + tail), alpha)
+        tau[j] = (beta - alpha) / beta
+        scale = 1.0 / (alpha - beta)
+        for i in range(j + 1, end):
+            columns[i, j] *= scale
+            vector[i - j - 1] = columns[i, j]
+        columns[j, j] = beta
+        pivots[j] = beta
+        if j + 1 < r:
+            _reflect(columns, j, j + 1, vector[: end - j - 1], tau[j], w)
+    return tau, pivots
+
+
+@compiled
+def _applied_q(columns: np.ndarray, reach: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """The last ``n - r`` columns of ``Q`` of :func:`_profile_qr`'s factorisation."""
+    n, r = columns.shape
+    m = n - r
+    basis = np.zeros((n, m))
+    for c in range(m):
+        basis[r + c, c] = 1.0
+    w = np.empty(m)
+    vector = np.empty(n)
+    for j in range(r - 1, -1, -1):
+        if tau[j] == 0.0:
+            continue
+        end = reach[j] + 1
+        for i in range(j + 1, end):
+            vector[i - j - 1] = columns[i, j]
+        _reflect(basis, j, 0, vector[: end - j - 1], tau[j], w)
+    return basis
+
+
+def _lapack_complement(rows: np.ndarray) -> np.ndarray | None:
+    """:func:`_full_rank_complement` from LAPACK's QR (``dgeqrf``, ``dormqr``)."""
     r, n = rows.shape
     qr, tau, _work, info = lapack.dgeqrf(np.array(rows.T, order="F"))
     if info != 0:
         return None
-    pivots = np.abs(np.diagonal(qr))
-    if not float(pivots.min()) >= _FULL_RANK_SHARE * float(pivots.max()) > 0.0:
+    if not _clearly_independent(np.diagonal(qr).copy()):
         return None
     tail = np.zeros((n, n - r), order="F")
     tail[r:] = np.eye(n - r)
