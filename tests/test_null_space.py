@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from scipy.linalg import lapack
 
 from dqcontrol.controllers import null_space as null_space_module
 from dqcontrol.controllers.null_space import null_space
@@ -9,7 +10,16 @@ from dqcontrol.controllers.null_space import null_space
 
 @pytest.mark.parametrize(
     ("rows", "cols", "rank"),
-    [(60, 80, 60), (3, 8, 2), (20, 20, 10), (10, 5, 5), (12, 30, 7), (1, 4, 1), (5, 9, 0)],
+    [
+        (60, 80, 60),
+        (3, 8, 2),
+        (20, 20, 10),
+        (10, 5, 5),
+        (12, 30, 7),
+        (1, 4, 1),
+        (5, 9, 0),
+        (70, 70, 40),
+    ],
 )
 @pytest.mark.parametrize("seed", range(3))
 def test_an_orthonormal_basis_of_the_null_space(rows, cols, rank, seed):
@@ -83,3 +93,21 @@ def test_dense_rows_are_left_to_lapack():
     a = np.random.default_rng(3).normal(size=(12, 20))
     outcome, _ = null_space_module._profile_complement(np.ascontiguousarray(a.T))
     assert outcome == null_space_module._DENSE
+
+
+@pytest.mark.parametrize(
+    ("rows", "cols", "rank"), [(20, 20, 10), (3, 8, 2), (12, 30, 7), (9, 4, 4)]
+)
+@pytest.mark.parametrize("seed", range(3))
+def test_the_compiled_pivoted_qr_gives_lapacks_basis(rows, cols, rank, seed):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(rows, rank)) @ rng.normal(size=(rank, cols))
+    basis = null_space_module._pivoted(a)
+    assert basis.shape == (cols, cols - rank)
+    # LAPACK's pivoted QR, Q from its first rank reflectors: the same basis, column by column
+    qr, _, tau, _, _ = lapack.dgeqp3(np.array(a.T, order="F"))
+    reflectors = np.zeros((cols, cols), order="F")
+    reflectors[:, :rank] = qr[:, :rank]
+    q, _, _ = lapack.dorgqr(reflectors, tau[:rank])
+    assert np.allclose(basis, q[:, rank:], rtol=0, atol=1e-10)
+    assert np.allclose(null_space_module._lapack_pivoted(a), basis, rtol=0, atol=1e-10)

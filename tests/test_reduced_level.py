@@ -78,7 +78,7 @@ def test_the_reduced_objective_is_the_dense_one_in_the_basis(seed, read_only):
     residuals = _residuals(rng, layout, read_only)
     basis = null_space(rng.normal(size=(int(rng.integers(1, nv)), nv)))
     point = rng.normal(size=nv)
-    reduced = reduced_objective(layout, residuals, point, basis)
+    reduced = reduced_objective(residuals, point, basis)
     p_mat, c = objective(layout, residuals)
     scale = max(1.0, np.abs(p_mat).max())
     assert np.array_equal(reduced.hessian, reduced.hessian.T)

@@ -211,7 +211,7 @@ def _narrowed(
 def reduced_qp(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> DenseQP:
     """Level ``k``'s QP in ``y`` with ``z = point + basis y``: ``y`` has no bounds of its
     own, every row of the problem's ``A`` is a general row."""
-    reduced = reduced_objective(problem.layout, problem.levels[k].residuals, point, basis)
+    reduced = reduced_objective(problem.levels[k].residuals, point, basis)
     return _in_basis(problem, point, basis, reduced)
 
 
@@ -232,7 +232,7 @@ def _reduced_level(
     dim = basis.shape[1]
     if dim == 0:  # the levels above leave no freedom
         return Solution(True, "solved", 0, 0.0, point.copy(), None), None
-    reduced = reduced_objective(problem.layout, problem.levels[k].residuals, point, basis)
+    reduced = reduced_objective(problem.levels[k].residuals, point, basis)
     sol = backend.solve((k, dim), _in_basis(problem, point, basis, reduced))
     if not sol.ok or sol.x is None:
         return sol, reduced.held

@@ -2,8 +2,9 @@
 
 An orthonormal basis of ``{y : R y = 0}`` from a QR factorisation of ``Rᵀ``: without
 pivoting where every pivot is clearly non-zero, which is the usual case; otherwise with
-column pivoting (LAPACK's ``dgeqp3``/``dorgqr``), which reveals the rank, so that dependent
-rows (a level whose rows repeat each other) cost nothing and break nothing.
+column pivoting, which reveals the rank, so that dependent rows (a level whose rows repeat
+each other) cost nothing and break nothing (compiled for the small ``R Z`` of a narrowed
+level, LAPACK's ``dgeqp3``/``dorgqr`` for large rows).
 
 Without pivoting, the basis is ``Q`` applied to the last columns of the identity. Where
 the rows reach fewer variables than all (a row of a predictive controller's path level
@@ -29,6 +30,8 @@ RANK_TOLERANCE = 1e-10
 _FULL_RANK_SHARE = 1e-8
 #: The profile QR is used where its work is at most this share of a dense QR's.
 _PROFILE_SHARE = 0.5
+#: The pivoted QR is compiled for rows ``(r, n)`` with ``n r min(n, r)`` up to this.
+_SMALL_WORK = 1 << 18
 
 
 def null_space(rows: np.ndarray) -> np.ndarray:
@@ -108,7 +111,7 @@ def _profile_complement(columns: np.ndarray) -> tuple[int, np.ndarray]:
     tau, pivots = _profile_qr(columns, reach)
     if not _clearly_independent(pivots):
         return _DEPENDENT, np.zeros((n, 0))
-    return _DONE, _applied_q(columns, reach, tau)
+    return _DONE, _applied_q(columns, reach, tau, r)
 
 
 @compiled
@@ -138,48 +141,83 @@ def _reflect(
 
 
 @compiled
+def _householder(columns: np.ndarray, j: int, end: int, vector: np.ndarray, w: np.ndarray) -> tuple:
+    """The reflector of column ``j`` over rows ``j … end - 1`` (LAPACK's: ``v[0] = 1``
+    implied, the rest stored below the diagonal, ``β`` on it), applied to the columns
+    after ``j``; returns ``(tau, pivot)``."""
+    alpha = columns[j, j]
+    tail = 0.0
+    for i in range(j + 1, end):
+        tail += columns[i, j] * columns[i, j]
+    if tail == 0.0:
+        return 0.0, alpha
+    beta = -math.copysign(math.sqrt(alpha * alpha + tail), alpha)
+    tau = (beta - alpha) / beta
+    scale = 1.0 / (alpha - beta)
+    for i in range(j + 1, end):
+        columns[i, j] *= scale
+        vector[i - j - 1] = columns[i, j]
+    columns[j, j] = beta
+    if j + 1 < columns.shape[1]:
+        _reflect(columns, j, j + 1, vector[: end - j - 1], tau, w)
+    return tau, beta
+
+
+@compiled
 def _profile_qr(columns: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Householder QR of ``columns`` ``(n, r)`` in place, each vector ``j`` over rows
-    ``j … reach[j]`` (LAPACK's reflectors: ``v[0] = 1`` implied, the rest below the
-    diagonal, ``R`` on and above it). Returns ``tau`` and the diagonal of ``R``."""
+    ``j … reach[j]``. Returns ``tau`` and the diagonal of ``R``."""
     r = columns.shape[1]
     tau = np.zeros(r)
     pivots = np.empty(r)
     w = np.empty(r)
     vector = np.empty(columns.shape[0])
     for j in range(r):
-        end = reach[j] + 1
-        alpha = columns[j, j]
-        tail = 0.0
-        for i in range(j + 1, end):
-            tail += columns[i, j] * columns[i, j]
-        pivots[j] = alpha
-        if tail == 0.0:
-            continue
-        beta = -math.copysign(math.sqrt(alpha * alpha + tail), alpha)
-        tau[j] = (beta - alpha) / beta
-        scale = 1.0 / (alpha - beta)
-        for i in range(j + 1, end):
-            columns[i, j] *= scale
-            vector[i - j - 1] = columns[i, j]
-        columns[j, j] = beta
-        pivots[j] = beta
-        if j + 1 < r:
-            _reflect(columns, j, j + 1, vector[: end - j - 1], tau[j], w)
+        tau[j], pivots[j] = _householder(columns, j, reach[j] + 1, vector, w)
     return tau, pivots
 
 
 @compiled
-def _applied_q(columns: np.ndarray, reach: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """The last ``n - r`` columns of ``Q`` of :func:`_profile_qr`'s factorisation."""
+def _pivoted_qr(columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Householder QR of ``columns`` ``(n, r)`` in place with column pivoting: step ``j``
+    takes the first remaining column of largest norm below row ``j``. Returns ``tau`` and
+    the diagonal of ``R`` (``min(n, r)`` each)."""
     n, r = columns.shape
-    m = n - r
+    k = min(n, r)
+    tau = np.zeros(k)
+    pivots = np.empty(k)
+    w = np.empty(r)
+    vector = np.empty(n)
+    for j in range(k):
+        best = -1.0
+        chosen = j
+        for c in range(j, r):
+            norm = 0.0
+            for i in range(j, n):
+                norm += columns[i, c] * columns[i, c]
+            if norm > best:
+                best = norm
+                chosen = c
+        if chosen != j:
+            for i in range(n):
+                columns[i, j], columns[i, chosen] = columns[i, chosen], columns[i, j]
+        tau[j], pivots[j] = _householder(columns, j, n, vector, w)
+    return tau, pivots
+
+
+@compiled
+def _applied_q(columns: np.ndarray, reach: np.ndarray, tau: np.ndarray, first: int) -> np.ndarray:
+    """The columns from ``first`` on of ``Q`` of the factorisation in ``columns`` (the
+    reflectors of :func:`_profile_qr` or :func:`_pivoted_qr`, vector ``j`` reaching row
+    ``reach[j]``)."""
+    n = columns.shape[0]
+    m = n - first
     basis = np.zeros((n, m))
     for c in range(m):
-        basis[r + c, c] = 1.0
+        basis[first + c, c] = 1.0
     w = np.empty(m)
     vector = np.empty(n)
-    for j in range(r - 1, -1, -1):
+    for j in range(tau.size - 1, -1, -1):
         if tau[j] == 0.0:
             continue
         end = reach[j] + 1
@@ -204,20 +242,41 @@ def _lapack_complement(rows: np.ndarray) -> np.ndarray | None:
 
 
 def _pivoted(rows: np.ndarray) -> np.ndarray:
-    """The basis from a QR with column pivoting (rank-revealing)."""
+    """The basis from a QR with column pivoting (rank-revealing): compiled for small
+    ``rows``, LAPACK's otherwise. The basis is ``Q`` of the first ``rank`` reflectors only:
+    the later ones factor rounding errors, and would only turn the basis within the null
+    space."""
+    r, n = rows.shape
+    if n * r * min(n, r) > _SMALL_WORK:
+        return _lapack_pivoted(rows)
+    columns = np.ascontiguousarray(rows.T)
+    tau, pivots = _pivoted_qr(columns)
+    rank = _rank(pivots)
+    if rank == n:
+        return np.zeros((n, 0))
+    return _applied_q(columns, np.full(rank, n - 1), tau[:rank], rank)
+
+
+def _rank(pivots: np.ndarray) -> int:
+    """The pivots above :data:`RANK_TOLERANCE` of the first (the largest)."""
+    diagonal = np.abs(pivots)
+    largest = float(diagonal[0]) if diagonal.size else 0.0
+    return int(np.count_nonzero(diagonal > RANK_TOLERANCE * largest)) if largest > 0 else 0
+
+
+def _lapack_pivoted(rows: np.ndarray) -> np.ndarray:
+    """:func:`_pivoted` from LAPACK (``dgeqp3``, ``dorgqr``)."""
     r, n = rows.shape
     qr, _pivots, tau, _work, info = lapack.dgeqp3(np.array(rows.T, order="F"))
     if info != 0:
         raise np.linalg.LinAlgError(f"dgeqp3 failed (info {info})")
     k = min(n, r)
-    diagonal = np.abs(np.diagonal(qr)[:k])
-    largest = float(diagonal[0]) if k else 0.0
-    rank = int(np.count_nonzero(diagonal > RANK_TOLERANCE * largest)) if largest > 0 else 0
+    rank = _rank(np.diagonal(qr)[:k])
     if rank == n:
         return np.zeros((n, 0))
     reflectors = np.zeros((n, n), order="F")
-    reflectors[:, :k] = qr[:, :k]
-    q, _work, info = lapack.dorgqr(reflectors, tau[:k])
+    reflectors[:, :rank] = qr[:, :rank]
+    q, _work, info = lapack.dorgqr(reflectors, tau[:rank])
     if info != 0:
         raise np.linalg.LinAlgError(f"dorgqr failed (info {info})")
     return np.ascontiguousarray(q[:, rank:])

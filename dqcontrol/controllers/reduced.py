@@ -17,7 +17,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.gram import kept
-from dqcontrol.controllers.problem import DecisionLayout, Residual
+from dqcontrol.controllers.problem import Residual
 
 __all__ = [
     "ReducedObjective",
@@ -37,51 +37,72 @@ class ReducedObjective(NamedTuple):
 
 
 @compiled
-def _blocks_product(blocks: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
-    """``out = blockdiag(blocks) @ right`` (``blocks`` ``(p, r, m)``, ``right`` at least
-    ``p m`` rows), skipping the blocks' zeros."""
+def _finish_row(
+    out: np.ndarray, row: int, b: np.ndarray, w2: float, row_weights: np.ndarray, scale: np.ndarray
+) -> None:
+    """The row's value minus ``b`` in the last column, its scale ``w2`` times its weight
+    (``row_weights`` empty: 1)."""
+    out[row, out.shape[1] - 1] -= b[row]
+    scale[row] = w2 * row_weights[row] if row_weights.size else w2
+
+
+@compiled
+def _block_rows(
+    blocks: np.ndarray,
+    right: np.ndarray,
+    b: np.ndarray,
+    w2: float,
+    row_weights: np.ndarray,
+    out: np.ndarray,
+    scale: np.ndarray,
+) -> None:
+    """``out = blockdiag(blocks) right - [0 | b]`` (``blocks`` ``(p, r, m)``, ``right`` at
+    least ``p m`` rows) skipping the blocks' zeros, and the rows' scales."""
     p, r, m = blocks.shape
     cols = right.shape[1]
     for i in range(p):
         for a in range(r):
             row = i * r + a
+            line = out[row]
             for c in range(cols):
-                out[row, c] = 0.0
-            for b in range(m):
-                v = blocks[i, a, b]
+                line[c] = 0.0
+            for k in range(m):
+                v = blocks[i, a, k]
                 if v != 0.0:
+                    source = right[i * m + k]
                     for c in range(cols):
-                        out[row, c] += v * right[i * m + b, c]
+                        line[c] += v * source[c]
+            _finish_row(out, row, b, w2, row_weights, scale)
 
 
 @compiled
-def _dense_sparse_product(a: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
-    """``out = a @ right`` skipping the zeros of ``a``."""
-    rows, n = a.shape
-    cols = right.shape[1]
-    for i in range(rows):
-        for c in range(cols):
-            out[i, c] = 0.0
-        for j in range(n):
-            v = a[i, j]
-            if v != 0.0:
-                for c in range(cols):
-                    out[i, c] += v * right[j, c]
-
-
-@compiled
-def _entries_product(entries: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
+def _entry_product(entries: np.ndarray, right: np.ndarray, out: np.ndarray) -> None:
     """``out = a @ right`` from the non-zero entries of ``a`` (:func:`nonzero_entries`)."""
     cols = right.shape[1]
-    for i in range(out.shape[0]):
-        for c in range(cols):
-            out[i, c] = 0.0
+    out[:] = 0.0
     for e in range(entries.shape[0]):
-        i = int(entries[e, 0])
-        j = int(entries[e, 1])
+        line = out[int(entries[e, 0])]
+        source = right[int(entries[e, 1])]
         v = entries[e, 2]
         for c in range(cols):
-            out[i, c] += v * right[j, c]
+            line[c] += v * source[c]
+
+
+@compiled
+def _entry_rows(
+    entries: np.ndarray,
+    right: np.ndarray,
+    b: np.ndarray,
+    w2: float,
+    row_weights: np.ndarray,
+    out: np.ndarray,
+    scale: np.ndarray,
+) -> None:
+    """``out = a right - [0 | b]`` from the non-zero entries of ``a``, and the rows'
+    scales."""
+    _entry_product(entries, right, out)
+    for row in range(out.shape[0]):
+        _finish_row(out, row, b, w2, row_weights, scale)
 
 
 @compiled
@@ -108,25 +129,26 @@ def nonzero_entries(a: np.ndarray) -> np.ndarray:
     return kept((a,), _nonzero_entries)
 
 
-def sparse_product(a: np.ndarray, right: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def sparse_product(a: np.ndarray, right: np.ndarray) -> np.ndarray:
     """``a @ right`` (``right`` 2-D) skipping the zeros of ``a``: each entry of the result
     sums its non-zero products in column order."""
-    if out is None:
-        out = np.empty((a.shape[0], right.shape[1]))
-    if a.flags.writeable:
-        _dense_sparse_product(a, right, out)
-    else:
-        _entries_product(nonzero_entries(a), right, out)
+    out = np.empty((a.shape[0], right.shape[1]))
+    _entry_product(nonzero_entries(a), right, out)
     return out
 
 
-def _rows_product(layout: DecisionLayout, r: Residual, right: np.ndarray, out: np.ndarray) -> None:
-    """``out = A right`` for the residual's rows ``A``."""
+_NO_WEIGHTS = np.zeros(0)
+
+
+def _residual_rows(r: Residual, right: np.ndarray, out: np.ndarray, scale: np.ndarray) -> None:
+    """``out = [A right[:, :-1] | A right[:, -1] - b]`` for the residual's rows ``A``, and
+    each row's ``2 w`` times its weight in ``scale``."""
+    weights = _NO_WEIGHTS if r.row_weights is None else r.row_weights
     if r.blocks is not None:
-        _blocks_product(r.blocks, right, out)
+        _block_rows(r.blocks, right, r.b, 2.0 * r.weight, weights, out, scale)
     else:
         assert r.A is not None, "a residual has A or blocks"
-        sparse_product(r.A, right, out)
+        _entry_rows(nonzero_entries(r.A), right, r.b, 2.0 * r.weight, weights, out, scale)
 
 
 @compiled
@@ -146,7 +168,7 @@ def _weighted_gram(rows: np.ndarray, scale: np.ndarray, hessian: np.ndarray, gra
 
 
 def reduced_objective(
-    layout: DecisionLayout, residuals: tuple[Residual, ...], point: np.ndarray, basis: np.ndarray
+    residuals: tuple[Residual, ...], point: np.ndarray, basis: np.ndarray
 ) -> ReducedObjective:
     """``Σ w ‖A (point + basis y) - b‖²`` as ``½ yᵀ H y + gᵀ y`` up to a constant, and
     the held rows ``A basis`` of the held residuals stacked in order."""
@@ -164,15 +186,10 @@ def reduced_objective(
     start = 0
     held = 0
     for r, size in zip(used, sizes, strict=True):
-        part = rows[start : start + size]
-        _rows_product(layout, r, right, part)
-        part[:, dim] -= r.b
-        if r.row_weights is None:
-            scale[start : start + size] = 2.0 * r.weight
-        else:
-            np.multiply(r.row_weights, 2.0 * r.weight, out=scale[start : start + size])
+        end = start + size
+        _residual_rows(r, right, rows[start:end], scale[start:end])
         held += size if r.held else 0
-        start += size
+        start = end
     hessian = np.empty((dim, dim))
     gradient = np.empty(dim)
     _weighted_gram(rows, scale, hessian, gradient)
@@ -198,8 +215,10 @@ def _rows_in_basis(
         lower_out[a] = -np.inf
         upper_out[a] = np.inf
     for j in range(nv):
+        line = rows[dim + j]
+        source = basis[j]
         for c in range(dim):
-            rows[dim + j, c] = basis[j, c]
+            line[c] = source[c]
         lower_out[dim + j] = lower[j] - point[j]
         upper_out[dim + j] = upper[j] - point[j]
     shift = np.zeros(lower.size - nv)
@@ -207,8 +226,10 @@ def _rows_in_basis(
         i = int(entries[e, 0])
         j = int(entries[e, 1])
         v = entries[e, 2]
+        line = rows[dim + nv + i]
+        source = basis[j]
         for c in range(dim):
-            rows[dim + nv + i, c] += v * basis[j, c]
+            line[c] += v * source[c]
         shift[i] += v * point[j]
     for i in range(shift.size):
         lower_out[dim + nv + i] = lower[nv + i] - shift[i]
