@@ -249,19 +249,27 @@ def _pivoted(rows: np.ndarray) -> np.ndarray:
     r, n = rows.shape
     if n * r * min(n, r) > _SMALL_WORK:
         return _lapack_pivoted(rows)
-    columns = np.ascontiguousarray(rows.T)
+    return _pivoted_complement(np.ascontiguousarray(rows.T))
+
+
+@compiled
+def _rank(pivots: np.ndarray) -> int:
+    """The pivots above :data:`RANK_TOLERANCE` of the first (the largest)."""
+    largest = abs(pivots[0]) if pivots.size else 0.0
+    if not largest > 0.0:
+        return 0
+    return int(np.sum(np.abs(pivots) > RANK_TOLERANCE * largest))
+
+
+@compiled
+def _pivoted_complement(columns: np.ndarray) -> np.ndarray:
+    """:func:`_pivoted` of the rows ``columns`` ``(n, r)`` (``Rᵀ``, overwritten)."""
+    n = columns.shape[0]
     tau, pivots = _pivoted_qr(columns)
     rank = _rank(pivots)
     if rank == n:
         return np.zeros((n, 0))
     return _applied_q(columns, np.full(rank, n - 1), tau[:rank], rank)
-
-
-def _rank(pivots: np.ndarray) -> int:
-    """The pivots above :data:`RANK_TOLERANCE` of the first (the largest)."""
-    diagonal = np.abs(pivots)
-    largest = float(diagonal[0]) if diagonal.size else 0.0
-    return int(np.count_nonzero(diagonal > RANK_TOLERANCE * largest)) if largest > 0 else 0
 
 
 def _lapack_pivoted(rows: np.ndarray) -> np.ndarray:
@@ -271,7 +279,7 @@ def _lapack_pivoted(rows: np.ndarray) -> np.ndarray:
     if info != 0:
         raise np.linalg.LinAlgError(f"dgeqp3 failed (info {info})")
     k = min(n, r)
-    rank = _rank(np.diagonal(qr)[:k])
+    rank = _rank(np.diagonal(qr)[:k].copy())
     if rank == n:
         return np.zeros((n, 0))
     reflectors = np.zeros((n, n), order="F")

@@ -47,31 +47,38 @@ def _finish_row(
 
 
 @compiled
+def _add_row(line: np.ndarray, v: float, basis: np.ndarray, point: np.ndarray, j: int) -> None:
+    """``line += v [basis[j] | point[j]]``."""
+    dim = basis.shape[1]
+    source = basis[j]
+    for c in range(dim):
+        line[c] += v * source[c]
+    line[dim] += v * point[j]
+
+
+@compiled
 def _block_rows(
     blocks: np.ndarray,
-    right: np.ndarray,
+    basis: np.ndarray,
+    point: np.ndarray,
     b: np.ndarray,
     w2: float,
     row_weights: np.ndarray,
     out: np.ndarray,
     scale: np.ndarray,
 ) -> None:
-    """``out = blockdiag(blocks) right - [0 | b]`` (``blocks`` ``(p, r, m)``, ``right`` at
-    least ``p m`` rows) skipping the blocks' zeros, and the rows' scales."""
+    """``out = [A basis | A point - b]`` for ``A = blockdiag(blocks)`` (``blocks``
+    ``(p, r, m)``, ``basis`` at least ``p m`` rows) skipping the blocks' zeros, and the
+    rows' scales."""
     p, r, m = blocks.shape
-    cols = right.shape[1]
+    out[:] = 0.0
     for i in range(p):
         for a in range(r):
             row = i * r + a
-            line = out[row]
-            for c in range(cols):
-                line[c] = 0.0
             for k in range(m):
                 v = blocks[i, a, k]
                 if v != 0.0:
-                    source = right[i * m + k]
-                    for c in range(cols):
-                        line[c] += v * source[c]
+                    _add_row(out[row], v, basis, point, i * m + k)
             _finish_row(out, row, b, w2, row_weights, scale)
 
 
@@ -91,16 +98,19 @@ def _entry_product(entries: np.ndarray, right: np.ndarray, out: np.ndarray) -> N
 @compiled
 def _entry_rows(
     entries: np.ndarray,
-    right: np.ndarray,
+    basis: np.ndarray,
+    point: np.ndarray,
     b: np.ndarray,
     w2: float,
     row_weights: np.ndarray,
     out: np.ndarray,
     scale: np.ndarray,
 ) -> None:
-    """``out = a right - [0 | b]`` from the non-zero entries of ``a``, and the rows'
+    """``out = [A basis | A point - b]`` from the non-zero entries of ``A``, and the rows'
     scales."""
-    _entry_product(entries, right, out)
+    out[:] = 0.0
+    for e in range(entries.shape[0]):
+        _add_row(out[int(entries[e, 0])], entries[e, 2], basis, point, int(entries[e, 1]))
     for row in range(out.shape[0]):
         _finish_row(out, row, b, w2, row_weights, scale)
 
@@ -140,31 +150,36 @@ def sparse_product(a: np.ndarray, right: np.ndarray) -> np.ndarray:
 _NO_WEIGHTS = np.zeros(0)
 
 
-def _residual_rows(r: Residual, right: np.ndarray, out: np.ndarray, scale: np.ndarray) -> None:
-    """``out = [A right[:, :-1] | A right[:, -1] - b]`` for the residual's rows ``A``, and
-    each row's ``2 w`` times its weight in ``scale``."""
+def _residual_rows(
+    r: Residual, basis: np.ndarray, point: np.ndarray, out: np.ndarray, scale: np.ndarray
+) -> None:
+    """``out = [A basis | A point - b]`` for the residual's rows ``A``, and each row's
+    ``2 w`` times its weight in ``scale``."""
     weights = _NO_WEIGHTS if r.row_weights is None else r.row_weights
     if r.blocks is not None:
-        _block_rows(r.blocks, right, r.b, 2.0 * r.weight, weights, out, scale)
+        _block_rows(r.blocks, basis, point, r.b, 2.0 * r.weight, weights, out, scale)
     else:
         assert r.A is not None, "a residual has A or blocks"
-        _entry_rows(nonzero_entries(r.A), right, r.b, 2.0 * r.weight, weights, out, scale)
+        _entry_rows(nonzero_entries(r.A), basis, point, r.b, 2.0 * r.weight, weights, out, scale)
 
 
 @compiled
-def _weighted_gram(rows: np.ndarray, scale: np.ndarray, hessian: np.ndarray, gradient: np.ndarray):
-    """``hessian = Mᵀ S M`` and ``gradient = Mᵀ S e`` for ``rows = [M | e]`` and
-    ``S = diag(scale)`` (one product; ``hessian`` symmetric, from its upper triangle)."""
-    dim = hessian.shape[0]
+def _weighted_gram(rows: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(Mᵀ S M, Mᵀ S e)`` for ``rows = [M | e]`` and ``S = diag(scale)`` (one product;
+    the first symmetric, from its upper triangle)."""
+    dim = rows.shape[1] - 1
     weighted = np.empty((rows.shape[0], dim))
     for k in range(rows.shape[0]):
         for a in range(dim):
             weighted[k, a] = scale[k] * rows[k, a]
     both = weighted.T @ rows
+    hessian = np.empty((dim, dim))
+    gradient = np.empty(dim)
     for a in range(dim):
         gradient[a] = both[a, dim]
         for b in range(dim):
             hessian[a, b] = both[a, b] if b >= a else both[b, a]
+    return hessian, gradient
 
 
 def reduced_objective(
@@ -172,28 +187,18 @@ def reduced_objective(
 ) -> ReducedObjective:
     """``Σ w ‖A (point + basis y) - b‖²`` as ``½ yᵀ H y + gᵀ y`` up to a constant, and
     the held rows ``A basis`` of the held residuals stacked in order."""
-    used = [r for r in residuals if r.held] + [
-        r for r in residuals if not r.held and 2.0 * r.weight != 0.0
-    ]
-    dim = basis.shape[1]
-    sizes = [r.b.size for r in used]
-    total = int(sum(sizes))
-    right = np.empty((basis.shape[0], dim + 1))
-    right[:, :dim] = basis
-    right[:, dim] = point
-    rows = np.empty((total, dim + 1))  # [A basis | A point - b] of every residual used
+    held = [r for r in residuals if r.held]
+    used = held + [r for r in residuals if not r.held and 2.0 * r.weight != 0.0]
+    total = sum(r.b.size for r in used)
+    rows = np.empty((total, basis.shape[1] + 1))  # [A basis | A point - b] of every one
     scale = np.empty(total)  # 2 w times the row's weight
     start = 0
-    held = 0
-    for r, size in zip(used, sizes, strict=True):
-        end = start + size
-        _residual_rows(r, right, rows[start:end], scale[start:end])
-        held += size if r.held else 0
+    for r in used:
+        end = start + r.b.size
+        _residual_rows(r, basis, point, rows[start:end], scale[start:end])
         start = end
-    hessian = np.empty((dim, dim))
-    gradient = np.empty(dim)
-    _weighted_gram(rows, scale, hessian, gradient)
-    return ReducedObjective(hessian, gradient, rows[:held, :dim])
+    hessian, gradient = _weighted_gram(rows, scale)
+    return ReducedObjective(hessian, gradient, rows[: sum(r.b.size for r in held), :-1])
 
 
 @compiled
