@@ -3,8 +3,10 @@ dense formation ``Zᵀ P Z``, ``Zᵀ (P z₀ + c)``, ``[I; A Z]`` on seeded rand
 
 import numpy as np
 import pytest
+from test_core_levels_properties import _problem
 
 from dqcontrol.controllers.gram import frozen
+from dqcontrol.controllers.levels import reduced_qp
 from dqcontrol.controllers.null_space import null_space
 from dqcontrol.controllers.problem import DecisionLayout, Residual, objective
 from dqcontrol.controllers.reduced import (
@@ -108,3 +110,23 @@ def test_the_rows_in_the_basis_are_those_of_i_and_c(seed, read_only):
     assert np.all(np.isneginf(lo[:dim])) and np.all(np.isposinf(up[:dim]))
     assert np.allclose(lo[dim:], lower - full @ point, rtol=0, atol=1e-13)
     assert np.allclose(up[dim:], upper - full @ point, rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_reduced_qp_is_the_level_in_the_basis(seed):
+    problem = _problem(seed, 3, 3, (4, 2), tight=False)
+    rng = np.random.default_rng(seed)
+    nv = problem.layout.num_vars
+    held = np.vstack([r.dense(problem.layout) for r in problem.levels[0].residuals if r.held])
+    basis = null_space(held)
+    point = rng.normal(size=nv)
+    qp = reduced_qp(problem, 1, point, basis)
+    p_mat, c = objective(problem.layout, problem.levels[1].residuals)
+    dim = basis.shape[1]
+    scale = max(1.0, np.abs(p_mat).max())
+    assert np.allclose(qp.P, basis.T @ p_mat @ basis, rtol=0, atol=1e-12 * scale)
+    assert np.allclose(qp.c, basis.T @ (p_mat @ point + c), rtol=0, atol=1e-12 * scale)
+    assert np.allclose(qp.A, np.vstack([np.eye(dim), problem.A @ basis]), rtol=0, atol=1e-13)
+    shift = problem.A @ point
+    assert np.allclose(qp.lower[dim:], problem.lower - shift, rtol=0, atol=1e-13)
+    assert np.allclose(qp.upper[dim:], problem.upper - shift, rtol=0, atol=1e-13)
