@@ -23,6 +23,7 @@ import numpy as np
 from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.level_objective import level_objective
 from dqcontrol.controllers.null_space import null_space
 from dqcontrol.controllers.problem import (
     Bounds,
@@ -166,7 +167,7 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     for k in range(len(problem.levels)):
         held = None  # level k's held rows in the basis, where the reduced level gave them
         if k == 0:
-            p_mat, c = objective(problem.layout, problem.levels[0].residuals)
+            p_mat, c = level_objective(problem.layout, problem.levels[0].residuals)
             sol = backend.solve(0, DenseQP(p_mat, c, problem.A, problem.lower, problem.upper))
         else:
             assert basis is not None, "a lower level has the basis of the held rows"
