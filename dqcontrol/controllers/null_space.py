@@ -9,18 +9,18 @@ level, LAPACK's ``dgeqp3``/``dorgqr`` for large rows).
 Without pivoting, the basis is ``Q`` applied to the last columns of the identity. Where
 the rows reach fewer variables than all (a row of a predictive controller's path level
 depends on the commands up to its instant only), each Householder vector is as short as
-the rows reached so far: a compiled QR that follows that profile (:func:`_profile_qr`) does
-a fraction of the work of a dense one; otherwise LAPACK's (``dgeqrf``, ``dormqr``).
+the rows reached so far: a compiled QR that follows that profile
+(:mod:`~dqcontrol.controllers.householder`) does a fraction of the work of a dense one;
+otherwise LAPACK's (``dgeqrf``, ``dormqr``).
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from scipy.linalg import lapack
 
 from dqcontrol._compiled import compiled
+from dqcontrol.controllers.householder import applied_q, pivoted_qr, profile_qr
 
 __all__ = ["RANK_TOLERANCE", "null_space"]
 
@@ -89,7 +89,7 @@ def _profile(columns: np.ndarray) -> np.ndarray:
 
 @compiled
 def _profile_work(reach: np.ndarray, n: int) -> int:
-    """The multiply-adds of :func:`_profile_qr` and of forming the basis (``n``
+    """The multiply-adds of the profile QR and of forming the basis from it (``n``
     variables)."""
     r = reach.size
     work = 0
@@ -108,123 +108,10 @@ def _profile_complement(columns: np.ndarray) -> tuple[int, np.ndarray]:
     dense = _profile_work(np.full(r, n - 1), n)
     if _profile_work(reach, n) > _PROFILE_SHARE * dense:
         return _DENSE, np.zeros((n, 0))
-    tau, pivots = _profile_qr(columns, reach)
+    tau, pivots = profile_qr(columns, reach)
     if not _clearly_independent(pivots):
         return _DEPENDENT, np.zeros((n, 0))
-    return _DONE, _applied_q(columns, reach, tau, r)
-
-
-@compiled
-def _reflect(
-    mat: np.ndarray, top: int, start: int, vector: np.ndarray, tau: float, w: np.ndarray
-) -> None:
-    """``B -= tau v (vᵀ B)`` for the block ``B`` of ``mat`` from row ``top`` and column
-    ``start`` over ``vector.size + 1`` rows, ``v = [1; vector]`` (``w``: a buffer as long as
-    a row). The inner loops run along rows of the C-ordered ``mat``, from 0: the form the
-    compiler vectorises."""
-    size = mat.shape[1] - start
-    first = mat[top, start:]
-    for k in range(size):
-        w[k] = first[k]
-    for i in range(vector.size):
-        v = vector[i]
-        row = mat[top + 1 + i, start:]
-        for k in range(size):
-            w[k] += v * row[k]
-    for k in range(size):
-        first[k] -= tau * w[k]
-    for i in range(vector.size):
-        v = tau * vector[i]
-        row = mat[top + 1 + i, start:]
-        for k in range(size):
-            row[k] -= v * w[k]
-
-
-@compiled
-def _householder(columns: np.ndarray, j: int, end: int, vector: np.ndarray, w: np.ndarray) -> tuple:
-    """The reflector of column ``j`` over rows ``j … end - 1`` (LAPACK's: ``v[0] = 1``
-    implied, the rest stored below the diagonal, ``β`` on it), applied to the columns
-    after ``j``; returns ``(tau, pivot)``."""
-    alpha = columns[j, j]
-    tail = 0.0
-    for i in range(j + 1, end):
-        tail += columns[i, j] * columns[i, j]
-    if tail == 0.0:
-        return 0.0, alpha
-    beta = -math.copysign(math.sqrt(alpha * alpha + tail), alpha)
-    tau = (beta - alpha) / beta
-    scale = 1.0 / (alpha - beta)
-    for i in range(j + 1, end):
-        columns[i, j] *= scale
-        vector[i - j - 1] = columns[i, j]
-    columns[j, j] = beta
-    if j + 1 < columns.shape[1]:
-        _reflect(columns, j, j + 1, vector[: end - j - 1], tau, w)
-    return tau, beta
-
-
-@compiled
-def _profile_qr(columns: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Householder QR of ``columns`` ``(n, r)`` in place, each vector ``j`` over rows
-    ``j … reach[j]``. Returns ``tau`` and the diagonal of ``R``."""
-    r = columns.shape[1]
-    tau = np.zeros(r)
-    pivots = np.empty(r)
-    w = np.empty(r)
-    vector = np.empty(columns.shape[0])
-    for j in range(r):
-        tau[j], pivots[j] = _householder(columns, j, reach[j] + 1, vector, w)
-    return tau, pivots
-
-
-@compiled
-def _pivoted_qr(columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Householder QR of ``columns`` ``(n, r)`` in place with column pivoting: step ``j``
-    takes the first remaining column of largest norm below row ``j``. Returns ``tau`` and
-    the diagonal of ``R`` (``min(n, r)`` each)."""
-    n, r = columns.shape
-    k = min(n, r)
-    tau = np.zeros(k)
-    pivots = np.empty(k)
-    w = np.empty(r)
-    vector = np.empty(n)
-    for j in range(k):
-        best = -1.0
-        chosen = j
-        for c in range(j, r):
-            norm = 0.0
-            for i in range(j, n):
-                norm += columns[i, c] * columns[i, c]
-            if norm > best:
-                best = norm
-                chosen = c
-        if chosen != j:
-            for i in range(n):
-                columns[i, j], columns[i, chosen] = columns[i, chosen], columns[i, j]
-        tau[j], pivots[j] = _householder(columns, j, n, vector, w)
-    return tau, pivots
-
-
-@compiled
-def _applied_q(columns: np.ndarray, reach: np.ndarray, tau: np.ndarray, first: int) -> np.ndarray:
-    """The columns from ``first`` on of ``Q`` of the factorisation in ``columns`` (the
-    reflectors of :func:`_profile_qr` or :func:`_pivoted_qr`, vector ``j`` reaching row
-    ``reach[j]``)."""
-    n = columns.shape[0]
-    m = n - first
-    basis = np.zeros((n, m))
-    for c in range(m):
-        basis[first + c, c] = 1.0
-    w = np.empty(m)
-    vector = np.empty(n)
-    for j in range(tau.size - 1, -1, -1):
-        if tau[j] == 0.0:
-            continue
-        end = reach[j] + 1
-        for i in range(j + 1, end):
-            vector[i - j - 1] = columns[i, j]
-        _reflect(basis, j, 0, vector[: end - j - 1], tau[j], w)
-    return basis
+    return _DONE, applied_q(columns, reach, tau, r)
 
 
 def _lapack_complement(rows: np.ndarray) -> np.ndarray | None:
@@ -265,11 +152,11 @@ def _rank(pivots: np.ndarray) -> int:
 def _pivoted_complement(columns: np.ndarray) -> np.ndarray:
     """:func:`_pivoted` of the rows ``columns`` ``(n, r)`` (``Rᵀ``, overwritten)."""
     n = columns.shape[0]
-    tau, pivots = _pivoted_qr(columns)
+    tau, pivots = pivoted_qr(columns)
     rank = _rank(pivots)
     if rank == n:
         return np.zeros((n, 0))
-    return _applied_q(columns, np.full(rank, n - 1), tau[:rank], rank)
+    return applied_q(columns, np.full(rank, n - 1), tau[:rank], rank)
 
 
 def _lapack_pivoted(rows: np.ndarray) -> np.ndarray:
