@@ -23,6 +23,7 @@ import numpy as np
 from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.level_objective import level_objective
 from dqcontrol.controllers.null_space import null_space
 from dqcontrol.controllers.problem import (
     Bounds,
@@ -37,6 +38,7 @@ from dqcontrol.controllers.problem import (
     merge_bounds,
     objective,
 )
+from dqcontrol.controllers.reduced import ReducedObjective, reduced_objective, rows_in_basis
 
 __all__ = [
     "LevelsResult",
@@ -162,14 +164,14 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     per_level: list[Solution] = []
     best: Solution | None = None
     basis: np.ndarray | None = None  # the null space the next level moves in
-    rows_a = problem.A
     for k in range(len(problem.levels)):
+        held = None  # level k's held rows in the basis, where the reduced level gave them
         if k == 0:
-            p_mat, c = objective(problem.layout, problem.levels[0].residuals)
-            sol = backend.solve(0, DenseQP(p_mat, c, rows_a, problem.lower, problem.upper))
+            p_mat, c = level_objective(problem.layout, problem.levels[0].residuals)
+            sol = backend.solve(0, DenseQP(p_mat, c, problem.A, problem.lower, problem.upper))
         else:
             assert basis is not None, "a lower level has the basis of the held rows"
-            sol = _reduced_level(problem, k, points[-1], basis, rows_a, backend)
+            sol, held = _reduced_level(problem, k, points[-1], basis, backend)
             if not sol.ok:
                 sol = _banded_level(problem, k, points, backend)
         per_level.append(sol)
@@ -181,65 +183,62 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
         assert sol.x is not None, "a solved level has its solution"
         points.append(sol.x)
         if k + 1 < len(problem.levels):
-            basis = _narrowed(problem, k, basis)
+            basis = _narrowed(problem, k, basis, held)
     assert best is not None, "a problem has at least one level"
     return LevelsResult(best, tuple(per_level), None)
 
 
-def _narrowed(problem: Problem, k: int, basis: np.ndarray | None) -> np.ndarray:
+def _narrowed(
+    problem: Problem, k: int, basis: np.ndarray | None, held: np.ndarray | None = None
+) -> np.ndarray:
     """The basis of the null space of level ``k``'s held rows within ``basis`` (``None``:
-    all variables)."""
-    mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
-    if not mats:
-        return np.eye(problem.layout.num_vars) if basis is None else basis
-    held = mats[0] if len(mats) == 1 else np.vstack(mats)
-    if basis is None:
-        return null_space(held)
-    if basis.shape[1] == 0:
+    all variables); ``held``: those rows times ``basis`` where already computed."""
+    if basis is not None and basis.shape[1] == 0:
         return basis
-    return basis @ null_space(held @ basis)
+    if held is None:
+        mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
+        if not mats:
+            return np.eye(problem.layout.num_vars) if basis is None else basis
+        rows = mats[0] if len(mats) == 1 else np.vstack(mats)
+        if basis is None:
+            return null_space(rows)
+        held = rows @ basis
+    assert basis is not None, "rows in a basis come with the basis"
+    if held.shape[0] == 0:
+        return basis
+    return basis @ null_space(held)
 
 
-def reduced_qp(
-    problem: Problem, k: int, point: np.ndarray, basis: np.ndarray, rows_a: np.ndarray
+def reduced_qp(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> DenseQP:
+    """Level ``k``'s QP in ``y`` with ``z = point + basis y``: ``y`` has no bounds of its
+    own, every row of the problem's ``A`` is a general row."""
+    reduced = reduced_objective(problem.levels[k].residuals, point, basis)
+    return _in_basis(problem, point, basis, reduced)
+
+
+def _in_basis(
+    problem: Problem, point: np.ndarray, basis: np.ndarray, reduced: ReducedObjective
 ) -> DenseQP:
-    """Level ``k``'s QP in ``y`` with ``z = point + basis y`` (``rows_a``: the problem's
-    ``A``): ``y`` has no bounds of its own, every row of ``A`` is a general row."""
-    p_mat, c = objective(problem.layout, problem.levels[k].residuals)
-    pz = p_mat @ basis
-    hessian = basis.T @ pz
-    hessian = 0.5 * (hessian + hessian.T)
-    gradient = basis.T @ (p_mat @ point + c)
-    shift = rows_a @ point
-    dim = basis.shape[1]
-    free = np.full(dim, np.inf)
-    return DenseQP(
-        hessian,
-        gradient,
-        np.vstack([np.eye(dim), rows_a @ basis]),
-        np.concatenate([-free, problem.lower - shift]),
-        np.concatenate([free, problem.upper - shift]),
-    )
+    """The QP of :func:`reduced_qp` from the level's objective in the basis."""
+    rows, lower, upper = rows_in_basis(problem.C, basis, point, problem.lower, problem.upper)
+    return DenseQP(reduced.hessian, reduced.gradient, rows, lower, upper)
 
 
 def _reduced_level(
-    problem: Problem,
-    k: int,
-    point: np.ndarray,
-    basis: np.ndarray,
-    rows_a: np.ndarray,
-    backend: Backend,
-) -> Solution:
-    """Level ``k`` in the null space of the held rows (backend key ``(k, dim)``); its
-    solution and duals are those of the whole problem."""
+    problem: Problem, k: int, point: np.ndarray, basis: np.ndarray, backend: Backend
+) -> tuple[Solution, np.ndarray | None]:
+    """Level ``k`` in the null space of the held rows (backend key ``(k, dim)``), and the
+    level's held rows in ``basis``; the solution and duals are those of the whole
+    problem."""
     dim = basis.shape[1]
     if dim == 0:  # the levels above leave no freedom
-        return Solution(True, "solved", 0, 0.0, point.copy(), None)
-    sol = backend.solve((k, dim), reduced_qp(problem, k, point, basis, rows_a))
+        return Solution(True, "solved", 0, 0.0, point.copy(), None), None
+    reduced = reduced_objective(problem.levels[k].residuals, point, basis)
+    sol = backend.solve((k, dim), _in_basis(problem, point, basis, reduced))
     if not sol.ok or sol.x is None:
-        return sol
+        return sol, reduced.held
     duals = None if sol.duals is None else sol.duals[dim:]
-    return sol._replace(x=point + basis @ sol.x, duals=duals)
+    return sol._replace(x=point + basis @ sol.x, duals=duals), reduced.held
 
 
 def _banded_level(problem: Problem, k: int, points: list[np.ndarray], backend: Backend) -> Solution:
