@@ -41,6 +41,7 @@ import pinocchio as pin
 
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.collision_bounds import bounding_capsule, pair_levers, support_form
+from dqcontrol.model.collision_closed_forms import closed_form_table, solve_closed_forms
 from dqcontrol.model.collision_kernels import (
     FORM_SIZE,
     capsule_gaps,
@@ -371,6 +372,9 @@ class CollisionModel:
         self_collision: include pairs of the robot's own links.
         allowed_pairs: link pairs never checked, ``(link1, link2)`` (SRDF-style).
         srdf: an SRDF file (or its text) whose ``<disable_collisions>`` are also allowed.
+        closed_forms: solve the pairs that have a closed form (a sphere against a sphere, a
+            cylinder, a box or a half-space, a cylinder against a half-space) without coal
+            (:mod:`~dqcontrol.model.collision_closed_forms`; the same results).
 
     Attributes:
         geometry: Pinocchio's ``GeometryModel``: the robot's shapes (on their joints), then
@@ -394,6 +398,7 @@ class CollisionModel:
         self_collision: bool = True,
         allowed_pairs: tuple[tuple[str, str], ...] | list = (),
         srdf: str | os.PathLike | None = None,
+        closed_forms: bool = True,
     ) -> None:
         self.robot = robot
         self.model = robot.model
@@ -437,8 +442,13 @@ class CollisionModel:
         self._bounds()
         self._tables()
         self._references()
+        self._closed = closed_form_table(geometry, self._a, self._b)
+        if not closed_forms:
+            self._closed.kind[:] = 0
         #: distance queries made since construction (pairs solved by coal)
         self.query_count = 0
+        #: pairs solved in closed form since construction
+        self.closed_form_count = 0
 
     # ------------------------------------------------------------------ construction
     def _allowed(self, allowed_pairs, srdf) -> set[frozenset]:
@@ -600,22 +610,22 @@ class CollisionModel:
         pair.
 
         The capsules' lower bounds and the pairs' last solved distances choose the pairs
-        that coal solves; ``placed``: the configuration whose shapes are already placed in
-        :attr:`geometry_data`."""
+        solved, in closed form or by coal; ``placed``: the configuration whose shapes are
+        already placed in :attr:`geometry_data`."""
         rot, trans, jac = self._kinematics_batch(qs)
         gaps = self._gaps(rot, trans, influence_m)
         if self._levers is not None:
             motion_gaps(qs, self._reference_q, self._reference_m, self._levers, gaps)
         states, pairs = np.nonzero(gaps < influence_m)
-        self.query_count += states.size
-        solved, hits, points = self._narrow_phase(qs, states, pairs, influence_m, placed)
+        solved, points = self._closed_forms(rot, trans, states, pairs)
+        hits, close = self._narrow_phase(qs, states, pairs, solved, points, influence_m, placed)
         return collect_pairs(
             qs,
             states,
             pairs,
             solved,
             hits,
-            points,
+            close,
             jac,
             self._support,
             self._joint_of,
@@ -626,35 +636,54 @@ class CollisionModel:
             self._levers is not None,
         )
 
+    def _closed_forms(
+        self, rot: np.ndarray, trans: np.ndarray, states: np.ndarray, pairs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The distances ``(K,)`` and the witness points ``a``, ``b`` and normal ``(K, 3,
+        3)`` of the pairs ``(states[k], pairs[k])`` solved in closed form from the joint
+        placements (:func:`solve_closed_forms`); NaN distances for the others."""
+        solved = np.full(states.size, np.nan)
+        points = np.empty((states.size, 3, 3))
+        closed = self._closed
+        done = solve_closed_forms(
+            rot, trans, states, pairs, self._a, self._b, self._joint_of, *closed, solved, points
+        )
+        self.closed_form_count += int(np.count_nonzero(done))
+        return solved, points
+
     def _narrow_phase(
         self,
         qs: np.ndarray,
         states: np.ndarray,
         pairs: np.ndarray,
+        solved: np.ndarray,
+        points: np.ndarray,
         influence_m: float,
         placed: int,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The distance coal solves for each ``(states[k], pairs[k])`` (grouped by
-        configuration) ``(K,)``, the indices of those closer than ``influence_m`` (or
-        failed), and their witness points ``a``, ``b`` and coal's normal ``(k, 3, 3)``."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Coal's distance ``solved[k]`` and witness points ``a``, ``b`` and normal
+        ``points[k]`` for each ``(states[k], pairs[k])`` (grouped by configuration) not
+        yet solved (NaN); returns the indices of all those closer than ``influence_m`` (or
+        failed), and those pairs' points and normal ``(k, 3, 3)``.
+
+        A configuration's shapes are placed only where coal solves one of its pairs."""
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
         compute = pin.computeDistance
-        solved, hits, points = [], [], []
         last = placed
-        for m, (i, k) in enumerate(zip(states.tolist(), pairs.tolist(), strict=True)):
+        todo = np.flatnonzero(np.isnan(solved))
+        self.query_count += todo.size
+        for m, i, k in zip(todo.tolist(), states[todo].tolist(), pairs[todo].tolist(), strict=True):
             if i != last:
                 pin.forwardKinematics(model, data, qs[i])
                 pin.updateGeometryPlacements(model, data, gm, gd)
                 last = i
             res = compute(gm, gd, k)
-            d = res.min_distance
-            solved.append(d)
-            if d < influence_m:  # a failed query too: far below any distance
-                hits.append(m)
-                points.append((res.getNearestPoint1(), res.getNearestPoint2(), res.normal))
-        if not hits:
-            return np.array(solved), _EMPTY_INT, _EMPTY33
-        return np.array(solved), np.array(hits), np.array(points)
+            solved[m] = res.min_distance
+            points[m] = (res.getNearestPoint1(), res.getNearestPoint2(), res.normal)
+        hits = np.flatnonzero(solved < influence_m)  # a failed query too: far below any
+        if not hits.size:
+            return _EMPTY_INT, _EMPTY33
+        return hits, points[hits]
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians
