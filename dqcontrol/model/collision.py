@@ -645,10 +645,9 @@ class CollisionModel:
         solved = np.full(states.size, np.nan)
         points = np.empty((states.size, 3, 3))
         closed = self._closed
-        done = solve_closed_forms(
+        solve_closed_forms(
             rot, trans, states, pairs, self._a, self._b, self._joint_of, *closed, solved, points
         )
-        self.closed_form_count += int(np.count_nonzero(done))
         return solved, points
 
     def _narrow_phase(
@@ -672,6 +671,7 @@ class CollisionModel:
         last = placed
         todo = np.flatnonzero(np.isnan(solved))
         self.query_count += todo.size
+        self.closed_form_count += states.size - todo.size
         for m, i, k in zip(todo.tolist(), states[todo].tolist(), pairs[todo].tolist(), strict=True):
             if i != last:
                 pin.forwardKinematics(model, data, qs[i])

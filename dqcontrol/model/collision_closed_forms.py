@@ -54,6 +54,11 @@ _AXIS_M = math.sqrt(_CENTRES_M)
 #: A direction within this of a cylinder's axis (or of its plane) is taken as along it.
 _ALIGNED = 1e-12
 
+#: A point or a direction in the world ``(x, y, z)``.
+Vec = tuple[float, float, float]
+#: A pair's signed distance [m], witness points ``p_1``, ``p_2`` [m] and normal ``n``.
+Solution = tuple[float, Vec, Vec, Vec]
+
 
 class ClosedForms(NamedTuple):
     """The closed-form pairs of a geometry model.
@@ -117,213 +122,146 @@ def _place(
     trans: np.ndarray,
     local_rot: np.ndarray,
     local_trans: np.ndarray,
-    out_rot: np.ndarray,
-    out_trans: np.ndarray,
+    rots: np.ndarray,
+    transs: np.ndarray,
+    slot: int,
 ) -> None:
-    """A shape's world pose ``out_rot``, ``out_trans`` from its joint's ``rot``, ``trans``
-    and its pose in the joint's frame ``local_rot``, ``local_trans``."""
+    """A shape's world pose ``rots[slot]``, ``transs[slot]`` from its joint's ``rot``,
+    ``trans`` and its pose in the joint's frame ``local_rot``, ``local_trans``."""
+    lx, ly, lz = local_trans[0], local_trans[1], local_trans[2]
     for r in range(3):
-        acc = trans[r]
-        for m in range(3):
-            acc += rot[r, m] * local_trans[m]
-        out_trans[r] = acc
+        a0, a1, a2 = rot[r, 0], rot[r, 1], rot[r, 2]
+        transs[slot, r] = trans[r] + a0 * lx + a1 * ly + a2 * lz
         for c in range(3):
-            out_rot[r, c] = (
-                rot[r, 0] * local_rot[0, c]
-                + rot[r, 1] * local_rot[1, c]
-                + (rot[r, 2] * local_rot[2, c])
-            )
+            rots[slot, r, c] = a0 * local_rot[0, c] + a1 * local_rot[1, c] + a2 * local_rot[2, c]
 
 
 @compiled
-def _sphere_sphere(c1: np.ndarray, r1: float, c2: np.ndarray, r2: float, res: np.ndarray) -> float:
-    """Two balls: ``res`` rows ``p_1``, ``p_2``, ``n``; the signed distance [m]."""
-    dx, dy, dz = c2[0] - c1[0], c2[1] - c1[1], c2[2] - c1[2]
+def _sphere_sphere(transs: np.ndarray, r1: float, r2: float) -> Solution:
+    """Balls of centres ``transs[0]``, ``transs[1]`` and radii ``r1``, ``r2``."""
+    ax, ay, az = transs[0, 0], transs[0, 1], transs[0, 2]
+    bx, by, bz = transs[1, 0], transs[1, 1], transs[1, 2]
+    dx, dy, dz = bx - ax, by - ay, bz - az
     norm = math.sqrt(dx * dx + dy * dy + dz * dz)
     ux, uy, uz = 1.0, 0.0, 0.0
     if norm > _CENTRES_M:
         ux, uy, uz = dx / norm, dy / norm, dz / norm
-    res[2, 0], res[2, 1], res[2, 2] = ux, uy, uz
-    for r in range(3):
-        res[0, r] = c1[r] + r1 * res[2, r]
-        res[1, r] = c2[r] - r2 * res[2, r]
-    return norm - r1 - r2
+    p1 = (ax + r1 * ux, ay + r1 * uy, az + r1 * uz)
+    return norm - r1 - r2, p1, (bx - r2 * ux, by - r2 * uy, bz - r2 * uz), (ux, uy, uz)
 
 
 @compiled
 def _sphere_cylinder(
-    s: np.ndarray,
-    r1: float,
-    rot: np.ndarray,
-    centre: np.ndarray,
-    r2: float,
-    half: float,
-    res: np.ndarray,
-) -> float:
-    """A ball of centre ``s`` and radius ``r1``, a cylinder of axis ``rot[:, 2]`` through
-    ``centre``, radius ``r2`` and half-length ``half``: ``res`` rows ``p_1``, ``p_2``,
-    ``n`` (and a scratch row); the signed distance [m]."""
-    along = 0.0
-    for r in range(3):
-        along += rot[r, 2] * (s[r] - centre[r])
-    radial_v = res[3]  # the unit radial direction of the centre (zero on the axis)
-    for r in range(3):
-        radial_v[r] = s[r] - centre[r] - along * rot[r, 2]
-    radial = math.sqrt(radial_v[0] ** 2 + radial_v[1] ** 2 + radial_v[2] ** 2)
-    for r in range(3):
-        radial_v[r] = radial_v[r] / radial if radial > _AXIS_M else 0.0
+    rots: np.ndarray, transs: np.ndarray, r1: float, r2: float, half: float
+) -> Solution:
+    """A ball of centre ``transs[0]`` and radius ``r1``, a cylinder of axis ``rots[1][:,
+    2]`` through ``transs[1]``, radius ``r2`` and half-length ``half``."""
+    sx, sy, sz = transs[0, 0], transs[0, 1], transs[0, 2]
+    cx, cy, cz = transs[1, 0], transs[1, 1], transs[1, 2]
+    ux, uy, uz = rots[1, 0, 2], rots[1, 1, 2], rots[1, 2, 2]
+    along = ux * (sx - cx) + uy * (sy - cy) + uz * (sz - cz)
+    vx, vy, vz = sx - cx - along * ux, sy - cy - along * uy, sz - cz - along * uz
+    radial = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if radial > _AXIS_M:  # the centre's unit radial direction (zero on the axis)
+        vx, vy, vz = vx / radial, vy / radial, vz / radial
+    else:
+        vx, vy, vz = 0.0, 0.0, 0.0
     if -half < along <= half:  # beside the side: out radially
-        for r in range(3):
-            res[2, r] = -radial_v[r]
-            res[0, r] = s[r] - r1 * radial_v[r]
-            res[1, r] = centre[r] + along * rot[r, 2] + r2 * radial_v[r]
-        return radial - r1 - r2
+        p1 = (sx - r1 * vx, sy - r1 * vy, sz - r1 * vz)
+        ex, ey, ez = cx + along * ux, cy + along * uy, cz + along * uz
+        p2 = (ex + r2 * vx, ey + r2 * vy, ez + r2 * vz)
+        return radial - r1 - r2, p1, p2, (-vx, -vy, -vz)
     out = 1.0 if along > half else -1.0  # the cap's outward side along the axis
+    ex, ey, ez = cx + out * half * ux, cy + out * half * uy, cz + out * half * uz
     if radial <= r2:  # over the cap's disc
-        for r in range(3):
-            res[2, r] = -out * rot[r, 2]
-            res[0, r] = s[r] + r1 * res[2, r]
-            res[1, r] = centre[r] + out * half * rot[r, 2] + radial * radial_v[r]
-        return out * along - half - r1
-    for r in range(3):  # nearest to the rim
-        res[1, r] = centre[r] + out * half * rot[r, 2] + r2 * radial_v[r]
-    dist = math.sqrt((res[1, 0] - s[0]) ** 2 + (res[1, 1] - s[1]) ** 2 + (res[1, 2] - s[2]) ** 2)
-    if dist > _AXIS_M:
-        for r in range(3):
-            res[2, r] = (res[1, r] - s[r]) / dist
-    else:  # the centre on the rim: away from the cylinder's centre
-        norm = math.sqrt(
-            (res[1, 0] - centre[0]) ** 2
-            + (res[1, 1] - centre[1]) ** 2
-            + (res[1, 2] - centre[2]) ** 2
-        )
-        for r in range(3):
-            res[2, r] = (res[1, r] - centre[r]) / norm
-        dist = 0.0
-    for r in range(3):
-        res[0, r] = s[r] + r1 * res[2, r]
-    return dist - r1
+        nx, ny, nz = -out * ux, -out * uy, -out * uz
+        p1 = (sx + r1 * nx, sy + r1 * ny, sz + r1 * nz)
+        p2 = (ex + radial * vx, ey + radial * vy, ez + radial * vz)
+        return out * along - half - r1, p1, p2, (nx, ny, nz)
+    qx, qy, qz = ex + r2 * vx, ey + r2 * vy, ez + r2 * vz  # nearest to the rim
+    nx, ny, nz = qx - sx, qy - sy, qz - sz
+    dist = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if not dist > _AXIS_M:  # the centre on the rim: away from the cylinder's centre
+        nx, ny, nz, dist = qx - cx, qy - cy, qz - cz, 0.0
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+    nx, ny, nz = nx / norm, ny / norm, nz / norm
+    return dist - r1, (sx + r1 * nx, sy + r1 * ny, sz + r1 * nz), (qx, qy, qz), (nx, ny, nz)
 
 
 @compiled
-def _sphere_box(
-    s: np.ndarray, r1: float, rot: np.ndarray, centre: np.ndarray, half: np.ndarray, res: np.ndarray
-) -> float:
-    """A ball of centre ``s`` and radius ``r1``, a box of axes ``rot``, ``centre`` and half
-    sides ``half``: ``res`` rows ``p_1``, ``p_2``, ``n``; the signed distance [m]."""
-    outside, face, depth = False, -1, math.inf
-    for r in range(3):
-        res[1, r] = centre[r]
-    for i in range(3):
-        x = 0.0  # the centre's coordinate along the box's axis i
-        for r in range(3):
-            x += rot[r, i] * (s[r] - centre[r])
-        if x < -half[i] or x > half[i]:
-            x = half[i] if x > 0.0 else -half[i]
+def _sphere_box(rots: np.ndarray, transs: np.ndarray, r1: float, half: np.ndarray) -> Solution:
+    """A ball of centre ``transs[0]`` and radius ``r1``, the box of half sides ``half`` at
+    ``rots[1]``, ``transs[1]``."""
+    sx, sy, sz = transs[0, 0], transs[0, 1], transs[0, 2]
+    bx, by, bz = transs[1, 0], transs[1, 1], transs[1, 2]  # to the box's nearest point
+    outside, face, depth, side = False, 0, math.inf, 1.0
+    for k in range(3):
+        kx, ky, kz = rots[1, 0, k], rots[1, 1, k], rots[1, 2, k]
+        x = kx * (sx - transs[1, 0]) + ky * (sy - transs[1, 1]) + kz * (sz - transs[1, 2])
+        if x < -half[k] or x > half[k]:
+            x = half[k] if x > 0.0 else -half[k]
             outside = True
-        elif half[i] - abs(x) < depth:
-            face, depth = i, half[i] - abs(x)
-            res[3, 0] = 1.0 if x >= 0.0 else -1.0
-        for r in range(3):
-            res[1, r] += x * rot[r, i]
-    if outside:  # the box's point nearest to the centre
-        dist = math.sqrt(
-            (res[1, 0] - s[0]) ** 2 + (res[1, 1] - s[1]) ** 2 + (res[1, 2] - s[2]) ** 2
-        )
-        for r in range(3):
-            res[2, r] = (res[1, r] - s[r]) / dist
+        elif half[k] - abs(x) < depth:
+            face, depth, side = k, half[k] - abs(x), 1.0 if x >= 0.0 else -1.0
+        bx, by, bz = bx + x * kx, by + x * ky, bz + x * kz
+    if outside:  # towards the box's point nearest to the centre
+        nx, ny, nz = bx - sx, by - sy, bz - sz
+        dist = math.sqrt(nx * nx + ny * ny + nz * nz)
+        nx, ny, nz = nx / dist, ny / dist, nz / dist
         dist -= r1
     else:  # out through the nearest face
-        for r in range(3):
-            res[2, r] = -res[3, 0] * rot[r, face]
+        nx, ny, nz = -side * rots[1, 0, face], -side * rots[1, 1, face], -side * rots[1, 2, face]
         dist = -depth - r1
-    for r in range(3):
-        res[0, r] = s[r] + r1 * res[2, r]
-        if not outside or dist <= 0.0:
-            res[1, r] = res[0, r] + dist * res[2, r]
-    return dist
-
-
-@compiled
-def _support_halfspace(
-    point: np.ndarray, normal: np.ndarray, offset: float, res: np.ndarray
-) -> float:
-    """A shape whose deepest point along the half-space's outward ``normal`` is ``point``
-    (``{x : normalᵀx ≤ offset}`` in the world): ``res`` rows ``p_1``, ``p_2``, ``n``; the
-    signed distance [m]. ``point`` and ``normal`` may be rows ``1`` and ``3`` of ``res``:
-    each element is read before it is written."""
-    dist = normal[0] * point[0] + normal[1] * point[1] + normal[2] * point[2] - offset
-    for r in range(3):
-        res[0, r] = point[r]
-        res[1, r] = point[r] - dist * normal[r]
-        res[2, r] = -normal[r]
-    return dist
-
-
-@compiled
-def _world_halfspace(
-    rot: np.ndarray, trans: np.ndarray, size: np.ndarray, out: np.ndarray
-) -> float:
-    """A half-space's outward normal in the world ``out`` and its offset [m], from its
-    normal and offset ``size`` in its frame ``rot``, ``trans``."""
-    offset = size[3]
-    for r in range(3):
-        out[r] = rot[r, 0] * size[0] + rot[r, 1] * size[1] + rot[r, 2] * size[2]
-        offset += out[r] * trans[r]
-    return offset
+    ax, ay, az = sx + r1 * nx, sy + r1 * ny, sz + r1 * nz
+    if not outside or dist <= 0.0:
+        bx, by, bz = ax + dist * nx, ay + dist * ny, az + dist * nz
+    return dist, (ax, ay, az), (bx, by, bz), (nx, ny, nz)
 
 
 @compiled
 def _cylinder_support(
-    rot: np.ndarray, centre: np.ndarray, r: float, half: float, normal: np.ndarray, out: np.ndarray
-) -> None:
-    """The point ``out`` of a cylinder (axis ``rot[:, 2]``, ``centre``, radius ``r``,
-    half-length ``half``) furthest along ``-normal``: on the rim, or the disc's centre
-    where ``normal`` is along the axis, or the side's middle where it is across it."""
-    dx, dy, dz = 0.0, 0.0, 0.0  # -normal in the cylinder's frame
-    for m in range(3):
-        dx -= rot[m, 0] * normal[m]
-        dy -= rot[m, 1] * normal[m]
-        dz -= rot[m, 2] * normal[m]
+    rots: np.ndarray, transs: np.ndarray, r: float, half: float, nx: float, ny: float, nz: float
+) -> tuple[float, float, float]:
+    """The point of the cylinder at ``rots[0]``, ``transs[0]`` (radius ``r``, half-length
+    ``half``) furthest along ``-n``: on the rim, or the disc's centre where ``n`` is along
+    the axis, or the side's middle where it is across it."""
+    dx = -(rots[0, 0, 0] * nx + rots[0, 1, 0] * ny + rots[0, 2, 0] * nz)  # -n, shape's frame
+    dy = -(rots[0, 0, 1] * nx + rots[0, 1, 1] * ny + rots[0, 2, 1] * nz)
+    dz = -(rots[0, 0, 2] * nx + rots[0, 1, 2] * ny + rots[0, 2, 2] * nz)
     z = 0.0
     if dz > _ALIGNED:
         z = half
     elif dz < -_ALIGNED:
         z = -half
-    across = math.sqrt(dx * dx + dy * dy)
     x, y = 0.0, 0.0
     if abs(dx) > _ALIGNED or abs(dy) > _ALIGNED:
+        across = math.sqrt(dx * dx + dy * dy)
         x, y = r * dx / across, r * dy / across
-    for m in range(3):
-        out[m] = centre[m] + rot[m, 0] * x + rot[m, 1] * y + rot[m, 2] * z
+    px = transs[0, 0] + rots[0, 0, 0] * x + rots[0, 0, 1] * y + rots[0, 0, 2] * z
+    py = transs[0, 1] + rots[0, 1, 0] * x + rots[0, 1, 1] * y + rots[0, 1, 2] * z
+    pz = transs[0, 2] + rots[0, 2, 0] * x + rots[0, 2, 1] * y + rots[0, 2, 2] * z
+    return px, py, pz
 
 
 @compiled
-def _pair_distance(
-    kind: int,
-    rot1: np.ndarray,
-    trans1: np.ndarray,
-    size1: np.ndarray,
-    rot2: np.ndarray,
-    trans2: np.ndarray,
-    size2: np.ndarray,
-    res: np.ndarray,
-) -> float:
-    """The closed form ``kind`` of two placed shapes (the kind's first shape first):
-    ``res`` rows ``p_1``, ``p_2``, ``n``; the signed distance [m]."""
-    if kind == SPHERE_SPHERE:
-        return _sphere_sphere(trans1, size1[0], trans2, size2[0], res)
-    if kind == SPHERE_CYLINDER:
-        return _sphere_cylinder(trans1, size1[0], rot2, trans2, size2[0], size2[1], res)
-    if kind == SPHERE_BOX:
-        return _sphere_box(trans1, size1[0], rot2, trans2, size2[:3], res)
-    offset = _world_halfspace(rot2, trans2, size2, res[3])
+def _halfspace(
+    kind: int, rots: np.ndarray, transs: np.ndarray, size1: np.ndarray, plane: np.ndarray
+) -> Solution:
+    """A sphere or a cylinder (sizes ``size1``) against the half-space ``{x : nᵀx ≤ c}``
+    (``plane``: ``n``, ``c`` in its frame): the shape's point deepest along the outward
+    normal and its projection on the plane."""
+    nx = rots[1, 0, 0] * plane[0] + rots[1, 0, 1] * plane[1] + rots[1, 0, 2] * plane[2]
+    ny = rots[1, 1, 0] * plane[0] + rots[1, 1, 1] * plane[1] + rots[1, 1, 2] * plane[2]
+    nz = rots[1, 2, 0] * plane[0] + rots[1, 2, 1] * plane[1] + rots[1, 2, 2] * plane[2]
+    offset = plane[3] + nx * transs[1, 0] + ny * transs[1, 1] + nz * transs[1, 2]
     if kind == SPHERE_HALFSPACE:
-        for r in range(3):
-            res[1, r] = trans1[r] - size1[0] * res[3, r]
+        r = size1[0]
+        px, py, pz = transs[0, 0] - r * nx, transs[0, 1] - r * ny, transs[0, 2] - r * nz
     else:
-        _cylinder_support(rot1, trans1, size1[0], size1[1], res[3], res[1])
-    return _support_halfspace(res[1], res[3], offset, res)  # read before written, row by row
+        px, py, pz = _cylinder_support(rots, transs, size1[0], size1[1], nx, ny, nz)
+    dist = nx * px + ny * py + nz * pz - offset
+    p2 = (px - dist * nx, py - dist * ny, pz - dist * nz)
+    return dist, (px, py, pz), p2, (-nx, -ny, -nz)
 
 
 @compiled
@@ -342,28 +280,31 @@ def solve_closed_forms(
     size: np.ndarray,
     solved: np.ndarray,
     points: np.ndarray,
-) -> np.ndarray:
+) -> None:
     """Solve the closed-form pairs among ``(states[m], pairs[m])`` from the joint
     placements ``rot`` ``(N, njoints, 3, 3)``, ``trans`` ``(N, njoints, 3)``: their
     distance ``solved[m]`` [m] and witness points ``a``, ``b`` and normal ``points[m]``
-    ``(3, 3)``. Returns which were solved ``(K,)`` (the others are left for coal)."""
-    done = np.zeros(states.shape[0], dtype=np.bool_)
-    rot1, rot2 = np.empty((3, 3)), np.empty((3, 3))
-    trans1, trans2 = np.empty(3), np.empty(3)
-    res = np.empty((4, 3))
+    ``(3, 3)``; the others are left as they are (for coal)."""
+    rots, transs = np.empty((2, 3, 3)), np.empty((2, 3))
     for m in range(states.shape[0]):
         p, i = pairs[m], states[m]
-        if kind[p] == COAL:
+        k = kind[p]
+        if k == COAL:
             continue
         g1, g2 = (second[p], first[p]) if swapped[p] else (first[p], second[p])
         j1, j2 = joint_of[g1], joint_of[g2]
-        _place(rot[i, j1], trans[i, j1], local_rot[g1], local_trans[g1], rot1, trans1)
-        _place(rot[i, j2], trans[i, j2], local_rot[g2], local_trans[g2], rot2, trans2)
-        solved[m] = _pair_distance(kind[p], rot1, trans1, size[g1], rot2, trans2, size[g2], res)
-        sign = -1.0 if swapped[p] else 1.0
+        _place(rot[i, j1], trans[i, j1], local_rot[g1], local_trans[g1], rots, transs, 0)
+        _place(rot[i, j2], trans[i, j2], local_rot[g2], local_trans[g2], rots, transs, 1)
+        if k == SPHERE_SPHERE:
+            d, p1, p2, n = _sphere_sphere(transs, size[g1, 0], size[g2, 0])
+        elif k == SPHERE_CYLINDER:
+            d, p1, p2, n = _sphere_cylinder(rots, transs, size[g1, 0], size[g2, 0], size[g2, 1])
+        elif k == SPHERE_BOX:
+            d, p1, p2, n = _sphere_box(rots, transs, size[g1, 0], size[g2])
+        else:
+            d, p1, p2, n = _halfspace(k, rots, transs, size[g1], size[g2])
+        if swapped[p]:  # the kind's first shape is b
+            p1, p2, n = p2, p1, (-n[0], -n[1], -n[2])
+        solved[m] = d
         for r in range(3):
-            points[m, 0, r] = res[1, r] if swapped[p] else res[0, r]
-            points[m, 1, r] = res[0, r] if swapped[p] else res[1, r]
-            points[m, 2, r] = sign * res[2, r]
-        done[m] = True
-    return done
+            points[m, 0, r], points[m, 1, r], points[m, 2, r] = p1[r], p2[r], n[r]
