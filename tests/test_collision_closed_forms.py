@@ -53,12 +53,11 @@ def _both(geometry, data, place_a: pin.SE3, place_b: pin.SE3) -> tuple:
     table = closed_form_table(geometry, first, second)
     assert table.kind[0] != COAL
     eye = np.eye(3)[None, None]
-    solved, points = np.full(1, np.nan), np.zeros((1, 3, 3))
-    solve_closed_forms(
+    solved, points, todo = solve_closed_forms(
         eye, np.zeros((1, 1, 3)), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
-        first, second, np.zeros(2, dtype=np.int64), *table, solved, points,
+        first, second, np.zeros(2, dtype=np.int64), *table,
     )  # fmt: skip
-    assert np.isfinite(solved[0])
+    assert todo.size == 0
     return res.min_distance, want, solved[0], points[0]
 
 

@@ -73,9 +73,6 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 #: Largest accepted obstacle coordinate or size [m] (as for a URDF's origins).
 MAX_EXTENT_M = 1e4
 
-_EMPTY_INT = np.zeros(0, dtype=np.int64)
-_EMPTY33 = np.zeros((0, 3, 3))
-
 
 def _finite_vector(name: str, value, size: int) -> tuple[float, ...]:
     try:
@@ -617,15 +614,19 @@ class CollisionModel:
         if self._levers is not None:
             motion_gaps(qs, self._reference_q, self._reference_m, self._levers, gaps)
         states, pairs = np.nonzero(gaps < influence_m)
-        solved, points = self._closed_forms(rot, trans, states, pairs)
-        hits, close = self._narrow_phase(qs, states, pairs, solved, points, influence_m, placed)
+        solved, points, todo = solve_closed_forms(
+            rot, trans, states, pairs, self._a, self._b, self._joint_of, *self._closed
+        )
+        self.closed_form_count += states.size - todo.size
+        self._narrow_phase(qs, states, pairs, todo, solved, points, placed)
+        hits = np.flatnonzero(solved < influence_m)  # a failed query too: far below any
         return collect_pairs(
             qs,
             states,
             pairs,
             solved,
             hits,
-            close,
+            points,
             jac,
             self._support,
             self._joint_of,
@@ -636,42 +637,24 @@ class CollisionModel:
             self._levers is not None,
         )
 
-    def _closed_forms(
-        self, rot: np.ndarray, trans: np.ndarray, states: np.ndarray, pairs: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The distances ``(K,)`` and the witness points ``a``, ``b`` and normal ``(K, 3,
-        3)`` of the pairs ``(states[k], pairs[k])`` solved in closed form from the joint
-        placements (:func:`solve_closed_forms`); NaN distances for the others."""
-        solved = np.full(states.size, np.nan)
-        points = np.empty((states.size, 3, 3))
-        closed = self._closed
-        solve_closed_forms(
-            rot, trans, states, pairs, self._a, self._b, self._joint_of, *closed, solved, points
-        )
-        return solved, points
-
     def _narrow_phase(
         self,
         qs: np.ndarray,
         states: np.ndarray,
         pairs: np.ndarray,
+        todo: np.ndarray,
         solved: np.ndarray,
         points: np.ndarray,
-        influence_m: float,
         placed: int,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Coal's distance ``solved[k]`` and witness points ``a``, ``b`` and normal
-        ``points[k]`` for each ``(states[k], pairs[k])`` (grouped by configuration) not
-        yet solved (NaN); returns the indices of all those closer than ``influence_m`` (or
-        failed), and those pairs' points and normal ``(k, 3, 3)``.
-
-        A configuration's shapes are placed only where coal solves one of its pairs."""
+    ) -> None:
+        """Coal's distance ``solved[m]`` and witness points ``a``, ``b`` and normal
+        ``points[m]`` ``(3, 3)`` for each ``(states[m], pairs[m])``, ``m`` in ``todo``
+        (grouped by configuration). A configuration's shapes are placed only where coal
+        solves one of its pairs."""
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
         compute = pin.computeDistance
         last = placed
-        todo = np.flatnonzero(np.isnan(solved))
         self.query_count += todo.size
-        self.closed_form_count += states.size - todo.size
         for m, i, k in zip(todo.tolist(), states[todo].tolist(), pairs[todo].tolist(), strict=True):
             if i != last:
                 pin.forwardKinematics(model, data, qs[i])
@@ -680,10 +663,6 @@ class CollisionModel:
             res = compute(gm, gd, k)
             solved[m] = res.min_distance
             points[m] = (res.getNearestPoint1(), res.getNearestPoint2(), res.normal)
-        hits = np.flatnonzero(solved < influence_m)  # a failed query too: far below any
-        if not hits.size:
-            return _EMPTY_INT, _EMPTY33
-        return hits, points[hits]
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians

@@ -278,18 +278,22 @@ def solve_closed_forms(
     local_rot: np.ndarray,
     local_trans: np.ndarray,
     size: np.ndarray,
-    solved: np.ndarray,
-    points: np.ndarray,
-) -> None:
-    """Solve the closed-form pairs among ``(states[m], pairs[m])`` from the joint
-    placements ``rot`` ``(N, njoints, 3, 3)``, ``trans`` ``(N, njoints, 3)``: their
-    distance ``solved[m]`` [m] and witness points ``a``, ``b`` and normal ``points[m]``
-    ``(3, 3)``; the others are left as they are (for coal)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closed-form pairs among ``(states[m], pairs[m])`` solved from the joint
+    placements ``rot`` ``(N, njoints, 3, 3)``, ``trans`` ``(N, njoints, 3)``: distances
+    ``(K,)`` [m] and witness points ``a``, ``b`` and normal ``(K, 3, 3)``, NaN for the
+    others, and the indices ``m`` of those others (left for coal)."""
+    count = states.shape[0]
+    solved, points = np.full(count, np.nan), np.full((count, 3, 3), np.nan)
+    todo = np.empty(count, dtype=np.int64)
+    left = 0
     rots, transs = np.empty((2, 3, 3)), np.empty((2, 3))
-    for m in range(states.shape[0]):
+    for m in range(count):
         p, i = pairs[m], states[m]
         k = kind[p]
         if k == COAL:
+            todo[left] = m
+            left += 1
             continue
         g1, g2 = (second[p], first[p]) if swapped[p] else (first[p], second[p])
         j1, j2 = joint_of[g1], joint_of[g2]
@@ -308,3 +312,4 @@ def solve_closed_forms(
         solved[m] = d
         for r in range(3):
             points[m, 0, r], points[m, 1, r], points[m, 2, r] = p1[r], p2[r], n[r]
+    return solved, points, todo[:left]
