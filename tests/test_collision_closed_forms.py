@@ -3,15 +3,14 @@ model's queries with them against those with coal alone."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import coal
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from dqcontrol import load_lbr4p, load_panda
+from dqcontrol.cli.bench_cmd import load_bench
+from dqcontrol.controllers.limits.collision import CollisionLimit
 from dqcontrol.model import LBR4P_Q0, PANDA_Q0
 from dqcontrol.model.collision import Box, CollisionModel, HalfSpace, Sphere
 from dqcontrol.model.collision_closed_forms import (
@@ -174,10 +173,7 @@ def test_other_pairs_stay_on_coal():
 
 
 def _bench_cell(robot):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench import _cell_obstacles
-
-    return _cell_obstacles(robot)
+    return load_bench()._cell_obstacles(robot)
 
 
 def _walk(robot, q0, seed, steps=40, spread=0.05):
@@ -218,6 +214,37 @@ def test_the_bench_cell_queries_are_coal_only_queries():
     assert slow.closed_form_count == 0
     assert fast.closed_form_count > 2 * fast.query_count
     assert fast.query_count + fast.closed_form_count == slow.query_count
+
+
+def test_the_bench_run_is_the_coal_only_run():
+    """The benchmark's path-following run (p = 10) in its cell: every batch of predicted
+    states queried gives the same pairs, distances and gradients with coal alone."""
+    bench = load_bench()
+    robot = load_lbr4p()
+    obstacles = _bench_cell(robot)
+    fast = CollisionModel(robot, obstacles)
+    slow = CollisionModel(robot, obstacles, closed_forms=False)
+    query, gaps = fast.query_batch, []
+
+    def both(qs, influence_m):
+        got = query(qs, influence_m)
+        gaps.append(_same_batches(got, slow.query_batch(qs, influence_m)))
+        return got
+
+    fast.query_batch = both
+    shared = {
+        "velocity_limits": bench.THESIS_VEL,
+        "acceleration_limit": bench.THESIS_ACCELERATION_LIMIT,
+    }
+    ctrl = bench.build_controller(
+        "pf10", robot, bench.Circle(2.0), bench.PERIOD_S, shared=shared,
+        extra_limits=(CollisionLimit(fast),),
+    )  # fmt: skip
+    q = LBR4P_Q0.copy()
+    ctrl.reset(q)
+    for _ in range(150):
+        q = q + bench.PERIOD_S * ctrl.step(q).qd_command
+    assert len(gaps) >= 150 and fast.closed_form_count > 10 * fast.query_count
 
 
 def test_a_mesh_robot_stays_on_coal():
