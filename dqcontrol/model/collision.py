@@ -618,8 +618,8 @@ class CollisionModel:
             rot, trans, states, pairs, self._a, self._b, self._joint_of, *self._closed
         )
         self.closed_form_count += states.size - todo.size
-        self._narrow_phase(qs, states, pairs, todo, solved, points, placed)
-        hits = np.flatnonzero(solved < influence_m)  # a failed query too: far below any
+        self._narrow_phase(qs, states, pairs, todo, solved, points, influence_m, placed)
+        hits = np.flatnonzero(solved < influence_m)
         return collect_pairs(
             qs,
             states,
@@ -645,12 +645,13 @@ class CollisionModel:
         todo: np.ndarray,
         solved: np.ndarray,
         points: np.ndarray,
+        influence_m: float,
         placed: int,
     ) -> None:
-        """Coal's distance ``solved[m]`` and witness points ``a``, ``b`` and normal
-        ``points[m]`` ``(3, 3)`` for each ``(states[m], pairs[m])``, ``m`` in ``todo``
-        (grouped by configuration). A configuration's shapes are placed only where coal
-        solves one of its pairs."""
+        """Coal's distance ``solved[m]`` for each ``(states[m], pairs[m])``, ``m`` in
+        ``todo`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
+        ``points[m]`` ``(3, 3)`` where it is below ``influence_m``. A configuration's shapes
+        are placed only where coal solves one of its pairs."""
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
         compute = pin.computeDistance
         last = placed
@@ -661,8 +662,9 @@ class CollisionModel:
                 pin.updateGeometryPlacements(model, data, gm, gd)
                 last = i
             res = compute(gm, gd, k)
-            solved[m] = res.min_distance
-            points[m] = (res.getNearestPoint1(), res.getNearestPoint2(), res.normal)
+            solved[m] = d = res.min_distance
+            if d < influence_m:  # a failed query too: far below any distance
+                points[m] = (res.getNearestPoint1(), res.getNearestPoint2(), res.normal)
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians
