@@ -4,8 +4,11 @@ between them with their gradients (docs/theory.md §10.1).
 The robot's collision shapes are read from the same URDF as its kinematics, through
 Pinocchio's ``GeometryModel``; distances come from coal (the distance library that ships
 with Pinocchio). Meshes are replaced by their convex hulls (a conservative shape: the
-distance to the hull is at most the distance to the mesh), so that every pair is solved by
-GJK/EPA and the distance is continuous in ``q``.
+distance to the hull is at most the distance to the mesh), so that every pair is convex,
+solved by GJK/EPA, and the distance is continuous in ``q``. The pairs that have a closed
+form (a sphere against a sphere, a cylinder, a box or a half-space, a cylinder against a
+half-space) are solved without coal, with coal's results
+(:mod:`~dqcontrol.model.collision_closed_forms`).
 
 Obstacles are frozen values with units, fixed in the world: :class:`Sphere`, :class:`Box`,
 :class:`Capsule`, :class:`Cylinder` at a pose, and :class:`HalfSpace` (a table or floor).

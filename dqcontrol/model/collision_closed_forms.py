@@ -18,7 +18,10 @@ and ``p_b`` on ``b`` with ``p_b - p_a = d n``, unit normal ``n`` from ``a`` to `
 - sphere–box: the nearest point of the box; a centre inside leaves through the nearest face;
 - sphere or cylinder against a half-space: the shape's deepest point along the plane's
   normal (the disc's centre where the cylinder's axis is within ``1e-12`` of it, the middle
-  of the side where it is that close to the plane) and its projection on the plane.
+  of the side where it is that close to the plane) and its projection on the plane. In
+  those two cases coal's support point is further out by a relative ``1e-10`` (its
+  cylinder is inflated there, for GJK), so its distance is lower by at most ``1e-10``
+  times the half-length or the radius; here it is the exact one.
 
 A pair stored in the other order (the cylinder, box or half-space first) swaps the points
 and reverses the normal.
