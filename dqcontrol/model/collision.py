@@ -4,8 +4,11 @@ between them with their gradients (docs/theory.md §10.1).
 The robot's collision shapes are read from the same URDF as its kinematics, through
 Pinocchio's ``GeometryModel``; distances come from coal (the distance library that ships
 with Pinocchio). Meshes are replaced by their convex hulls (a conservative shape: the
-distance to the hull is at most the distance to the mesh), so that every pair is solved by
-GJK/EPA and the distance is continuous in ``q``.
+distance to the hull is at most the distance to the mesh), so that every pair is convex,
+solved by GJK/EPA, and the distance is continuous in ``q``. The pairs that have a closed
+form (a sphere against a sphere, a cylinder, a box or a half-space, a cylinder against a
+half-space) are solved without coal, with coal's results
+(:mod:`~dqcontrol.model.collision_closed_forms`).
 
 Obstacles are frozen values with units, fixed in the world: :class:`Sphere`, :class:`Box`,
 :class:`Capsule`, :class:`Cylinder` at a pose, and :class:`HalfSpace` (a table or floor).
@@ -41,6 +44,7 @@ import pinocchio as pin
 
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.collision_bounds import bounding_capsule, pair_levers, support_form
+from dqcontrol.model.collision_closed_forms import closed_form_table, solve_closed_forms
 from dqcontrol.model.collision_kernels import (
     FORM_SIZE,
     capsule_gaps,
@@ -71,9 +75,6 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 #: Largest accepted obstacle coordinate or size [m] (as for a URDF's origins).
 MAX_EXTENT_M = 1e4
-
-_EMPTY_INT = np.zeros(0, dtype=np.int64)
-_EMPTY33 = np.zeros((0, 3, 3))
 
 
 def _finite_vector(name: str, value, size: int) -> tuple[float, ...]:
@@ -371,6 +372,9 @@ class CollisionModel:
         self_collision: include pairs of the robot's own links.
         allowed_pairs: link pairs never checked, ``(link1, link2)`` (SRDF-style).
         srdf: an SRDF file (or its text) whose ``<disable_collisions>`` are also allowed.
+        closed_forms: solve the pairs that have a closed form (a sphere against a sphere, a
+            cylinder, a box or a half-space, a cylinder against a half-space) without coal
+            (:mod:`~dqcontrol.model.collision_closed_forms`; the same results).
 
     Attributes:
         geometry: Pinocchio's ``GeometryModel``: the robot's shapes (on their joints), then
@@ -394,6 +398,7 @@ class CollisionModel:
         self_collision: bool = True,
         allowed_pairs: tuple[tuple[str, str], ...] | list = (),
         srdf: str | os.PathLike | None = None,
+        closed_forms: bool = True,
     ) -> None:
         self.robot = robot
         self.model = robot.model
@@ -437,8 +442,13 @@ class CollisionModel:
         self._bounds()
         self._tables()
         self._references()
+        self._closed = closed_form_table(geometry, self._a, self._b)
+        if not closed_forms:
+            self._closed.kind[:] = 0
         #: distance queries made since construction (pairs solved by coal)
         self.query_count = 0
+        #: pairs solved in closed form since construction
+        self.closed_form_count = 0
 
     # ------------------------------------------------------------------ construction
     def _allowed(self, allowed_pairs, srdf) -> set[frozenset]:
@@ -600,15 +610,19 @@ class CollisionModel:
         pair.
 
         The capsules' lower bounds and the pairs' last solved distances choose the pairs
-        that coal solves; ``placed``: the configuration whose shapes are already placed in
-        :attr:`geometry_data`."""
+        solved, in closed form or by coal; ``placed``: the configuration whose shapes are
+        already placed in :attr:`geometry_data`."""
         rot, trans, jac = self._kinematics_batch(qs)
         gaps = self._gaps(rot, trans, influence_m)
         if self._levers is not None:
             motion_gaps(qs, self._reference_q, self._reference_m, self._levers, gaps)
         states, pairs = np.nonzero(gaps < influence_m)
-        self.query_count += states.size
-        solved, hits, points = self._narrow_phase(qs, states, pairs, influence_m, placed)
+        solved, points, todo = solve_closed_forms(
+            rot, trans, states, pairs, self._a, self._b, self._joint_of, *self._closed
+        )
+        self.closed_form_count += states.size - todo.size
+        self._narrow_phase(qs, states, pairs, todo, solved, points, influence_m, placed)
+        hits = np.flatnonzero(solved < influence_m)
         return collect_pairs(
             qs,
             states,
@@ -631,30 +645,29 @@ class CollisionModel:
         qs: np.ndarray,
         states: np.ndarray,
         pairs: np.ndarray,
+        todo: np.ndarray,
+        solved: np.ndarray,
+        points: np.ndarray,
         influence_m: float,
         placed: int,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The distance coal solves for each ``(states[k], pairs[k])`` (grouped by
-        configuration) ``(K,)``, the indices of those closer than ``influence_m`` (or
-        failed), and their witness points ``a``, ``b`` and coal's normal ``(k, 3, 3)``."""
+    ) -> None:
+        """Coal's distance ``solved[m]`` for each ``(states[m], pairs[m])``, ``m`` in
+        ``todo`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
+        ``points[m]`` ``(3, 3)`` where it is below ``influence_m``. A configuration's shapes
+        are placed only where coal solves one of its pairs."""
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
         compute = pin.computeDistance
-        solved, hits, points = [], [], []
         last = placed
-        for m, (i, k) in enumerate(zip(states.tolist(), pairs.tolist(), strict=True)):
+        self.query_count += todo.size
+        for m, i, k in zip(todo.tolist(), states[todo].tolist(), pairs[todo].tolist(), strict=True):
             if i != last:
                 pin.forwardKinematics(model, data, qs[i])
                 pin.updateGeometryPlacements(model, data, gm, gd)
                 last = i
             res = compute(gm, gd, k)
-            d = res.min_distance
-            solved.append(d)
+            solved[m] = d = res.min_distance
             if d < influence_m:  # a failed query too: far below any distance
-                hits.append(m)
-                points.append((res.getNearestPoint1(), res.getNearestPoint2(), res.normal))
-        if not hits:
-            return np.array(solved), _EMPTY_INT, _EMPTY33
-        return np.array(solved), np.array(hits), np.array(points)
+                points[m] = (res.getNearestPoint1(), res.getNearestPoint2(), res.normal)
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians

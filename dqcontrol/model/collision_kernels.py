@@ -339,8 +339,8 @@ def collect_pairs(
     remember: bool,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The pairs found close from the distances solved for ``(states[m], pairs[m])``
-    (``solved_m`` ``(K,)``; ``hits`` ``(k,)`` the close ones, with coal's witness points
-    ``a``, ``b`` and normal ``points`` ``(k, 3, 3)``): configuration, pair, distance,
+    (``solved_m`` ``(K,)``, witness points ``a``, ``b`` and normal ``points`` ``(K, 3, 3)``
+    in coal's conventions; ``hits`` ``(k,)`` the close ones): configuration, pair, distance,
     points (with the separation normal) and gradients ``(k, n)``.
 
     A failed query (below :data:`FAILED_DISTANCE_M`) is reported at ``-inf`` with NaN points
@@ -353,9 +353,10 @@ def collect_pairs(
     state = np.empty(count, dtype=np.int64)
     pair = np.empty(count, dtype=np.int64)
     distance = np.empty(count)
-    out = points.copy()
+    out = np.empty((count, 3, 3))
     for k in range(count):
         m = hits[k]
+        out[k] = points[m]
         state[k], pair[k] = states[m], pairs[m]
         d = solved_m[m]
         if not d > FAILED_DISTANCE_M:
