@@ -345,8 +345,8 @@ def _cell_obstacles(robot: RobotModel) -> tuple:
 
 def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
     """The collision limit's cost at ``period_s`` with three obstacles and self-collision:
-    pairs, pairs within the influence distance, rows and coal distance queries per step,
-    the limit's own time and the whole step, for the local controller and the
+    pairs, pairs within the influence distance, rows, coal distance queries and closed-form
+    distances per step, the limit's own time and the whole step, for the local controller and the
     path-following one (p = 10)."""
     from dqcontrol.controllers.limits.collision import CollisionLimit
     from dqcontrol.model.collision import CollisionModel
@@ -357,7 +357,8 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
     out: dict = {"pairs": len(model.pairs)}
     for name in ("local", "pf10"):
         limit = CollisionLimit(model)
-        rows, limit_times, influence, step_times_s, queries = [], [], [], [], []
+        rows, limit_times, influence, step_times_s = [], [], [], []
+        queries, closed = [], []
         timed_rows = limit.rows
 
         def rows_timed(ctx, _rows=timed_rows, _times=limit_times):
@@ -373,9 +374,10 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
         q = LBR4P_Q0.copy()
         ctrl.reset(q)
         for _ in range(steps):
-            before = model.query_count
+            before, before_closed = model.query_count, model.closed_form_count
             res = ctrl.step(q)
             queries.append(model.query_count - before)
+            closed.append(model.closed_form_count - before_closed)
             step_times_s.append(res.diagnostics.step_time_s)
             rows.append(limit.last_rows)
             influence.append(limit.pairs_in_influence)
@@ -391,6 +393,7 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
             "rows_mean": float(np.mean(rows)),
             "pairs_in_influence_mean": float(np.mean(influence)),
             "distance_queries_mean": float(np.mean(queries)),
+            "closed_form_distances_mean": float(np.mean(closed)),
         }
     return out
 
@@ -824,7 +827,8 @@ def _collision_lines(col: dict | None) -> list[str]:
         "",
         f"collision limit (three obstacles + self-collision, {col['pairs']} pairs) [µs]: "
         "step median (and without the limit), the limit's rows() median, rows, pairs "
-        "within the influence distance and distance queries (coal) per step",
+        "within the influence distance, distance queries (coal) and closed-form distances "
+        "per step",
     ]
     for name in ("local", "pf10"):
         v = col[name]
@@ -832,7 +836,8 @@ def _collision_lines(col: dict | None) -> list[str]:
             f"  {name}: step {v['step_median_us']:.0f} (without the limit "
             f"{v['step_without_limit_median_us']:.0f}), limit rows {v['limit_median_us']:.0f}, "
             f"{v['rows_mean']:.1f} rows, {v['pairs_in_influence_mean']:.1f} pairs, "
-            f"{v['distance_queries_mean']:.1f} queries"
+            f"{v['distance_queries_mean']:.1f} queries, "
+            f"{v['closed_form_distances_mean']:.1f} closed forms"
         )
     return lines
 
