@@ -49,7 +49,11 @@ from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.limits.torque import TorqueLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.limits.velocity import VelocityLimit
-from dqcontrol.controllers.path_following_kernels import applied_plan, tangent_mismatch
+from dqcontrol.controllers.path_following_kernels import (
+    applied_plan,
+    count_set,
+    tangent_mismatch,
+)
 from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
 from dqcontrol.controllers.prediction.base import Prediction
 from dqcontrol.controllers.prediction.consistent import (
@@ -488,13 +492,13 @@ class PathFollowingController(Controller):
         self._stalled_steps = 0 if moving else self._stalled_steps + 1
         x0 = self._memo.pose(q)
         xd0 = self._memo.target(self.trajectory, self.sigma)
-        if float(x0 @ xd0) < 0.0:
+        if float(x0.dot(xd0)) < 0.0:
             x0 = -x0
+        conflicts = tuple(np.flatnonzero(conflict).tolist()) if count_set(conflict) else ()
         diag = self._new_diag(
             status=result.solution.status, iterations=iterations, solve_time_s=solve_time,
             step_time_s=time.perf_counter() - start, fallback=fallback, relaxed=bool(relaxation),
-            conflict_joints=tuple(np.flatnonzero(conflict).tolist()) if conflict.any() else (),
-            message=message, linearisations=rounds,
+            conflict_joints=conflicts, message=message, linearisations=rounds,
         )  # fmt: skip
         return self._new_result(
             qd_command=qd_cmd.copy(), s=s_now, sigma=self.sigma,

@@ -12,7 +12,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["applied_plan", "tangent_mismatch"]
+__all__ = ["applied_plan", "count_set", "tangent_mismatch"]
 
 
 @compiled
@@ -75,3 +75,13 @@ def tangent_mismatch(
         if d > out:
             out = d
     return out
+
+
+@compiled
+def count_set(mask: np.ndarray) -> int:
+    """How many entries of the boolean ``mask`` are set."""
+    count = 0
+    for k in range(mask.shape[0]):
+        if mask[k]:
+            count += 1
+    return count

@@ -114,6 +114,7 @@ class ConsistentPrediction(PredictionModel):
         self.sigma_weights = np.tril(np.broadcast_to(durations, (p, p)))
         self.lag_s = float(lag_s)
         self.weights, self._v0_weights = _lag_weights(durations, self.lag_s)
+        self._first_weight = float(self.weights[0, 0])
         self._lagging = self.lag_s > 0.0  # the measured velocity enters the states
         self.qd_measured = np.zeros(num_joints)
         self._shift = shift_matrix(self.breaks, self.period_s)
@@ -143,7 +144,7 @@ class ConsistentPrediction(PredictionModel):
     def state_after_first(self, q: np.ndarray, qd_0: np.ndarray) -> np.ndarray:
         """``q_1`` after the first interval with the command ``qd_0`` [rad]."""
         start = q if not self._lagging else q + self._v0_weights[0] * self.qd_measured
-        return start + self.weights[0, 0] * qd_0
+        return start + self._first_weight * qd_0
 
     def predict(self, q: np.ndarray, sigma: float) -> Prediction:
         """The prediction linearised at the previous plan, shifted by one period."""
