@@ -90,3 +90,44 @@ def test_progress_rows_at_the_nominal_and_a_catching_up_reference():
         res = term.residual(ctx)
         assert np.array_equal(res.b, -scale * s_ref)
         assert np.array_equal(res.blocks[:, 0, 2], -scale)
+
+
+def test_posture_rows_pull_towards_the_reference():
+    from dqcontrol.controllers.terms.posture import PostureTerm
+
+    model, pred, rng = _prediction(8)
+    term = PostureTerm(model.layout, 2.5)
+    term.reference = rng.normal(size=pred.q_lin.shape[1])
+    for scale in (1.0, 0.0):
+        ctx = type("C", (), {"extras": {"posture_scale": scale}, "prediction": pred})()
+        res = term.residual(ctx)
+        expected = (2.5 * scale) * (term.reference - pred.q_lin)
+        assert np.array_equal(res.b, expected.ravel())
+
+
+def test_merged_bounds_of_scalars_lists_and_arrays_equal_numpys():
+    from dqcontrol.controllers.problem import Bounds, merge_bounds
+
+    layout = DecisionLayout(3, np.array([0.0, 0.1]), np.array([0.1, 0.2]))
+    rng = np.random.default_rng(6)
+    soft = (
+        Bounds("a", np.arange(8), -rng.uniform(1, 2, 8), rng.uniform(1, 2, 8)),
+        Bounds("b", [0, 1, 2], -0.5, 0.7),
+        Bounds("c", np.array([[3], [7]], dtype=np.int32), 0.0, np.array([1.0, 2.0])),
+    )
+    hard = Bounds("h", np.arange(3), np.array([-2.0, 0.8, -0.1]), np.array([2.0, 1.0, 0.1]),
+                  hard=True)  # fmt: skip
+    lo, up, conflict = merge_bounds(layout, (*soft, hard))
+    ref_lo, ref_up = np.full(8, -np.inf), np.full(8, np.inf)
+    for b in soft:
+        idx = np.asarray(b.index).ravel()
+        ref_lo[idx] = np.maximum(ref_lo[idx], b.lower)
+        ref_up[idx] = np.minimum(ref_up[idx], b.upper)
+    clash = np.array([False, True, False])  # [-0.5, 0.7] misses [0.8, 1]: its point 0.8
+    ref_lo[:3], ref_up[:3] = np.maximum(ref_lo[:3], hard.lower), np.minimum(ref_up[:3], hard.upper)
+    ref_lo[1] = ref_up[1] = 0.8
+    assert np.array_equal(lo, ref_lo) and np.array_equal(up, ref_up)
+    assert conflict.dtype == np.bool_ and np.array_equal(conflict, np.r_[clash, np.zeros(5, bool)])
+    lo[:] = 0.0  # the caller's arrays: the next merge starts open again
+    empty = merge_bounds(layout, ())
+    assert np.all(empty[0] == -np.inf) and np.all(empty[1] == np.inf) and not empty[2].any()

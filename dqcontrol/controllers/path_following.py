@@ -446,15 +446,13 @@ class PathFollowingController(Controller):
                 break
             z = result.solution.x
             assert z is not None, "a solved first level has its solution"
+            if not poor and self._mismatch(q, problem, z) < self.tuning.linearisation_tolerance_m:
+                break
             qd_plan, s_plan = self.layout.split(z)
             assert s_plan is not None, "path following always scales time"
-            if poor:
-                if (
-                    float(np.max(np.abs(qd_plan - pred.warm_qd)))
-                    < self.tuning.linearisation_tolerance
-                ):
-                    break
-            elif self._mismatch(q, problem, z) < self.tuning.linearisation_tolerance_m:
+            if poor and (
+                float(np.max(np.abs(qd_plan - pred.warm_qd))) < self.tuning.linearisation_tolerance
+            ):
                 break
             pred = model.at(q, self.sigma, qd_plan.copy(), np.clip(s_plan, 0.0, self.s_max))
         self._last = problem
