@@ -571,7 +571,8 @@ def merge_bounds(
 
     Returns ``(lower, upper, conflict)`` over the variables."""
     nv = layout.num_vars
-    lo, up = _open_box(nv).copy()
+    box = _open_box(nv).copy()
+    lo, up = box[0], box[1]
     for b in bounds:
         if not b.hard:
             index = _flat_index(b.index)
