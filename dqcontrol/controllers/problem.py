@@ -97,17 +97,17 @@ class DecisionLayout:
         object.__setattr__(self, "instants_s", tau)
         object.__setattr__(self, "durations_s", dur)
 
-    @property
+    @cached_property
     def num_blocks(self) -> int:
         """``p``: instants or intervals of the horizon."""
         return int(self.instants_s.size)
 
-    @property
+    @cached_property
     def block_size(self) -> int:
         """Variables per block: ``n + 1`` with scaling, ``n`` without."""
         return self.num_joints + (1 if self.with_scaling else 0)
 
-    @property
+    @cached_property
     def num_vars(self) -> int:
         """Length of ``z``."""
         return self.num_blocks * self.block_size
