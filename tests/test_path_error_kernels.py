@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dqcontrol.controllers.terms.path_error import (
-    _PROJECTOR_BASIS,
+    PROJECTOR_BASIS,
     PathErrorTerm,
     tangent_projectors,
 )
@@ -48,7 +48,7 @@ def test_path_rows_equal_the_numpy_formation(p, n, seed):
         np.tril(rng.uniform(size=(p, p))), np.tril(rng.uniform(size=(p, p))),
     )  # fmt: skip
     blocks, b = np.empty((p, 6, p, n + 1)), np.empty(6 * p)
-    path_rows_into(*args, _PROJECTOR_BASIS, blocks, b)
+    path_rows_into(*args, PROJECTOR_BASIS, blocks, b)
     a_ref, b_ref = _numpy_rows(*args)
     np.testing.assert_allclose(blocks.reshape(6 * p, -1), a_ref, rtol=1e-13, atol=1e-14)
     np.testing.assert_allclose(b, b_ref, rtol=1e-13, atol=1e-14)
@@ -62,7 +62,7 @@ def test_path_rows_on_strided_poses_equal_contiguous_ones():
     jac = wide[:, 8:].reshape(p, 8, n)
     rest = (rng.normal(size=(p, 8)), rng.normal(size=(p, 8)))
     tail = (np.zeros((p, n)), rng.normal(size=(p, n)), np.zeros(p), np.ones(p))
-    tail += (np.tril(np.ones((p, p))), np.tril(np.ones((p, p))), _PROJECTOR_BASIS)
+    tail += (np.tril(np.ones((p, p))), np.tril(np.ones((p, p))), PROJECTOR_BASIS)
     out = [(np.empty((p, 6, p, n + 1)), np.empty(6 * p)) for _ in range(2)]
     path_rows_into(x, *rest, jac, *tail, *out[0])
     path_rows_into(x.copy(), *rest, jac.copy(), *tail, *out[1])

@@ -8,7 +8,7 @@ import pytest
 
 from dqcontrol.controllers.kinematics_memo import KinematicsMemo
 from dqcontrol.controllers.path_following_kernels import applied_plan, tangent_mismatch
-from dqcontrol.controllers.terms.path_error import _PROJECTOR_BASIS, tangent_projectors
+from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, tangent_projectors
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.trajectories import Circle
 
@@ -38,10 +38,10 @@ def test_tangent_mismatch_is_the_largest_difference_of_the_errors(seed, flip):
     aligned = -x if float(x @ xd) < 0.0 else x
     true = tangent_projectors(aligned[None, :])[0] @ (aligned - xd)
     expected = np.max(np.abs(true - (rows[:6] @ z - b[:6])))
-    got = tangent_mismatch(x, xd, _PROJECTOR_BASIS, rows, b, z)
+    got = tangent_mismatch(x, xd, PROJECTOR_BASIS, rows, b, z)
     assert got == pytest.approx(expected, rel=1e-13, abs=1e-15)
     b[2] = np.nan
-    assert np.isnan(tangent_mismatch(x, xd, _PROJECTOR_BASIS, rows, b, z))
+    assert np.isnan(tangent_mismatch(x, xd, PROJECTOR_BASIS, rows, b, z))
 
 
 def test_the_memo_hands_back_the_last_steps_kinematics_once(lbr4p):

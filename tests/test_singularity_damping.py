@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.terms.path_error import _PROJECTOR_BASIS, tangent_projectors
+from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, tangent_projectors
 from dqcontrol.controllers.terms.singularity_damping import SingularityDampingTerm
 from dqcontrol.controllers.terms.singularity_kernels import clearly_regular
 
@@ -38,12 +38,12 @@ def test_the_cholesky_check_agrees_with_the_singular_values(n, ratio):
     values[-1] = ratio * eps
     x, jac = _pose_and_jacobian(rng, values, n)
     assert _sigma_min(x, jac) == pytest.approx(ratio * eps, rel=1e-9)
-    assert clearly_regular(x, jac, _PROJECTOR_BASIS, eps * eps * (1.0 + 1e-9)) == (ratio > 1.0)
+    assert clearly_regular(x, jac, PROJECTOR_BASIS, eps * eps * (1.0 + 1e-9)) == (ratio > 1.0)
 
 
 def test_nan_is_never_clear():
     x = np.full(8, np.nan)
-    assert not clearly_regular(x, np.ones((8, 7)), _PROJECTOR_BASIS, 1e-3)
+    assert not clearly_regular(x, np.ones((8, 7)), PROJECTOR_BASIS, 1e-3)
 
 
 @pytest.mark.parametrize("ratio", [0.0, 0.5, 0.9, 0.999, 1.001, 2.0])

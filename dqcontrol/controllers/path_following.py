@@ -63,7 +63,7 @@ from dqcontrol.controllers.prediction.consistent import (
 from dqcontrol.controllers.prediction.distance import max_abs_difference
 from dqcontrol.controllers.problem import Level, Limit, Problem, Term
 from dqcontrol.controllers.terms.damping import DampingTerm
-from dqcontrol.controllers.terms.path_error import _PROJECTOR_BASIS, PathErrorTerm
+from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, PathErrorTerm
 from dqcontrol.controllers.terms.posture import PostureTerm
 from dqcontrol.controllers.terms.progress import ProgressTerm
 from dqcontrol.controllers.terms.scaling_smoothness import ScalingSmoothnessTerm
@@ -423,7 +423,7 @@ class PathFollowingController(Controller):
         xd1 = self.trajectory.target(sigma1)
         self._memo.keep_pose(q1, x1)  # the next measured q, in a simulated loop
         self._memo.keep_target(self.trajectory, sigma1, xd1)
-        return tangent_mismatch(x1, xd1, _PROJECTOR_BASIS, path.dense(self.layout), path.b, z)
+        return tangent_mismatch(x1, xd1, PROJECTOR_BASIS, path.dense(self.layout), path.b, z)
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         with single_blas_thread():  # the dense levels' products and factorisations

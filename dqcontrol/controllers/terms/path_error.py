@@ -22,7 +22,7 @@ from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
 from dqcontrol.controllers.terms.path_error_kernels import path_rows_into, projectors_into
 from dqcontrol.dq.algebra import hamiplus8
 
-__all__ = ["PathErrorTerm", "tangent_projectors"]
+__all__ = ["PROJECTOR_BASIS", "PathErrorTerm", "tangent_projectors"]
 
 _PURE = np.array([1, 2, 3, 5, 6, 7])
 _CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
@@ -30,7 +30,7 @@ _CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 #: ``H+8`` is linear in its argument: ``H+8(x) = Σ_k x_k H+8(e_k)``; the pure rows of each
 #: ``H+8(e_k)`` with the conjugation folded in, ``(8, 6, 8)``.
-_PROJECTOR_BASIS = np.array([_CONJ[k] * hamiplus8(np.eye(8)[k])[_PURE] for k in range(8)])
+PROJECTOR_BASIS = np.array([_CONJ[k] * hamiplus8(np.eye(8)[k])[_PURE] for k in range(8)])
 
 
 def tangent_projectors(poses: np.ndarray) -> np.ndarray:
@@ -38,7 +38,7 @@ def tangent_projectors(poses: np.ndarray) -> np.ndarray:
     batch)."""
     poses = np.asarray(poses, dtype=float)
     out = np.empty((poses.shape[0], 6, 8))
-    projectors_into(poses, _PROJECTOR_BASIS, out)
+    projectors_into(poses, PROJECTOR_BASIS, out)
     return out
 
 
@@ -86,7 +86,7 @@ class PathErrorTerm(Term):
         path_rows_into(
             ctx.poses, ctx.targets, ctx.target_derivatives, ctx.jacobians,
             pred.q_base, pred.q_lin, pred.sigma_base, pred.sigma_lin,
-            pred.weights, pred.phase_weights, _PROJECTOR_BASIS, blocks, b,
+            pred.weights, pred.phase_weights, PROJECTOR_BASIS, blocks, b,
         )  # fmt: skip
         a = blocks.reshape(6 * p, p * m)
         return Residual(self.name, self.weight, b, A=a, row_weights=self._row_weights(layout))

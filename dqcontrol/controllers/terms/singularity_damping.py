@@ -23,7 +23,7 @@ import numpy as np
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
-from dqcontrol.controllers.terms.path_error import _PROJECTOR_BASIS, tangent_projectors
+from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, tangent_projectors
 from dqcontrol.controllers.terms.singularity_kernels import clearly_regular
 
 __all__ = ["SingularityDampingTerm"]
@@ -76,7 +76,7 @@ class SingularityDampingTerm(Term):
         if ctx is not self._ctx:  # the same term in several levels: one check per step
             self._ctx, self._sigma_min = ctx, None
             pose, jacobian = ctx.poses[0], ctx.jacobians[0]
-            if clearly_regular(pose, jacobian, _PROJECTOR_BASIS, self._clear_sq):
+            if clearly_regular(pose, jacobian, PROJECTOR_BASIS, self._clear_sq):
                 self.weight = 0.0
             else:
                 ratio = self.sigma_min / self.threshold
