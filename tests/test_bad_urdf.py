@@ -269,6 +269,8 @@ def test_dynamics_aware_limits_refuse_a_singular_mass_matrix():
     robot = load(_massless_robot())
     with pytest.raises(ParameterError, match="M_jj"):
         robot.acceleration_limits(LBR4P_Q0)
+    with pytest.raises(ParameterError, match="joint 'lbr4p_joint_1' moves no mass"):
+        robot.fast.acceleration_limits_batch(np.tile(LBR4P_Q0, (3, 1)), 1.0, 0.5, 50.0)
 
 
 # =========================================================================== numbers

@@ -190,3 +190,18 @@ def test_batch_check_after_the_cheaper_finiteness_test(lbr4p):
         qs[1, 4] = bad
         with pytest.raises(ConfigurationError, match="must be finite"):
             lbr4p.poses_and_jacobians(qs)
+
+
+def test_the_compiled_loops_equal_numpys_broadcasts():
+    from dqcontrol.model.chain_batch import outer_rows_into, positive_scalar_rows
+
+    rng = np.random.default_rng(12)
+    v = rng.normal(size=(5, 11))
+    k = np.empty((5, 4 * 7))
+    outer_rows_into(v, 4, k)
+    assert np.array_equal(k, (v[:, :4, None] * v[:, None, 4:]).reshape(5, -1))
+    out = rng.normal(size=(6, 9))
+    out[2, 0] = -0.0
+    expected = out * np.copysign(np.ones((1, 1)), out[:, :1])
+    positive_scalar_rows(out)
+    assert np.array_equal(out, expected) and np.all(np.signbit(out[:, 0]) == [0, 0, 0, 0, 0, 0])

@@ -51,3 +51,23 @@ def test_dense_of_frozen_blocks_is_read_only_and_equal():
     ref = Residual("r", 1.0, np.zeros(6), blocks=blocks.copy()).dense(layout)
     dense = Residual("r", 1.0, np.zeros(6), blocks=frozen(blocks)).dense(layout)
     assert np.array_equal(dense, ref) and not dense.flags.writeable
+
+
+def test_a_kept_product_is_not_given_for_another_array_at_the_same_address():
+    import weakref
+
+    from dqcontrol.controllers.gram import _KEPT
+
+    def double(*xs):
+        return 2.0 * xs[0]
+
+    gone = np.ones(3)
+    dead = weakref.ref(gone)
+    del gone
+    assert dead() is None
+    for operands in ((frozen(np.arange(3.0)),), (frozen(np.arange(3.0)), frozen(np.ones(2)))):
+        # an entry left by an array that lived at this address: its reference is dead
+        key = (double, (), *map(id, operands))
+        _KEPT[key] = ((dead,) * len(operands), frozen(np.full(3, 7.0)))
+        assert np.array_equal(kept(operands, double), [0.0, 2.0, 4.0])
+        assert kept(operands, double) is kept(operands, double)

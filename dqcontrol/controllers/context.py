@@ -7,14 +7,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dqcontrol._compiled import compiled
 from dqcontrol.controllers.problem import DecisionLayout
+from dqcontrol.controllers.terms.path_error_kernels import lane_dot
 
 if TYPE_CHECKING:  # pragma: no cover
     from dqcontrol.controllers.prediction.base import Prediction
     from dqcontrol.model.robot import RobotModel
     from dqcontrol.trajectories import Trajectory
 
-__all__ = ["StepContext"]
+__all__ = ["StepContext", "align_into", "aligned_kinematics"]
 
 
 @dataclass
@@ -58,10 +60,19 @@ def aligned_kinematics(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(poses, jacobians, targets, target_derivatives)`` at the linearisation states, each
     pose (and its Jacobian) negated where ``x · x_d < 0`` (docs/theory.md §1)."""
-    xs, jacs = robot.fast.poses_and_jacobians(q_lin)
+    xs, jacs = robot.fast.poses_and_jacobians(q_lin)  # fresh arrays: negated in place
     xd, dxd = trajectory.targets(sigma_lin)
-    flip = np.einsum("pk,pk->p", xs, xd) < 0.0
-    if flip.any():
-        xs = np.where(flip[:, None], -xs, xs)
-        jacs = np.where(flip[:, None, None], -jacs, jacs)
+    align_into(xs, jacs, xd)
     return xs, jacs, xd, dxd
+
+
+@compiled
+def align_into(poses: np.ndarray, jacobians: np.ndarray, targets: np.ndarray) -> None:
+    """Negate ``poses[i]`` and ``jacobians[i]`` in place where ``poses[i] · targets[i] < 0``
+    (the product summed as numpy's ``einsum`` sums it, :func:`lane_dot`)."""
+    for i in range(poses.shape[0]):
+        if lane_dot(poses[i], targets[i]) < 0.0:
+            for k in range(poses.shape[1]):
+                poses[i, k] = -poses[i, k]
+                for j in range(jacobians.shape[2]):
+                    jacobians[i, k, j] = -jacobians[i, k, j]

@@ -51,14 +51,20 @@ def kept(
     for a in operands:
         if a.flags.writeable:
             return compute(*operands, *params)
-    key = (compute, params, *map(id, operands))
-    entry = _KEPT.get(key)
-    if entry is not None:
-        for ref, a in zip(entry[0], operands, strict=True):
-            if ref() is not a:
-                break
-        else:
+    if len(operands) == 1:  # the common case, without the general loops
+        key: tuple = (compute, params, id(operands[0]))
+        entry = _KEPT.get(key)
+        if entry is not None and entry[0][0]() is operands[0]:
             return entry[1]
+    else:
+        key = (compute, params, *map(id, operands))
+        entry = _KEPT.get(key)
+        if entry is not None:
+            for ref, a in zip(entry[0], operands, strict=True):
+                if ref() is not a:
+                    break
+            else:
+                return entry[1]
     if len(_KEPT) >= _CAPACITY:  # the oldest entries go first
         for old in list(_KEPT)[: _CAPACITY // 2]:
             del _KEPT[old]

@@ -35,9 +35,11 @@ from dqcontrol.controllers.base import (
     acceleration_setting,
     check_position_margin,
     check_positive,
+    fast_constructor,
     per_joint,
 )
 from dqcontrol.controllers.context import StepContext, aligned_kinematics
+from dqcontrol.controllers.kinematics_memo import KinematicsMemo
 from dqcontrol.controllers.levels import LevelsResult, build_problem, solve_levels
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.applied_box import AppliedCommandBox
@@ -47,6 +49,11 @@ from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.limits.torque import TorqueLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.limits.velocity import VelocityLimit
+from dqcontrol.controllers.path_following_kernels import (
+    applied_plan,
+    count_set,
+    tangent_mismatch,
+)
 from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
 from dqcontrol.controllers.prediction.base import Prediction
 from dqcontrol.controllers.prediction.consistent import (
@@ -56,7 +63,7 @@ from dqcontrol.controllers.prediction.consistent import (
 from dqcontrol.controllers.prediction.distance import max_abs_difference
 from dqcontrol.controllers.problem import Level, Limit, Problem, Term
 from dqcontrol.controllers.terms.damping import DampingTerm
-from dqcontrol.controllers.terms.path_error import PathErrorTerm, tangent_projectors
+from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, PathErrorTerm
 from dqcontrol.controllers.terms.posture import PostureTerm
 from dqcontrol.controllers.terms.progress import ProgressTerm
 from dqcontrol.controllers.terms.scaling_smoothness import ScalingSmoothnessTerm
@@ -211,6 +218,14 @@ class PathFollowingController(Controller):
         self._cache: dict = {}
         self._a_max_key: tuple = (None, np.zeros((0, self.n)))
         self._last: Problem | None = None
+        self._memo = KinematicsMemo(robot)
+        slack_mrad = self.tuning.position_slack_rad * 1e3
+        self._messages = {k: v.format(slack_mrad) for k, v in _RELAXED_MESSAGES.items()}
+        self._new_diag = fast_constructor(StepDiagnostics, status="solved")
+        self._new_result = fast_constructor(
+            StepResult, qd_command=np.zeros(self.n), s=0.0, sigma=0.0, sigma_next=0.0,
+            pose=np.zeros(8), target=np.zeros(8), diagnostics=StepDiagnostics("solved"),
+        )  # fmt: skip
         self._reset_state()
 
     # ------------------------------------------------------------------ composition
@@ -336,6 +351,7 @@ class PathFollowingController(Controller):
         else:
             self.posture.reference = self.robot.check_q(ref, "posture_reference")
         self.backend.reset()
+        self._memo.clear()
         self._reset_state()
 
     # ------------------------------------------------------------------ one step
@@ -400,16 +416,14 @@ class PathFollowingController(Controller):
     def _mismatch(self, q: np.ndarray, problem: Problem, z: np.ndarray) -> float:
         """How far the linearised path error of the first predicted state is from the
         true one (tangent units: half-radians and half-metres)."""
-        n, layout = self.n, self.layout
         path = problem.levels[0].residuals[0]
-        linear = path.dense(layout)[:6] @ z - path.b[:6]
-        qd0, s0 = z[:n], float(z[n])
-        x1 = self.robot.fast.pose_and_jacobian(q + self.period_s * qd0)[0]
-        xd1 = self.trajectory.target(self.sigma + self.period_s * min(max(s0, 0.0), self.s_max))
-        if float(x1 @ xd1) < 0.0:
-            x1 = -x1
-        true = tangent_projectors(x1[None, :])[0] @ (x1 - xd1)
-        return max_abs_difference(true, linear)
+        q1 = q + self.period_s * z[: self.n]
+        sigma1 = self.sigma + self.period_s * min(max(float(z[self.n]), 0.0), self.s_max)
+        x1 = self.robot.fast.pose_and_jacobian(q1)[0]
+        xd1 = self.trajectory.target(sigma1)
+        self._memo.keep_pose(q1, x1)  # the next measured q, in a simulated loop
+        self._memo.keep_target(self.trajectory, sigma1, xd1)
+        return tangent_mismatch(x1, xd1, PROJECTOR_BASIS, path.dense(self.layout), path.b, z)
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         with single_blas_thread():  # the dense levels' products and factorisations
@@ -417,6 +431,7 @@ class PathFollowingController(Controller):
 
     def _planned_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
+        self._memo.advance()
         model = self.prediction_model
         model.qd_measured = self.qd_prev if qd is None else qd
         pred = model.predict(q, self.sigma)
@@ -431,34 +446,28 @@ class PathFollowingController(Controller):
                 break
             z = result.solution.x
             assert z is not None, "a solved first level has its solution"
+            if not poor and self._mismatch(q, problem, z) < self.tuning.linearisation_tolerance_m:
+                break
             qd_plan, s_plan = self.layout.split(z)
             assert s_plan is not None, "path following always scales time"
-            if poor:
-                if (
-                    float(np.max(np.abs(qd_plan - pred.warm_qd)))
-                    < self.tuning.linearisation_tolerance
-                ):
-                    break
-            elif self._mismatch(q, problem, z) < self.tuning.linearisation_tolerance_m:
+            if poor and (
+                float(np.max(np.abs(qd_plan - pred.warm_qd))) < self.tuning.linearisation_tolerance
+            ):
                 break
             pred = model.at(q, self.sigma, qd_plan.copy(), np.clip(s_plan, 0.0, self.s_max))
         self._last = problem
         return self._finish(q, problem, result, relaxation, start, iterations, solve_time, done)
 
     def _finish(self, q, problem, result, relaxation, start, iterations, solve_time, rounds):
-        n, layout = self.n, self.layout
+        n, model = self.n, self.prediction_model
         lo0, up0 = problem.lower[:n], problem.upper[:n]
-        conflict = tuple(np.flatnonzero(problem.conflict[:n]).tolist())
-        message = _RELAXED_MESSAGES[relaxation].format(self.tuning.position_slack_rad * 1e3)
+        conflict = problem.conflict[:n]
+        message = self._messages[relaxation]
         if result.failed_level != 0:
-            qd_plan, s_plan = layout.split(result.solution.x)
-            assert s_plan is not None, "path following always scales time"
-            qd_cmd = np.minimum(np.maximum(qd_plan[0], lo0), up0)
-            s_plan = np.minimum(np.maximum(s_plan, 0.0), self.s_max)
-            s_now = float(s_plan[0])
-            plan_qd = qd_plan.copy()
-            plan_qd[0] = qd_cmd
-            self.prediction_model.commit(plan_qd, s_plan)
+            plan_qd, plan_s = applied_plan(
+                result.solution.x, lo0, up0, self.s_max, self.layout.num_blocks
+            )
+            qd_cmd, s_now = plan_qd[0], float(plan_s[0])
             fallback = False
             if result.failed_level is not None:
                 message = f"level {result.failed_level + 1} failed; higher levels' optimum kept"
@@ -466,35 +475,33 @@ class PathFollowingController(Controller):
         else:
             qd_cmd = np.minimum(np.maximum(np.zeros(n), lo0), up0)
             s_now = 0.0
-            self.prediction_model.commit(
-                np.tile(qd_cmd, (layout.num_blocks, 1)), np.zeros(layout.num_blocks)
-            )
+            plan_qd = np.tile(qd_cmd, (self.layout.num_blocks, 1))
+            plan_s = np.zeros(self.layout.num_blocks)
             fallback = True
             message = (
                 f"QP failed ({result.solution.status}); safe fallback: brake within a_max, s = 0"
             )
             self._poor = True
-        model = self.prediction_model
+        model.commit(plan_qd, plan_s)  # a copy: the result keeps these arrays
         self._expected_q = model.state_after_first(q, qd_cmd)
         self._s_prev = s_now
         self._steps += 1
         moving = s_now >= STALL_SCALING or self.sigma == 0.0
         self._stalled_steps = 0 if moving else self._stalled_steps + 1
-        x0 = self.robot.fast.pose_and_jacobian(q)[0]
-        xd0 = self.trajectory.target(self.sigma)
-        if float(x0 @ xd0) < 0.0:
+        x0 = self._memo.pose(q)
+        xd0 = self._memo.target(self.trajectory, self.sigma)
+        if float(x0.dot(xd0)) < 0.0:
             x0 = -x0
-        diag = StepDiagnostics(
+        conflicts = tuple(np.flatnonzero(conflict).tolist()) if count_set(conflict) else ()
+        diag = self._new_diag(
             status=result.solution.status, iterations=iterations, solve_time_s=solve_time,
             step_time_s=time.perf_counter() - start, fallback=fallback, relaxed=bool(relaxation),
-            conflict_joints=conflict, message=message, linearisations=rounds,
+            conflict_joints=conflicts, message=message, linearisations=rounds,
         )  # fmt: skip
-        plan_qd, plan_s = self.prediction_model.plan_qd, self.prediction_model.plan_s
-        return StepResult(
-            qd_command=qd_cmd, s=s_now, sigma=self.sigma,
+        return self._new_result(
+            qd_command=qd_cmd.copy(), s=s_now, sigma=self.sigma,
             sigma_next=self.sigma + self.period_s * s_now,
-            pose=x0, target=xd0, diagnostics=diag,
-            horizon_qd=plan_qd.copy(), horizon_s=plan_s.copy(),
+            pose=x0, target=xd0, diagnostics=diag, horizon_qd=plan_qd, horizon_s=plan_s,
         )  # fmt: skip
 
     def last_problem(self) -> Problem:

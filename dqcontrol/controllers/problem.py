@@ -97,17 +97,17 @@ class DecisionLayout:
         object.__setattr__(self, "instants_s", tau)
         object.__setattr__(self, "durations_s", dur)
 
-    @property
+    @cached_property
     def num_blocks(self) -> int:
         """``p``: instants or intervals of the horizon."""
         return int(self.instants_s.size)
 
-    @property
+    @cached_property
     def block_size(self) -> int:
         """Variables per block: ``n + 1`` with scaling, ``n`` without."""
         return self.num_joints + (1 if self.with_scaling else 0)
 
-    @property
+    @cached_property
     def num_vars(self) -> int:
         """Length of ``z``."""
         return self.num_blocks * self.block_size
@@ -536,12 +536,31 @@ def _add_residual(
     subtract_scaled(c, a_w.T @ r.b, w2)
 
 
+_FLOAT = np.dtype(np.float64)
+_INDEX = np.dtype(np.int64)
+
+
 def _entries(values, index: np.ndarray) -> np.ndarray:
     """``values`` as one float per entry of ``index`` (a scalar is repeated)."""
+    if type(values) is np.ndarray and values.dtype is _FLOAT and values.shape == index.shape:
+        return values
     if isinstance(values, np.ndarray) and values.dtype == np.float64:
         if values.shape == index.shape:
             return values
     return np.broadcast_to(np.asarray(values, dtype=float), index.shape)
+
+
+def _flat_index(index) -> np.ndarray:
+    """``index`` as a flat ``int64`` array (itself when it is one)."""
+    if type(index) is np.ndarray and index.dtype is _INDEX and index.ndim == 1:
+        return index
+    return np.asarray(index, dtype=np.int64).ravel()
+
+
+@cache
+def _open_box(nv: int) -> np.ndarray:
+    """``[-inf; inf]`` ``(2, nv)`` (read-only: copied by :func:`merge_bounds`)."""
+    return frozen(np.array([np.full(nv, -np.inf), np.full(nv, np.inf)]))
 
 
 def merge_bounds(
@@ -552,19 +571,19 @@ def merge_bounds(
 
     Returns ``(lower, upper, conflict)`` over the variables."""
     nv = layout.num_vars
-    lo = np.full(nv, -np.inf)
-    up = np.full(nv, np.inf)
+    box = _open_box(nv).copy()
+    lo, up = box[0], box[1]
     for b in bounds:
         if not b.hard:
-            index = np.asarray(b.index, dtype=np.int64).ravel()
+            index = _flat_index(b.index)
             intersect_into(lo, up, index, _entries(b.lower, index), _entries(b.upper, index))
     conflict = np.zeros(nv, dtype=np.int8)
     for b in bounds:
         if b.hard:
-            index = np.asarray(b.index, dtype=np.int64).ravel()
+            index = _flat_index(b.index)
             lower, upper = _entries(b.lower, index), _entries(b.upper, index)
             hard_into(lo, up, conflict, index, lower, upper)
-    return lo, up, conflict.astype(bool)
+    return lo, up, conflict.view(np.bool_)
 
 
 def fixed_variables(layout: DecisionLayout, bounds: tuple[Bounds, ...]) -> np.ndarray:

@@ -10,8 +10,8 @@ Jacobian are therefore one constant matrix ``T`` times a basis of ``2^m`` produc
 The basis is built from two groups of joints (the first half ``A`` and the rest ``B``): in
 each group the products of half-angle cosines and sines are written as cosines and sines of
 signed sums of half-angles (product-to-sum), ``2^(g-1)`` phases per group of ``g`` joints.
-A batch of N configurations then costs a fixed handful of numpy calls, independent of N and
-of the number of joints::
+A batch of N configurations then costs a fixed handful of calls (numpy's products and sine,
+two compiled loops), independent of N and of the number of joints::
 
     phases = qs · E + offsets          (one matrix product, one addition)
     v      = sin(phases)               ([cos, sin] of every phase of both groups)
@@ -25,9 +25,12 @@ ones and any other joint type stay with Pinocchio.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
+from dqcontrol._compiled import compiled
 from dqcontrol.dq.algebra import dq_from_se3, dq_mul
 
 __all__ = ["MAX_JOINTS", "ChainBatch"]
@@ -35,8 +38,6 @@ __all__ = ["MAX_JOINTS", "ChainBatch"]
 #: Longest chain handled in closed form: ``T`` has ``2^m`` rows, and past 8 joints its
 #: product costs more than the per-configuration Pinocchio calls it replaces.
 MAX_JOINTS = 8
-
-_ONE = np.ones((1, 1))  # copysign with an array operand skips a scalar conversion
 
 _AXES = {
     "JointModelRX": (1.0, 0.0, 0.0),
@@ -131,11 +132,31 @@ class ChainBatch:
         v = qs.dot(self._e)
         v += self._offsets
         np.sin(v, out=v)
-        a = self._size_a
-        k = v[:, :a, None] * v[:, None, a:]
-        out = k.reshape(count, self._products).dot(self._t)
-        out *= np.copysign(_ONE, out[:, :1])  # r_w ≥ 0, Jacobian row flipped with x
+        k = np.empty((count, self._products))
+        outer_rows_into(v, self._size_a, k)
+        out = k.dot(self._t)
+        positive_scalar_rows(out)  # r_w ≥ 0, Jacobian row flipped with x
         return out[:, :8], out[:, 8:].reshape(count, 8, self.nq)
+
+
+@compiled
+def outer_rows_into(v: np.ndarray, split: int, out: np.ndarray) -> None:
+    """``out[i] = (v[i, :split] ⊗ v[i, split:]).ravel()`` for every row ``i``."""
+    rest = v.shape[1] - split
+    for i in range(v.shape[0]):
+        for a in range(split):
+            va = v[i, a]
+            for b in range(rest):
+                out[i, a * rest + b] = va * v[i, split + b]
+
+
+@compiled
+def positive_scalar_rows(out: np.ndarray) -> None:
+    """Multiply each row of ``out`` in place by ``copysign(1, its first entry)``."""
+    for i in range(out.shape[0]):
+        sign = math.copysign(1.0, out[i, 0])
+        for k in range(out.shape[1]):
+            out[i, k] *= sign
 
 
 def _revolute_chain(model: pin.Model, parent: int) -> tuple[list[int], list[np.ndarray]] | None:

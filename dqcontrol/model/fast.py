@@ -43,8 +43,7 @@ class UncheckedModel:
         self, qs: np.ndarray, effort_fraction: float, floor: float, cap: float
     ) -> np.ndarray:
         """:meth:`acceleration_limits` at each row of ``qs`` ``(N, n)``."""
-        robot = self._robot
-        return np.array([robot._acceleration_limits(qi, effort_fraction, floor, cap) for qi in qs])
+        return self._robot._acceleration_limits_batch(qs, effort_fraction, floor, cap)
 
     def mass_gravity(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(M(q) (n, n), g(q) (n,))`` [kg·m², N·m]."""

@@ -343,15 +343,43 @@ class RobotModel:
     def _acceleration_limits(
         self, q: np.ndarray, effort_fraction: float, floor: float, cap: float
     ) -> np.ndarray:
+        self._check_acceleration_settings(effort_fraction, floor, cap)
+        m = pin.crba(self.model, self.data, q)
+        g = pin.computeGeneralizedGravity(self.model, self.data, q)
+        diag = np.diagonal(m)
+        self._check_inertias(diag)
+        spare = effort_fraction * self.limits.effort_max - np.abs(g)
+        return np.clip(spare / diag, floor, cap)
+
+    def _acceleration_limits_batch(
+        self, qs: np.ndarray, effort_fraction: float, floor: float, cap: float
+    ) -> np.ndarray:
+        """:meth:`_acceleration_limits` at each row of ``qs``: one Pinocchio pass per row,
+        the arithmetic once for the batch (the same operations, entry by entry)."""
+        self._check_acceleration_settings(effort_fraction, floor, cap)
+        model, data = self.model, self.data
+        crba, gravity = pin.crba, pin.computeGeneralizedGravity
+        diag, g = np.empty(qs.shape), np.empty(qs.shape)
+        for i, qi in enumerate(qs):
+            diag[i] = np.diagonal(crba(model, data, qi))
+            g[i] = gravity(model, data, qi)
+        if not np.all(diag > 0.0):
+            for row in diag:  # the first configuration with a massless joint
+                self._check_inertias(row)
+        spare = effort_fraction * self.limits.effort_max - np.abs(g)
+        return np.clip(spare / diag, floor, cap)
+
+    @staticmethod
+    def _check_acceleration_settings(effort_fraction: float, floor: float, cap: float) -> None:
         if not 0.0 < effort_fraction <= 1.0:
             raise ParameterError(f"effort_fraction must be in (0, 1], got {effort_fraction}")
         if not 0.0 < floor <= cap:
             raise ParameterError(
                 f"need 0 < floor_rad_s2 ≤ cap_rad_s2 [rad/s²], got {floor} and {cap}"
             )
-        m = pin.crba(self.model, self.data, q)
-        g = pin.computeGeneralizedGravity(self.model, self.data, q)
-        diag = np.diagonal(m)
+
+    def _check_inertias(self, diag: np.ndarray) -> None:
+        """:class:`ParameterError` naming the first joint with ``M_jj ≤ 0`` (or NaN)."""
         if not np.all(diag > 0.0):
             j = int(np.flatnonzero(~(diag > 0.0))[0])
             name = self.joint_names[j] if len(self.joint_names) == diag.size else f"#{j}"
@@ -360,8 +388,6 @@ class RobotModel:
                 "dynamics-aware acceleration limits need the URDF's inertias; pass a constant "
                 "acceleration_limit [rad/s²] instead"
             )
-        spare = effort_fraction * self.limits.effort_max - np.abs(g)
-        return np.clip(spare / diag, floor, cap)
 
     def random_configurations(self, count: int, seed: int, margin_rad: float = 0.0) -> np.ndarray:
         """``count`` uniformly drawn configurations within the limits (shrunk by a margin).

@@ -63,6 +63,7 @@ class AccelerationLimit(Limit):
         self._step0 = np.zeros(n)
         self._dv_key: object = None
         self._dv = np.zeros(0)
+        self._neg_dv = np.zeros(0)
 
     def _first_step(self, ctx: StepContext) -> np.ndarray:
         """``T a_max,0`` [rad/s], cached while ``ctx.a_max`` and ``T`` stay the same."""
@@ -77,6 +78,7 @@ class AccelerationLimit(Limit):
         """``h_i a_max,i`` of every coupling row, cached while ``ctx.a_max`` is the same."""
         if ctx.a_max is not self._dv_key:
             self._dv = frozen((self.coupling_s[:, None] * ctx.a_max[1:]).ravel())
+            self._neg_dv = frozen(-self._dv)
             self._dv_key = ctx.a_max
         return self._dv
 
@@ -109,4 +111,4 @@ class AccelerationLimit(Limit):
         if self._c.shape[0] == 0:
             return (first,)
         dv = self._coupling(ctx)
-        return first, Inequality("acceleration_coupling", self._c, -dv, dv)
+        return first, Inequality("acceleration_coupling", self._c, self._neg_dv, dv)

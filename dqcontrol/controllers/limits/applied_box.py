@@ -12,6 +12,7 @@ import numpy as np
 
 from dqcontrol.controllers.bounds import braking_constants
 from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.joint_box import applied_box_into
 from dqcontrol.controllers.problem import Bounds, DecisionLayout, Limit
 
@@ -38,6 +39,8 @@ class AppliedCommandBox(Limit):
         self._brake_key: object = None
         self._brake = np.zeros((3, layout.num_joints))
         self._own = np.arange(layout.num_joints)  # entries of lo/up the kernel merges into
+        n = layout.num_joints
+        self._open = frozen(np.array([np.full(n, -np.inf), np.full(n, np.inf)]))
 
     def _braking(self, a_max: np.ndarray) -> np.ndarray:
         """``[a T; 2 a; (a T)²]`` of the first block (kept while ``a_max`` is the same)."""
@@ -48,8 +51,8 @@ class AppliedCommandBox(Limit):
 
     def rows(self, ctx: StepContext) -> Bounds:
         """The bounds of the applied block."""
-        n = self._index.size
-        lo, up = np.full(n, -np.inf), np.full(n, np.inf)
+        box = self._open.copy()  # [-inf; inf], narrowed by the kernel
+        lo, up = box[0], box[1]
         brake = self._braking(ctx.a_max)
         values = (self.q_min, self.q_max, self.qd_max)
         applied_box_into(ctx.q, *values, self.period_s, True, brake, self._own, lo, up)

@@ -42,3 +42,35 @@ def reachable_rows_into(
                 upper[count] = q_max[k] - q_base[i, k]
                 count += 1
     return count
+
+
+@compiled
+def states_and_terminal_into(
+    q_lin: np.ndarray,
+    q_base: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    reach: np.ndarray,
+    no_extra: np.ndarray,
+    terminal_extra: np.ndarray,
+    terminal: bool,
+    keep: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> tuple[int, int]:
+    """:func:`reachable_rows_into` of the ``p`` states (reach ``reach[i] + no_extra[k]``)
+    into ``keep[:p]`` and the start of ``lower``/``upper``, then, with ``terminal``, of the
+    last state again (reach ``reach[-1] + terminal_extra[k]``) into ``keep[p]`` and
+    ``lower``/``upper`` from ``p n`` on. Returns both counts (the second 0 without
+    ``terminal``)."""
+    p, n = q_lin.shape
+    count = reachable_rows_into(
+        q_lin, q_base, q_min, q_max, reach, no_extra, keep[:p], lower[: p * n], upper[: p * n]
+    )
+    if not terminal:
+        return count, 0
+    last = reachable_rows_into(
+        q_lin[p - 1 :], q_base[p - 1 :], q_min, q_max, reach[p - 1 :], terminal_extra,
+        keep[p:], lower[p * n :], upper[p * n :],
+    )  # fmt: skip
+    return count, last

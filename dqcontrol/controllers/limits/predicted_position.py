@@ -22,7 +22,7 @@ import numpy as np
 
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.limits.position_kernels import reachable_rows_into
+from dqcontrol.controllers.limits.position_kernels import states_and_terminal_into
 from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
 
 __all__ = ["PredictedPositionLimit"]
@@ -64,7 +64,7 @@ class PredictedPositionLimit(Limit):
         self._weights: np.ndarray | None = None
         self._c: np.ndarray | None = None
         self._terminal_key: tuple = (None, None)
-        self._terminal_rows: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
+        self._terminal_rows: tuple[np.ndarray, np.ndarray, np.ndarray] = (np.zeros(0),) * 3
         self._selections: dict[str, tuple[np.ndarray, bytes, np.ndarray]] = {}
         self._no_extra = np.zeros(layout.num_joints)  # the states' rows: the reach alone
 
@@ -94,9 +94,11 @@ class PredictedPositionLimit(Limit):
         assert self._c is not None, "cached with the weights"
         return self._c
 
-    def _terminal(self, c: np.ndarray, a_max: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(c, the terminal rows' matrix)``, ``c = qd_max / (2 a_max)`` at the last state
-        (kept while ``c`` and ``a_max`` are the same arrays)."""
+    def _terminal(
+        self, c: np.ndarray, a_max: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(c, the terminal rows' matrix, c qd_max)``, ``c = qd_max / (2 a_max)`` at the last
+        state (kept while ``c`` and ``a_max`` are the same arrays)."""
         key = self._terminal_key
         if key[0] is not c or key[1] is not a_max:
             n = self.layout.num_joints
@@ -104,7 +106,7 @@ class PredictedPositionLimit(Limit):
             last = c[-n:].copy()
             last[np.arange(n), self.layout.qd_index()[-1]] += coeff
             self._terminal_key = (c, a_max)
-            self._terminal_rows = (coeff, frozen(last))
+            self._terminal_rows = (coeff, frozen(last), coeff * self.qd_max)
         return self._terminal_rows
 
     def _selected(self, kind: str, c: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -132,33 +134,25 @@ class PredictedPositionLimit(Limit):
         return tuple(out)
 
     def _reachable_rows(self, ctx: StepContext, c: np.ndarray) -> tuple | None:
-        """The rows the states can reach (``reach_rad``) in one compiled pass each."""
+        """The rows the states can reach (``reach_rad``), and the terminal rows the last
+        state's braking can reach, in one compiled pass."""
         pred = ctx.prediction
-        q_lin, q_base = pred.q_lin, pred.q_base
+        q_lin = pred.q_lin
         p, n = q_lin.shape
         assert self.reach_rad is not None, "called with a reach"
-        reach = self.reach_rad[-p:]
-        keep = np.empty((p, n), dtype=np.bool_)
-        lower, upper = np.empty(p * n), np.empty(p * n)
-        bounds = (self.q_min, self.q_max)
-        count = reachable_rows_into(
-            q_lin, q_base, *bounds, reach, self._no_extra, keep, lower, upper
-        )
+        keep = np.empty((p + 1, n), dtype=np.bool_)
+        lower, upper = np.empty((p + 1) * n), np.empty((p + 1) * n)
+        extra = self._terminal(c, ctx.a_max)[2] if self.terminal else self._no_extra
+        count, last = states_and_terminal_into(
+            q_lin, pred.q_base, self.q_min, self.q_max, self.reach_rad[-p:], self._no_extra,
+            extra, self.terminal, keep, lower, upper,
+        )  # fmt: skip
         out = []
-        if count == p * n:
-            out.append(Inequality(self.name, self._selected("q", c, keep.ravel()), lower, upper))
-        elif count:
-            rows = self._selected("q", c, keep.ravel())
+        if count:
+            rows = self._selected("q", c, keep[:p].ravel())
             out.append(Inequality(self.name, rows, lower[:count], upper[:count]))
-        if self.terminal:
-            coeff, last = self._terminal(c, ctx.a_max)
-            near = np.empty((1, n), dtype=np.bool_)
-            lo, up = np.empty(n), np.empty(n)
-            extra = coeff * self.qd_max
-            count = reachable_rows_into(
-                q_lin[-1:], q_base[-1:], *bounds, reach[-1:], extra, near, lo, up
-            )
-            if count:
-                rows = self._selected("terminal", last, near.ravel())
-                out.append(Inequality("terminal_braking", rows, lo[:count], up[:count]))
+        if last:
+            rows = self._selected("terminal", self._terminal(c, ctx.a_max)[1], keep[p])
+            end = p * n + last
+            out.append(Inequality("terminal_braking", rows, lower[p * n : end], upper[p * n : end]))
         return tuple(out) or None

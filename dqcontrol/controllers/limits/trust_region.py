@@ -14,6 +14,8 @@ over several steps, or over several linearise-and-solve rounds of one step.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from dqcontrol._compiled import compiled
@@ -75,11 +77,23 @@ class TrustRegionLimit(Limit):
         """The rows that keep the predicted states near their linearisation points."""
         pred = ctx.prediction
         cq, cs = self._matrices(pred.weights, pred.phase_weights)
+        joints, phase = math.isfinite(self.radius_rad), math.isfinite(self.radius_phase_s)
+        if joints and phase:
+            nq, p = self._radii_q.shape[0], self._radii_phase.shape[0]
+            lower, upper = np.empty(nq + p), np.empty(nq + p)
+            bands_into(
+                pred.q_lin, pred.q_base, self._radii_q, pred.sigma_lin, pred.sigma_base,
+                self._radii_phase, lower, upper,
+            )  # fmt: skip
+            return (
+                Inequality("trust_region_q", cq, lower[:nq], upper[:nq]),
+                Inequality("trust_region_phase", cs, lower[nq:], upper[nq:]),
+            )
         out = []
-        if np.isfinite(self.radius_rad):
+        if joints:
             lower, upper = _band(pred.q_lin.ravel(), pred.q_base.ravel(), self._radii_q)
             out.append(Inequality("trust_region_q", cq, lower, upper))
-        if np.isfinite(self.radius_phase_s):
+        if phase:
             lower, upper = _band(pred.sigma_lin, pred.sigma_base, self._radii_phase)
             out.append(Inequality("trust_region_phase", cs, lower, upper))
         return tuple(out)
@@ -101,3 +115,28 @@ def band_into(
         centre = point[k] - base[k]
         lower[k] = centre - radius[k]
         upper[k] = centre + radius[k]
+
+
+@compiled
+def bands_into(
+    q_point: np.ndarray,
+    q_base: np.ndarray,
+    q_radius: np.ndarray,
+    s_point: np.ndarray,
+    s_base: np.ndarray,
+    s_radius: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> None:
+    """:func:`band_into` of the joints (``(p, n)`` states, row by row) into the first
+    ``p n`` entries of ``lower``/``upper``, then of the phases ``(p,)`` into the rest."""
+    p, n = q_point.shape
+    for i in range(p):
+        for k in range(n):
+            centre = q_point[i, k] - q_base[i, k]
+            lower[i * n + k] = centre - q_radius[i * n + k]
+            upper[i * n + k] = centre + q_radius[i * n + k]
+    for i in range(s_point.shape[0]):
+        centre = s_point[i] - s_base[i]
+        lower[p * n + i] = centre - s_radius[i]
+        upper[p * n + i] = centre + s_radius[i]

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
+from dqcontrol.controllers.prediction.consistent_kernels import clip_into, states_into
 from dqcontrol.controllers.problem import DecisionLayout
 from dqcontrol.errors import ParameterError
 
@@ -113,6 +114,7 @@ class ConsistentPrediction(PredictionModel):
         self.sigma_weights = np.tril(np.broadcast_to(durations, (p, p)))
         self.lag_s = float(lag_s)
         self.weights, self._v0_weights = _lag_weights(durations, self.lag_s)
+        self._first_weight = float(self.weights[0, 0])
         self._lagging = self.lag_s > 0.0  # the measured velocity enters the states
         self.qd_measured = np.zeros(num_joints)
         self._shift = shift_matrix(self.breaks, self.period_s)
@@ -127,36 +129,28 @@ class ConsistentPrediction(PredictionModel):
 
     def at(self, q: np.ndarray, sigma: float, qd_lin: np.ndarray, s_lin: np.ndarray) -> Prediction:
         """The prediction linearised at the decision ``(qd_lin, s_lin)``."""
-        base = self._base(q)
-        q_lin = base + self.weights @ qd_lin
-        sigma_lin = sigma + self.sigma_weights @ s_lin
+        p, n = self.weights.shape[0], self.qd_measured.shape[0]
+        q_lin = self.weights @ qd_lin  # the states once the zero decision's are added
+        sigma_lin = self.sigma_weights @ s_lin
+        base, sigma_base = np.empty((p, n)), np.empty(p)
+        sigma = float(sigma)
+        measured = self.qd_measured
+        lag = self._lagging
+        states_into(q, self._v0_weights, measured, lag, sigma, q_lin, sigma_lin, base, sigma_base)
         return Prediction(
-            q_lin,
-            sigma_lin,
-            base,
-            np.full(self.layout.num_blocks, float(sigma)),
-            self.weights,
-            qd_lin,
-            s_lin,
-            self.sigma_weights,
+            q_lin, sigma_lin, base, sigma_base, self.weights, qd_lin, s_lin, self.sigma_weights
         )
-
-    def _base(self, q: np.ndarray) -> np.ndarray:
-        """The states with a zero decision ``(p, n)``: ``q`` plus the measured velocity's
-        share behind a lagging velocity loop."""
-        if not self._lagging:
-            return np.repeat(q[None, :], self.layout.num_blocks, axis=0)
-        return q + self._v0_weights[:, None] * self.qd_measured
 
     def state_after_first(self, q: np.ndarray, qd_0: np.ndarray) -> np.ndarray:
         """``q_1`` after the first interval with the command ``qd_0`` [rad]."""
         start = q if not self._lagging else q + self._v0_weights[0] * self.qd_measured
-        return start + self.weights[0, 0] * qd_0
+        return start + self._first_weight * qd_0
 
     def predict(self, q: np.ndarray, sigma: float) -> Prediction:
         """The prediction linearised at the previous plan, shifted by one period."""
         qd_lin = self._shift @ self.plan_qd
-        s_lin = np.minimum(np.maximum(self._shift @ self.plan_s, 0.0), self.s_max)
+        s_lin = self._shift @ self.plan_s
+        clip_into(s_lin, 0.0, self.s_max)
         return self.at(q, sigma, qd_lin, s_lin)
 
     def commit(self, qd: np.ndarray, s: np.ndarray) -> None:

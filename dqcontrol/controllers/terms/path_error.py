@@ -19,10 +19,10 @@ import numpy as np
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
-from dqcontrol.controllers.terms.path_error_kernels import fill_path_rows, projectors_into
+from dqcontrol.controllers.terms.path_error_kernels import path_rows_into, projectors_into
 from dqcontrol.dq.algebra import hamiplus8
 
-__all__ = ["PathErrorTerm", "tangent_projectors"]
+__all__ = ["PROJECTOR_BASIS", "PathErrorTerm", "tangent_projectors"]
 
 _PURE = np.array([1, 2, 3, 5, 6, 7])
 _CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
@@ -30,7 +30,7 @@ _CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 #: ``H+8`` is linear in its argument: ``H+8(x) = Σ_k x_k H+8(e_k)``; the pure rows of each
 #: ``H+8(e_k)`` with the conjugation folded in, ``(8, 6, 8)``.
-_PROJECTOR_BASIS = np.array([_CONJ[k] * hamiplus8(np.eye(8)[k])[_PURE] for k in range(8)])
+PROJECTOR_BASIS = np.array([_CONJ[k] * hamiplus8(np.eye(8)[k])[_PURE] for k in range(8)])
 
 
 def tangent_projectors(poses: np.ndarray) -> np.ndarray:
@@ -38,7 +38,7 @@ def tangent_projectors(poses: np.ndarray) -> np.ndarray:
     batch)."""
     poses = np.asarray(poses, dtype=float)
     out = np.empty((poses.shape[0], 6, 8))
-    projectors_into(poses, _PROJECTOR_BASIS, out)
+    projectors_into(poses, PROJECTOR_BASIS, out)
     return out
 
 
@@ -79,16 +79,14 @@ class PathErrorTerm(Term):
         """The linearised tangent errors of the predicted states, weighted by their time."""
         pred = ctx.prediction
         layout = ctx.layout
-        p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
-        proj = tangent_projectors(ctx.poses)  # E_i (p, 6, 8)
-        pd = np.einsum("pab,pb->pa", proj, ctx.target_derivatives)  # E_i x_d' (p, 6)
+        p, m = layout.num_blocks, layout.block_size
         # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -sigma_weights[i, j] E_i x_d' on s_j
-        pj = np.empty((p, 6, n))  # E_i J_i
         blocks = np.empty((p, 6, p, m))
-        fill_path_rows(proj, ctx.jacobians, pred.weights, pred.phase_weights, pd, pj, blocks)
+        b = np.empty(6 * p)
+        path_rows_into(
+            ctx.poses, ctx.targets, ctx.target_derivatives, ctx.jacobians,
+            pred.q_base, pred.q_lin, pred.sigma_base, pred.sigma_lin,
+            pred.weights, pred.phase_weights, PROJECTOR_BASIS, blocks, b,
+        )  # fmt: skip
         a = blocks.reshape(6 * p, p * m)
-        gap = np.einsum("pab,pb->pa", proj, ctx.poses - ctx.targets)
-        gap += np.einsum("pan,pn->pa", pj, pred.q_base - pred.q_lin)
-        gap -= pd * (pred.sigma_base - pred.sigma_lin)[:, None]
-        row_weights = self._row_weights(layout)
-        return Residual(self.name, self.weight, -gap.ravel(), A=a, row_weights=row_weights)
+        return Residual(self.name, self.weight, b, A=a, row_weights=self._row_weights(layout))

@@ -1,8 +1,10 @@
 """The compiled loops of the path error's rows (:mod:`.path_error`).
 
-Each sum runs over its index in increasing order from ``0.0``, the order of numpy's
-``einsum`` for these contractions (the results are the same, bit for bit); the products
-that fill the rows are single multiplications.
+The sums over the projector basis run in increasing order from ``0.0``. The contractions
+of the residual's ``b`` over a contiguous axis (``E_i x_d'``, ``E_i (x̄_i - x_d)``,
+``E_i J_i (q_base - q̄)``) are summed as numpy's ``einsum`` sums them (:func:`lane_dot`),
+so the rows are those of the numpy formation, bit for bit; the products that fill the
+rows are single multiplications.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["fill_path_rows", "projectors_into"]
+__all__ = ["lane_dot", "path_rows_into", "projectors_into"]
 
 
 @compiled
@@ -28,30 +30,78 @@ def projectors_into(poses: np.ndarray, basis: np.ndarray, out: np.ndarray) -> No
 
 
 @compiled
-def fill_path_rows(
-    proj: np.ndarray,
+def lane_dot(x: np.ndarray, y: np.ndarray) -> float:
+    """``Σ_k x[k] y[k]`` in the order of numpy's ``einsum`` over a contiguous axis: two
+    running sums (even and odd ``k``), each block of eight taken from its last pair to its
+    first, the rest pair by pair (a missing odd entry adds ``0 · 0``), the two sums added
+    last."""
+    n = x.shape[0]
+    even, odd = 0.0, 0.0
+    k = 0
+    while n - k >= 8:
+        for j in range(3, -1, -1):
+            even = x[k + 2 * j] * y[k + 2 * j] + even
+            odd = x[k + 2 * j + 1] * y[k + 2 * j + 1] + odd
+        k += 8
+    while k < n:
+        even = x[k] * y[k] + even
+        odd = (x[k + 1] * y[k + 1] if k + 1 < n else 0.0 * 0.0) + odd
+        k += 2
+    return even + odd
+
+
+@compiled
+def path_rows_into(
+    poses: np.ndarray,
+    targets: np.ndarray,
+    target_derivatives: np.ndarray,
     jacobians: np.ndarray,
+    q_base: np.ndarray,
+    q_lin: np.ndarray,
+    sigma_base: np.ndarray,
+    sigma_lin: np.ndarray,
     weights: np.ndarray,
     phase_weights: np.ndarray,
-    pd: np.ndarray,
-    pj: np.ndarray,
+    basis: np.ndarray,
     rows: np.ndarray,
+    b: np.ndarray,
 ) -> None:
-    """``pj[i] = E_i J_i`` ``(p, 6, n)`` and the rows ``(p, 6, p, n + 1)``: block ``(i, j)``
-    holds ``weights[i, j] E_i J_i`` on ``qd_j`` and ``-phase_weights[i, j] E_i x_d'`` on
-    ``s_j`` (``pd[i] = E_i x_d'``)."""
-    p, r, k = proj.shape
-    n = jacobians.shape[2]
+    """The rows ``(p, 6, p, n + 1)`` and ``b`` ``(6 p,)`` of the linearised path error.
+
+    With ``E_i = Σ_k poses[i, k] basis[k]`` ``(6, 8)``: block ``(i, j)`` of the rows holds
+    ``weights[i, j] E_i J_i`` on ``qd_j`` and ``-phase_weights[i, j] E_i x_d'_i`` on ``s_j``,
+    and ``b_i = -(E_i (x̄_i - x_d,i) + E_i J_i (q_base_i - q̄_i) - E_i x_d'_i (σ_base,i - σ̄_i))``
+    (``q_base``, ``σ_base``: the states of the zero decision; ``q̄``, ``σ̄``: the
+    linearisation point ``q_lin``, ``sigma_lin``)."""
+    p, n = jacobians.shape[0], jacobians.shape[2]
+    r, k = basis.shape[1], basis.shape[2]
+    proj = np.empty((r, k))
+    pj = np.empty((r, n))
+    gap = np.empty(k)
+    dq = np.empty(n)
     for i in range(p):
+        for a in range(r):
+            for c in range(k):
+                s = 0.0
+                for e in range(basis.shape[0]):
+                    s += poses[i, e] * basis[e, a, c]
+                proj[a, c] = s
+        for c in range(k):
+            gap[c] = poses[i, c] - targets[i, c]
+        for c in range(n):
+            dq[c] = q_base[i, c] - q_lin[i, c]
+        ds = sigma_base[i] - sigma_lin[i]
         for a in range(r):
             for c in range(n):
                 s = 0.0
-                for b in range(k):
-                    s += proj[i, a, b] * jacobians[i, b, c]
-                pj[i, a, c] = s
-        for a in range(r):
+                for e in range(k):
+                    s += proj[a, e] * jacobians[i, e, c]
+                pj[a, c] = s
+            pd = lane_dot(proj[a], target_derivatives[i])
+            value = lane_dot(proj[a], gap) + lane_dot(pj[a], dq)
+            b[i * r + a] = -(value - pd * ds)
             for j in range(p):
                 w = weights[i, j]
                 for c in range(n):
-                    rows[i, a, j, c] = w * pj[i, a, c]
-                rows[i, a, j, n] = -phase_weights[i, j] * pd[i, a]
+                    rows[i, a, j, c] = w * pj[a, c]
+                rows[i, a, j, n] = -phase_weights[i, j] * pd

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dqcontrol._compiled import compiled
 from dqcontrol.controllers.base import check_positive
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
@@ -45,5 +46,16 @@ class PostureTerm(Term):
         """The rows that pull the predicted states towards the posture."""
         ref = ctx.q if self.reference is None else self.reference
         gain = self.gain_per_s * float(ctx.extras.get("posture_scale", 1.0))
-        b = gain * (ref - ctx.prediction.q_lin)
-        return Residual(self.name, self.weight, b.ravel(), blocks=self._blocks)
+        q_lin = ctx.prediction.q_lin
+        b = np.empty(q_lin.size)
+        pull_into(ref, q_lin, gain, b)
+        return Residual(self.name, self.weight, b, blocks=self._blocks)
+
+
+@compiled
+def pull_into(reference: np.ndarray, states: np.ndarray, gain: float, out: np.ndarray) -> None:
+    """``out = (gain (reference - states)).ravel()`` for states ``(p, n)``, entry by entry."""
+    n = states.shape[1]
+    for i in range(states.shape[0]):
+        for k in range(n):
+            out[i * n + k] = gain * (reference[k] - states[i, k])

@@ -42,6 +42,7 @@ class ProgressTerm(Term):
         self._blocks[:, 0, layout.num_joints] = -self._scale
         self._horizon = horizon
         frozen(self._blocks)
+        self._nominal_b = frozen(-self._scale * 1.0)  # b at s_ref = 1
 
     def reference(self, lag_s: float) -> float:
         """``s_ref``: 1, or up to ``s_max`` to recover a lag of ``lag_s`` [s]."""
@@ -52,4 +53,5 @@ class ProgressTerm(Term):
     def residual(self, ctx: StepContext) -> Residual:
         """The rows that pull the predicted phase towards the reference timing."""
         s_ref = self.reference(float(ctx.extras.get("lag_s", 0.0)))
-        return Residual(self.name, self.weight, -self._scale * s_ref, blocks=self._blocks)
+        b = self._nominal_b if s_ref == 1.0 else -self._scale * s_ref
+        return Residual(self.name, self.weight, b, blocks=self._blocks)
