@@ -71,3 +71,21 @@ def test_a_kept_product_is_not_given_for_another_array_at_the_same_address():
         _KEPT[key] = ((dead,) * len(operands), frozen(np.full(3, 7.0)))
         assert np.array_equal(kept(operands, double), [0.0, 2.0, 4.0])
         assert kept(operands, double) is kept(operands, double)
+
+
+def test_block_rows_on_the_first_blocks_only_give_the_dense_objective():
+    """Block rows that cover fewer blocks than the layout (rows on the first instants):
+    the objective equals the one of their dense rows, zero on the later blocks."""
+    layout = _layout()
+    rng = np.random.default_rng(11)
+    for freeze in (False, True):
+        mark = frozen if freeze else (lambda a: a)
+        blocks = mark(rng.normal(size=(2, 2, layout.block_size)))  # 2 of the 3 blocks
+        b = mark(rng.normal(size=4))
+        partial = Residual("first blocks", 0.9, b, blocks=blocks)
+        dense = Residual("dense", 0.9, b, A=partial.dense(layout))
+        p_mat, c = objective(layout, (partial,))
+        p_ref, c_ref = objective(layout, (dense,))
+        np.testing.assert_allclose(p_mat, p_ref, atol=1e-12)
+        np.testing.assert_allclose(c, c_ref, atol=1e-12)
+        assert np.all(c[2 * layout.block_size :] == 0.0)

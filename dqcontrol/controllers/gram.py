@@ -118,6 +118,8 @@ def add_diagonal_blocks(hessian: np.ndarray, gram: np.ndarray, w2: float) -> Non
 def add_scaled(out: np.ndarray, values: np.ndarray, w2: float) -> None:
     """``out += w2 values`` in place (2-D): the product rounded, then the sum, as numpy's
     ``out += w2 * values``."""
+    if values.shape[0] != out.shape[0] or values.shape[1] != out.shape[1]:
+        raise ValueError("add_scaled: values and out differ in shape")
     for a in range(out.shape[0]):
         for b in range(out.shape[1]):
             out[a, b] += w2 * values[a, b]
@@ -125,8 +127,11 @@ def add_scaled(out: np.ndarray, values: np.ndarray, w2: float) -> None:
 
 @compiled
 def subtract_scaled(out: np.ndarray, values: np.ndarray, w2: float) -> None:
-    """``out -= w2 values`` in place (1-D), as numpy's ``out -= w2 * values``."""
-    for a in range(out.shape[0]):
+    """``out[:len(values)] -= w2 values`` in place (1-D), as numpy's ``out -= w2 *
+    values`` on those entries (block rows may cover only the first blocks of ``z``)."""
+    if values.shape[0] > out.shape[0]:
+        raise ValueError("subtract_scaled: values longer than out")
+    for a in range(values.shape[0]):
         out[a] -= w2 * values[a]
 
 
