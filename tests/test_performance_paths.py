@@ -143,6 +143,11 @@ def test_quick_bench_writes_every_figure(tmp_path):
     assert data["targets"]["p99_over_median"]["host_floor"] >= 1.0
     assert data["targets"]["p99_over_median"]["own_work"] >= 1.0
     assert data["mujoco"]["realtime_factor"] > 0.0
+    pf10 = data["path_following"]["by_p"]["10"]
+    # the prioritised solve holds the solver calls: never shorter than them
+    assert 0.0 < pf10["solver_median_us"] <= pf10["levels_median_us"] <= pf10["median_us"]
+    for key in ("path_following_p10", "path_following_step_over_solve"):
+        assert data["targets"][key]["value"] > 0.0
     assert data["scaling"]["by_p"] and data["scaling"]["by_joints_p10"]
     for v in data["agreement"].values():
         assert v["max_abs_qd_diff"] < 1e-8  # accuracy, not time: the backends agree

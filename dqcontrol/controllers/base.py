@@ -54,6 +54,9 @@ class StepDiagnostics:
         message: a human-readable note when something was unusual.
         linearisations: linearise-and-solve rounds of this step (1 for the thesis's
             controllers; up to the controller's bound where the linearisation is poor).
+        levels_time_s: time of the prioritised solve [s] (controllers with priority
+            levels: every level's reduction to the null space of the rows held above and
+            its solver call, ``solve_time_s`` being the solver calls alone; 0 otherwise).
     """
 
     status: str
@@ -66,6 +69,7 @@ class StepDiagnostics:
     conflict_joints: tuple[int, ...] = ()
     message: str = ""
     linearisations: int = 1
+    levels_time_s: float = 0.0
 
 
 @dataclass(frozen=True)

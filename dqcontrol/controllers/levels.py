@@ -16,6 +16,7 @@ weights is the thesis's controllers.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,12 +99,15 @@ class LevelsResult:
     """The lexicographic solve: the final point and each level's solution.
 
     ``solution`` is the lowest level solved; if a lower level fails, the last level that
-    succeeded gives the point and ``failed_level`` names the one that failed.
+    succeeded gives the point and ``failed_level`` names the one that failed. ``time_s``
+    is the wall time of the whole solve [s]: every level's reduction to the null space of
+    the rows held above and its backend solve.
     """
 
     solution: Solution
     per_level: tuple[Solution, ...]
     failed_level: int | None = None
+    time_s: float = 0.0
 
     @property
     def iterations(self) -> int:
@@ -155,8 +159,12 @@ def held_rows(problem: Problem, k: int, z: np.ndarray, exact: bool = False) -> t
 def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     """Solve the levels in order, each holding the ones above (see the module docstring),
     with one BLAS thread (:func:`~dqcontrol._blas.single_blas_thread`)."""
+    start = time.perf_counter()
     with single_blas_thread():
-        return _solve_levels(problem, backend)
+        result = _solve_levels(problem, backend)
+    return LevelsResult(
+        result.solution, result.per_level, result.failed_level, time.perf_counter() - start
+    )
 
 
 def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:

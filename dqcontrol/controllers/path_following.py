@@ -219,6 +219,7 @@ class PathFollowingController(Controller):
         self._a_max_key: tuple = (None, np.zeros((0, self.n)))
         self._last: Problem | None = None
         self._memo = KinematicsMemo(robot)
+        self._levels_time = 0.0  # the prioritised solves of the current step [s]
         slack_mrad = self.tuning.position_slack_rad * 1e3
         self._messages = {k: v.format(slack_mrad) for k, v in _RELAXED_MESSAGES.items()}
         self._new_diag = fast_constructor(StepDiagnostics, status="solved")
@@ -395,11 +396,13 @@ class PathFollowingController(Controller):
         levels = self._stalled_levels if self._stalled() else self.levels
         problem = build_problem(ctx, levels, self.limits, self._cache)
         result = solve_levels(problem, self.backend)
+        self._levels_time += result.time_s
         if result.failed_level != 0:
             return problem, result, ""
         for limits, how in ((self.loosened_limits, "loosened"), (self.relaxed_limits, "dropped")):
             retry = build_problem(ctx, levels, limits, self._cache)
             again = solve_levels(retry, self.backend)
+            self._levels_time += again.time_s
             if again.failed_level != 0:
                 return retry, again, how
         return problem, result, ""
@@ -437,6 +440,7 @@ class PathFollowingController(Controller):
         pred = model.predict(q, self.sigma)
         poor = self._poor or self._disturbed(q)
         iterations, solve_time, done = 0, 0.0, 0
+        self._levels_time = 0.0
         while True:
             problem, result, relaxation = self._solve(self._context(q, pred))
             done += 1
@@ -497,6 +501,7 @@ class PathFollowingController(Controller):
             status=result.solution.status, iterations=iterations, solve_time_s=solve_time,
             step_time_s=time.perf_counter() - start, fallback=fallback, relaxed=bool(relaxation),
             conflict_joints=conflicts, message=message, linearisations=rounds,
+            levels_time_s=self._levels_time,
         )  # fmt: skip
         return self._new_result(
             qd_command=qd_cmd.copy(), s=s_now, sigma=self.sigma,
