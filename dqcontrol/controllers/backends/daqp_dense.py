@@ -101,7 +101,8 @@ class DaqpBackend:
             bad = np.flatnonzero(~(qp.lower <= qp.upper))[:5].tolist()
             return Solution(False, f"invalid_bounds: lower > upper or NaN in rows {bad}")
         factor = None
-        if self.reuse_active_set and key in self._active:
+        last = self._active.get(key) if self.reuse_active_set else None
+        if last is not None and last[0] == qp.A.shape:
             factor = _factor(qp.P)
             kept = None if factor is None else self._on_last_active_set(key, qp, factor, start)
             if kept is not None:
