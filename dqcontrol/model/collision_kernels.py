@@ -203,6 +203,20 @@ def _place_shapes(
 
 
 @compiled
+def _ball_radii(ends: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """The radius [m] of the ball around each capsule's middle that holds it: half its
+    segment's length and its radius, and :func:`segment_distance`'s rounding allowance, so
+    that the balls' gap is never above the capsules' one."""
+    out = np.empty(radii.shape[0])
+    for g in range(radii.shape[0]):
+        dx, dy = ends[g, 1, 0] - ends[g, 0, 0], ends[g, 1, 1] - ends[g, 0, 1]
+        dz = ends[g, 1, 2] - ends[g, 0, 2]
+        half = 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz)
+        out[g] = half + radii[g] + 1e-9 + 2e-6 * half
+    return out
+
+
+@compiled
 def capsule_gaps(
     rot: np.ndarray,
     trans: np.ndarray,
@@ -224,13 +238,16 @@ def capsule_gaps(
     ``(2, 3)`` in the frame of joint ``joint_of[g]``, with the support function
     ``forms_local[g]`` there (:func:`support`). A pair ``(first[p], second[p])`` is at least
     the largest of: its segments' distance less both radii, and the support gap along the
-    segments' nearest points and along the centres. A half-space ``second[p]``
+    segments' nearest points and along the centres; pairs whose bounding balls (around the
+    capsules) are further apart than ``influence_m`` take the balls' gap instead. A
+    half-space ``second[p]``
     (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset`` away. The support
     gaps are only tried for pairs whose capsules are within ``influence_m``."""
     count, shapes, pairs = rot.shape[0], ends.shape[0], first.shape[0]
     ends_w = np.empty((shapes, 2, 3))
     forms = np.empty((shapes, FORM_SIZE))
     out = np.empty((count, pairs))
+    reach = _ball_radii(ends, radii)
     for i in range(count):
         _place_shapes(rot[i], trans[i], joint_of, ends, forms_local, ends_w, forms)
         for p in range(pairs):
@@ -238,6 +255,13 @@ def capsule_gaps(
             if is_plane[b]:
                 nx, ny, nz = plane_normals[b, 0], plane_normals[b, 1], plane_normals[b, 2]
                 out[i, p] = -support(forms, a, -nx, -ny, -nz) - plane_offsets[b] - 1e-9
+                continue
+            cx = 0.5 * (ends_w[a, 0, 0] + ends_w[a, 1, 0] - ends_w[b, 0, 0] - ends_w[b, 1, 0])
+            cy = 0.5 * (ends_w[a, 0, 1] + ends_w[a, 1, 1] - ends_w[b, 0, 1] - ends_w[b, 1, 1])
+            cz = 0.5 * (ends_w[a, 0, 2] + ends_w[a, 1, 2] - ends_w[b, 0, 2] - ends_w[b, 1, 2])
+            balls = reach[a] + reach[b]
+            if cx * cx + cy * cy + cz * cz > (balls + influence_m) ** 2:
+                out[i, p] = math.sqrt(cx * cx + cy * cy + cz * cz) - balls
                 continue
             gap, gx, gy, gz = segment_distance(ends_w, a, b)
             best = gap - radii[a] - radii[b]
