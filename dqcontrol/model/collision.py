@@ -49,8 +49,8 @@ from dqcontrol.model.collision_kernels import (
     FORM_SIZE,
     capsule_gaps,
     chain_kinematics,
+    close_pairs,
     collect_pairs,
-    motion_gaps,
 )
 from dqcontrol.model.pinocchio_model import build_angle_model, lock_joints
 from dqcontrol.model.robot import RobotModel
@@ -540,8 +540,9 @@ class CollisionModel:
         """The last distance solved of each pair and its configuration (none yet), and the
         joints' levers on each pair (:func:`pair_levers`; revolute chains only, where
         :meth:`_kinematics_batch` is compiled)."""
-        self._levers = None
-        if self._revolute is not None:
+        self._remember = self._revolute is not None
+        self._levers = np.zeros((self.num_pairs, self.robot.nq))  # every reference stays -inf
+        if self._remember:
             self._levers = pair_levers(
                 self.model, self._joint_of, self._ends, self._radii, self._a, self._b
             )
@@ -614,21 +615,20 @@ class CollisionModel:
         already placed in :attr:`geometry_data`."""
         rot, trans, jac = self._kinematics_batch(qs)
         gaps = self._gaps(rot, trans, influence_m)
-        if self._levers is not None:
-            motion_gaps(qs, self._reference_q, self._reference_m, self._levers, gaps)
-        states, pairs = np.nonzero(gaps < influence_m)
+        states, pairs = close_pairs(
+            gaps, qs, self._reference_q, self._reference_m, self._levers, influence_m
+        )
         solved, points, todo = solve_closed_forms(
             rot, trans, states, pairs, self._a, self._b, self._joint_of, *self._closed
         )
         self.closed_form_count += states.size - todo.size
         self._narrow_phase(qs, states, pairs, todo, solved, points, influence_m, placed)
-        hits = np.flatnonzero(solved < influence_m)
         return collect_pairs(
             qs,
             states,
             pairs,
             solved,
-            hits,
+            influence_m,
             points,
             jac,
             self._support,
@@ -637,7 +637,7 @@ class CollisionModel:
             self._b,
             self._reference_q,
             self._reference_m,
-            self._levers is not None,
+            self._remember,
         )
 
     def _narrow_phase(

@@ -18,9 +18,9 @@ __all__ = [
     "SEPARATED_M",
     "capsule_gaps",
     "chain_kinematics",
+    "close_pairs",
     "collect_pairs",
     "distance_gradients",
-    "motion_gaps",
     "segment_distance",
 ]
 
@@ -238,11 +238,10 @@ def capsule_gaps(
     ``(2, 3)`` in the frame of joint ``joint_of[g]``, with the support function
     ``forms_local[g]`` there (:func:`support`). A pair ``(first[p], second[p])`` is at least
     the largest of: its segments' distance less both radii, and the support gap along the
-    segments' nearest points and along the centres; pairs whose bounding balls (around the
-    capsules) are further apart than ``influence_m`` take the balls' gap instead. A
-    half-space ``second[p]``
-    (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset`` away. The support
-    gaps are only tried for pairs whose capsules are within ``influence_m``."""
+    segments' nearest points and along the centres, tried in turn until one reaches
+    ``influence_m``; pairs whose bounding balls (around the capsules) are further apart
+    than that take the balls' gap. A half-space ``second[p]``
+    (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset`` away."""
     count, shapes, pairs = rot.shape[0], ends.shape[0], first.shape[0]
     ends_w = np.empty((shapes, 2, 3))
     forms = np.empty((shapes, FORM_SIZE))
@@ -269,6 +268,9 @@ def capsule_gaps(
                 out[i, p] = best
                 continue
             best = max(best, separation(forms, a, b, -gx, -gy, -gz))
+            if best >= influence_m:
+                out[i, p] = best
+                continue
             vx = forms[b, 0] - forms[a, 0]
             vy = forms[b, 1] - forms[a, 1]
             vz = forms[b, 2] - forms[a, 2]
@@ -318,31 +320,40 @@ def distance_gradients(
 
 
 @compiled
-def motion_gaps(
+def close_pairs(
+    gaps: np.ndarray,
     qs: np.ndarray,
     reference_q: np.ndarray,
     reference_m: np.ndarray,
     levers_m: np.ndarray,
-    gaps: np.ndarray,
-) -> None:
-    """Raise the lower bounds ``gaps`` ``(N, pairs)`` [m] to what each pair's distance at a
-    reference configuration allows.
+    influence_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The configurations and pairs ``(k,)``, ``(k,)`` (by configuration, then pair) whose
+    lower bounds ``gaps`` ``(N, pairs)`` [m] and whose motion bounds are both below
+    ``influence_m``.
 
     Pair ``p`` was ``reference_m[p]`` apart at ``reference_q[p]`` (``-inf``: unknown). Turning
     joint ``c`` by ``Δq_c`` moves no point of the pair's shapes, relative to the other shape,
     by more than ``levers_m[p, c] |Δq_c|``, so the distance at ``qs[i]`` is at least
     ``reference_m[p] - Σ_c levers_m[p, c] |qs[i, c] - reference_q[p, c]|`` (less an allowance
     for the reference's solver tolerance)."""
-    count, pairs, n = qs.shape[0], reference_m.shape[0], qs.shape[1]
+    count, pairs, n = qs.shape[0], gaps.shape[1], qs.shape[1]
+    states = np.empty(count * pairs, dtype=np.int64)
+    found = np.empty(count * pairs, dtype=np.int64)
+    k = 0
     for i in range(count):
         for p in range(pairs):
-            bound = reference_m[p] - 1e-6
-            if bound <= gaps[i, p]:
+            if not gaps[i, p] < influence_m:
                 continue
-            for c in range(n):
-                bound -= levers_m[p, c] * abs(qs[i, c] - reference_q[p, c])
-            if bound > gaps[i, p]:
-                gaps[i, p] = bound
+            bound = reference_m[p] - 1e-6
+            if bound >= influence_m:
+                for c in range(n):
+                    bound -= levers_m[p, c] * abs(qs[i, c] - reference_q[p, c])
+                if bound >= influence_m:
+                    continue
+            states[k], found[k] = i, p
+            k += 1
+    return states[:k], found[:k]
 
 
 @compiled
@@ -351,7 +362,7 @@ def collect_pairs(
     states: np.ndarray,
     pairs: np.ndarray,
     solved_m: np.ndarray,
-    hits: np.ndarray,
+    influence_m: float,
     points: np.ndarray,
     jac: np.ndarray,
     support: np.ndarray,
@@ -364,7 +375,7 @@ def collect_pairs(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The pairs found close from the distances solved for ``(states[m], pairs[m])``
     (``solved_m`` ``(K,)``, witness points ``a``, ``b`` and normal ``points`` ``(K, 3, 3)``
-    in coal's conventions; ``hits`` ``(k,)`` the close ones): configuration, pair, distance,
+    in coal's conventions), those below ``influence_m`` [m]: configuration, pair, distance,
     points (with the separation normal) and gradients ``(k, n)``.
 
     A failed query (below :data:`FAILED_DISTANCE_M`) is reported at ``-inf`` with NaN points
@@ -372,7 +383,8 @@ def collect_pairs(
     ``(p_b - p_a)/d``: the direction in which the distance grows, whichever witness points
     GJK chose on parallel faces; coal's normal where they touch or overlap. With
     ``remember``, each solved pair's distance and configuration become its reference
-    (:func:`motion_gaps`; a failed one unknown, ``-inf``)."""
+    (:func:`close_pairs`; a failed one unknown, ``-inf``)."""
+    hits = np.flatnonzero(solved_m < influence_m)
     count = hits.shape[0]
     state = np.empty(count, dtype=np.int64)
     pair = np.empty(count, dtype=np.int64)

@@ -119,7 +119,7 @@ class CollisionLimit(Limit):
                 f"the collision model has {self.collision.robot.nq} joints, the controller's "
                 f"robot {ctx.robot.nq}"
             )
-        consistent = bool(np.any(pred.weights))
+        consistent = bool(pred.weights.any())
         key = ctx.q.tobytes() + ctx.qd_prev.tobytes() + np.float64(ctx.period_s).tobytes()
         if consistent:
             key += pred.q_lin.tobytes() + pred.q_base.tobytes() + pred.weights.tobytes()
@@ -152,7 +152,7 @@ class CollisionLimit(Limit):
         at every predicted state (one batched query: the measured state, then the
         linearisation points)."""
         pred, layout = ctx.prediction, ctx.layout
-        qs = np.vstack([ctx.q[None, :], pred.q_lin])
+        qs = np.concatenate((ctx.q[None, :], pred.q_lin))
         batch = self.collision.query_batch(qs, self.influence_m)
         c, lower, closest = predicted_rows(
             batch.state,
