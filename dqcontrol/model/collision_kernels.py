@@ -181,11 +181,13 @@ def _place_shapes(
     forms_local: np.ndarray,
     ends_w: np.ndarray,
     forms: np.ndarray,
+    mids: np.ndarray,
 ) -> None:
-    """The capsules' ends ``ends_w`` ``(g, 2, 3)`` and support forms ``forms`` ``(g, 17)`` in
-    the world, from those in the joints' frames and one configuration's joint placements
-    ``rot`` ``(njoints, 3, 3)``, ``trans`` ``(njoints, 3)``: the centre and the ends are
-    points, the half-spans and the disc axis directions; the radii are kept."""
+    """The capsules' ends ``ends_w`` ``(g, 2, 3)``, their middles ``mids`` ``(g, 3)`` and
+    the support forms ``forms`` ``(g, 17)`` in the world, from those in the joints' frames
+    and one configuration's joint placements ``rot`` ``(njoints, 3, 3)``, ``trans``
+    ``(njoints, 3)``: the centre and the ends are points, the half-spans and the disc axis
+    directions; the radii are kept."""
     for g in range(ends.shape[0]):
         j = joint_of[g]
         for r in range(3):
@@ -194,6 +196,7 @@ def _place_shapes(
                 ends_w[g, e, r] = trans[j, r] + (
                     r0 * ends[g, e, 0] + r1 * ends[g, e, 1] + r2 * ends[g, e, 2]
                 )
+            mids[g, r] = 0.5 * (ends_w[g, 0, r] + ends_w[g, 1, r])
             for v in range(5):  # centre, three half-spans, disc axis
                 c = 3 * v
                 x = r0 * forms_local[g, c] + r1 * forms_local[g, c + 1]
@@ -236,45 +239,46 @@ def capsule_gaps(
 
     Shape ``g`` is inside the capsule of radius ``radii[g]`` around the segment ``ends[g]``
     ``(2, 3)`` in the frame of joint ``joint_of[g]``, with the support function
-    ``forms_local[g]`` there (:func:`support`). A pair ``(first[p], second[p])`` is at least
-    the largest of: its segments' distance less both radii, and the support gap along the
-    segments' nearest points and along the centres, tried in turn until one reaches
-    ``influence_m``; pairs whose bounding balls (around the capsules) are further apart
-    than that take the balls' gap. A half-space ``second[p]``
-    (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset`` away."""
+    ``forms_local[g]`` there (:func:`support`), and inside the ball around the segment's
+    middle (:func:`_ball_radii`). A pair ``(first[p], second[p])`` is at least the largest
+    of: its capsules' distance and the support gaps along the segments' nearest points and
+    along the centres, tried in turn until one reaches ``influence_m``. A half-space
+    ``second[p]`` (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset``
+    away. Pairs whose bounding balls are further apart than ``influence_m`` take the balls'
+    distance."""
     count, shapes, pairs = rot.shape[0], ends.shape[0], first.shape[0]
-    ends_w = np.empty((shapes, 2, 3))
+    ends_w, mids = np.empty((shapes, 2, 3)), np.empty((shapes, 3))
     forms = np.empty((shapes, FORM_SIZE))
     out = np.empty((count, pairs))
     reach = _ball_radii(ends, radii)
     for i in range(count):
-        _place_shapes(rot[i], trans[i], joint_of, ends, forms_local, ends_w, forms)
+        _place_shapes(rot[i], trans[i], joint_of, ends, forms_local, ends_w, forms, mids)
         for p in range(pairs):
             a, b = first[p], second[p]
             if is_plane[b]:
                 nx, ny, nz = plane_normals[b, 0], plane_normals[b, 1], plane_normals[b, 2]
-                out[i, p] = -support(forms, a, -nx, -ny, -nz) - plane_offsets[b] - 1e-9
+                gap = nx * mids[a, 0] + ny * mids[a, 1] + nz * mids[a, 2] - reach[a]
+                out[i, p] = gap - plane_offsets[b] - 1e-9
+                if out[i, p] < influence_m:
+                    out[i, p] = -support(forms, a, -nx, -ny, -nz) - plane_offsets[b] - 1e-9
                 continue
-            cx = 0.5 * (ends_w[a, 0, 0] + ends_w[a, 1, 0] - ends_w[b, 0, 0] - ends_w[b, 1, 0])
-            cy = 0.5 * (ends_w[a, 0, 1] + ends_w[a, 1, 1] - ends_w[b, 0, 1] - ends_w[b, 1, 1])
-            cz = 0.5 * (ends_w[a, 0, 2] + ends_w[a, 1, 2] - ends_w[b, 0, 2] - ends_w[b, 1, 2])
-            balls = reach[a] + reach[b]
-            if cx * cx + cy * cy + cz * cz > (balls + influence_m) ** 2:
-                out[i, p] = math.sqrt(cx * cx + cy * cy + cz * cz) - balls
+            cx, cy, cz = mids[a, 0] - mids[b, 0], mids[a, 1] - mids[b, 1], mids[a, 2] - mids[b, 2]
+            out[i, p] = best = math.sqrt(cx * cx + cy * cy + cz * cz) - reach[a] - reach[b]
+            if best >= influence_m:
                 continue
             gap, gx, gy, gz = segment_distance(ends_w, a, b)
-            best = gap - radii[a] - radii[b]
+            out[i, p] = best = gap - radii[a] - radii[b]
             if best >= influence_m:
-                out[i, p] = best
                 continue
-            best = max(best, separation(forms, a, b, -gx, -gy, -gz))
+            out[i, p] = best = max(best, separation(forms, a, b, -gx, -gy, -gz))
             if best >= influence_m:
-                out[i, p] = best
                 continue
-            vx = forms[b, 0] - forms[a, 0]
-            vy = forms[b, 1] - forms[a, 1]
-            vz = forms[b, 2] - forms[a, 2]
-            out[i, p] = max(best, separation(forms, a, b, vx, vy, vz))
+            cx, cy, cz = (
+                forms[b, 0] - forms[a, 0],
+                forms[b, 1] - forms[a, 1],
+                forms[b, 2] - forms[a, 2],
+            )
+            out[i, p] = max(best, separation(forms, a, b, cx, cy, cz))
     return out
 
 
