@@ -44,13 +44,13 @@ import pinocchio as pin
 
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.collision_bounds import bounding_capsule, pair_levers, support_form
-from dqcontrol.model.collision_closed_forms import closed_form_table, solve_closed_forms
+from dqcontrol.model.collision_closed_forms import closed_form_table
 from dqcontrol.model.collision_kernels import (
     FORM_SIZE,
     capsule_gaps,
     chain_kinematics,
-    close_pairs,
     collect_pairs,
+    screen_pairs,
 )
 from dqcontrol.model.pinocchio_model import build_angle_model, lock_joints
 from dqcontrol.model.robot import RobotModel
@@ -614,12 +614,24 @@ class CollisionModel:
         solved, in closed form or by coal; ``placed``: the configuration whose shapes are
         already placed in :attr:`geometry_data`."""
         rot, trans, jac = self._kinematics_batch(qs)
-        gaps = self._gaps(rot, trans, influence_m)
-        states, pairs = close_pairs(
-            gaps, qs, self._reference_q, self._reference_m, self._levers, influence_m
-        )
-        solved, points, todo = solve_closed_forms(
-            rot, trans, states, pairs, self._a, self._b, self._joint_of, *self._closed
+        states, pairs, solved, points, todo = screen_pairs(
+            rot,
+            trans,
+            qs,
+            self._joint_of,
+            self._ends,
+            self._radii,
+            self._forms,
+            self._a,
+            self._b,
+            self._normals,
+            self._offsets,
+            self._plane,
+            self._reference_q,
+            self._reference_m,
+            self._levers,
+            *self._closed,
+            influence_m,
         )
         self.closed_form_count += states.size - todo.size
         self._narrow_phase(qs, states, pairs, todo, solved, points, influence_m, placed)
@@ -655,33 +667,33 @@ class CollisionModel:
         ``todo`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
         ``points[m]`` ``(3, 3)`` where it is below ``influence_m``. A configuration's shapes
         are placed only where coal solves one of its pairs."""
+        if not todo.size:
+            return
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
-        compute = pin.computeDistance
+        compute, place = pin.computeDistance, pin.updateGeometryPlacements
         last = placed
         self.query_count += todo.size
         for m, i, k in zip(todo.tolist(), states[todo].tolist(), pairs[todo].tolist(), strict=True):
             if i != last:
-                pin.forwardKinematics(model, data, qs[i])
-                pin.updateGeometryPlacements(model, data, gm, gd)
+                place(model, data, gm, gd, qs[i])  # the kinematics, then the shapes
                 last = i
             res = compute(gm, gd, k)
             solved[m] = d = res.min_distance
             if d < influence_m:  # a failed query too: far below any distance
-                points[m] = (res.getNearestPoint1(), res.getNearestPoint2(), res.normal)
+                out = points[m]
+                out[0], out[1], out[2] = res.getNearestPoint1(), res.getNearestPoint2(), res.normal
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians
         ``(N, 6, n)`` (as Pinocchio's ``data.J``) of a batch of configurations: a chain of
         1-DoF revolute joints in the compiled :func:`chain_kinematics`, other models
         through Pinocchio."""
+        if self._revolute is not None:
+            return chain_kinematics(qs, *self._revolute)
         count, nj = qs.shape[0], self.model.njoints
         rot = np.empty((count, nj, 3, 3))
         trans = np.empty((count, nj, 3))
         jac = np.zeros((count, 6, self.robot.nq))
-        if self._revolute is not None:
-            parents, rotations, shifts, k1, k2, axes, iq = self._revolute
-            chain_kinematics(qs, parents, rotations, shifts, k1, k2, axes, iq, rot, trans, jac)
-            return rot, trans, jac
         rot[:, 0], trans[:, 0] = np.eye(3), 0.0
         model, data = self.model, self.data
         for i in range(count):

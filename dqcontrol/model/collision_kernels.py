@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from dqcontrol._compiled import compiled
+from dqcontrol.model.collision_closed_forms import solve_closed_forms
 
 __all__ = [
     "FAILED_DISTANCE_M",
@@ -21,6 +22,7 @@ __all__ = [
     "close_pairs",
     "collect_pairs",
     "distance_gradients",
+    "screen_pairs",
     "segment_distance",
 ]
 
@@ -46,19 +48,19 @@ def chain_kinematics(
     k2: np.ndarray,
     axes: np.ndarray,
     iq: np.ndarray,
-    rot: np.ndarray,
-    trans: np.ndarray,
-    jac: np.ndarray,
-) -> None:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint placements and world Jacobians of a chain of 1-DoF revolute joints.
 
     For every configuration ``i`` and joint ``j``: ``R_j = R_parent (R_p + sin q K_p +
     (1 - cos q) K²_p)``, ``t_j = R_parent t_p + t_parent``, and joint ``j``'s Jacobian column
-    ``[t_j × ω_j; ω_j]`` with ``ω_j = R_j a_j`` (Pinocchio's ``data.J``). Writes ``rot``
+    ``[t_j × ω_j; ω_j]`` with ``ω_j = R_j a_j`` (Pinocchio's ``data.J``). Returns ``rot``
     ``(N, njoints, 3, 3)``, ``trans`` ``(N, njoints, 3)`` and ``jac`` ``(N, 6, n)``; joint 0
     is the world (identity)."""
-    count, nj = qs.shape[0], rotations.shape[0]
-    for i in range(count):
+    nj = rotations.shape[0]
+    rot = np.empty((qs.shape[0], nj, 3, 3))
+    trans = np.empty((qs.shape[0], nj, 3))
+    jac = np.zeros((qs.shape[0], 6, qs.shape[1]))
+    for i in range(qs.shape[0]):
         rot[i, 0] = 0.0
         trans[i, 0] = 0.0
         for r in range(3):
@@ -92,6 +94,7 @@ def chain_kinematics(
             jac[i, 3, col] = w0
             jac[i, 4, col] = w1
             jac[i, 5, col] = w2
+    return rot, trans, jac
 
 
 @compiled
@@ -358,6 +361,68 @@ def close_pairs(
             states[k], found[k] = i, p
             k += 1
     return states[:k], found[:k]
+
+
+@compiled
+def screen_pairs(
+    rot: np.ndarray,
+    trans: np.ndarray,
+    qs: np.ndarray,
+    joint_of: np.ndarray,
+    ends: np.ndarray,
+    radii: np.ndarray,
+    forms_local: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    plane_normals: np.ndarray,
+    plane_offsets: np.ndarray,
+    is_plane: np.ndarray,
+    reference_q: np.ndarray,
+    reference_m: np.ndarray,
+    levers_m: np.ndarray,
+    kind: np.ndarray,
+    swapped: np.ndarray,
+    local_rot: np.ndarray,
+    local_trans: np.ndarray,
+    size: np.ndarray,
+    influence_m: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs that may be within ``influence_m`` [m] at each configuration of ``qs``
+    (:func:`capsule_gaps`, then :func:`close_pairs`; the arguments are theirs), solved
+    where a closed form exists (``kind`` … ``size``: the tables of
+    :func:`~dqcontrol.model.collision_closed_forms.solve_closed_forms`): configuration
+    ``(K,)``, pair ``(K,)``, distance ``(K,)``, points ``(K, 3, 3)`` and the indices left
+    for coal."""
+    gaps = capsule_gaps(
+        rot,
+        trans,
+        joint_of,
+        ends,
+        radii,
+        forms_local,
+        first,
+        second,
+        plane_normals,
+        plane_offsets,
+        is_plane,
+        influence_m,
+    )
+    states, pairs = close_pairs(gaps, qs, reference_q, reference_m, levers_m, influence_m)
+    solved, points, todo = solve_closed_forms(
+        rot,
+        trans,
+        states,
+        pairs,
+        first,
+        second,
+        joint_of,
+        kind,
+        swapped,
+        local_rot,
+        local_trans,
+        size,
+    )
+    return states, pairs, solved, points, todo
 
 
 @compiled
