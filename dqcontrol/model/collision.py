@@ -614,7 +614,7 @@ class CollisionModel:
         solved, in closed form or by coal; ``placed``: the configuration whose shapes are
         already placed in :attr:`geometry_data`."""
         rot, trans, jac = self._kinematics_batch(qs)
-        states, pairs, solved, points, todo = screen_pairs(
+        states, pairs, solved, points, jobs = screen_pairs(
             rot,
             trans,
             qs,
@@ -633,8 +633,8 @@ class CollisionModel:
             *self._closed,
             influence_m,
         )
-        self.closed_form_count += states.size - todo.size
-        self._narrow_phase(qs, states, pairs, todo, solved, points, influence_m, placed)
+        self.closed_form_count += states.size - len(jobs)
+        self._narrow_phase(qs, jobs, solved, points, influence_m, placed)
         return collect_pairs(
             qs,
             states,
@@ -655,25 +655,23 @@ class CollisionModel:
     def _narrow_phase(
         self,
         qs: np.ndarray,
-        states: np.ndarray,
-        pairs: np.ndarray,
-        todo: np.ndarray,
+        jobs: np.ndarray,
         solved: np.ndarray,
         points: np.ndarray,
         influence_m: float,
         placed: int,
     ) -> None:
-        """Coal's distance ``solved[m]`` for each ``(states[m], pairs[m])``, ``m`` in
-        ``todo`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
+        """Coal's distance ``solved[m]`` for each job ``(m, configuration, pair)`` of ``jobs``
+        ``(k, 3)`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
         ``points[m]`` ``(3, 3)`` where it is below ``influence_m``. A configuration's shapes
         are placed only where coal solves one of its pairs."""
-        if not todo.size:
+        if not len(jobs):
             return
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
         compute, place = pin.computeDistance, pin.updateGeometryPlacements
         last = placed
-        self.query_count += todo.size
-        for m, i, k in zip(todo.tolist(), states[todo].tolist(), pairs[todo].tolist(), strict=True):
+        self.query_count += len(jobs)
+        for m, i, k in jobs.tolist():
             if i != last:
                 place(model, data, gm, gd, qs[i])  # the kinematics, then the shapes
                 last = i

@@ -391,8 +391,8 @@ def screen_pairs(
     (:func:`capsule_gaps`, then :func:`close_pairs`; the arguments are theirs), solved
     where a closed form exists (``kind`` … ``size``: the tables of
     :func:`~dqcontrol.model.collision_closed_forms.solve_closed_forms`): configuration
-    ``(K,)``, pair ``(K,)``, distance ``(K,)``, points ``(K, 3, 3)`` and the indices left
-    for coal."""
+    ``(K,)``, pair ``(K,)``, distance ``(K,)``, points ``(K, 3, 3)`` and the ones left for
+    coal ``(k, 3)``: index ``m``, configuration, pair."""
     gaps = capsule_gaps(
         rot,
         trans,
@@ -422,7 +422,10 @@ def screen_pairs(
         local_trans,
         size,
     )
-    return states, pairs, solved, points, todo
+    jobs = np.empty((todo.shape[0], 3), dtype=np.int64)
+    for r in range(todo.shape[0]):
+        jobs[r, 0], jobs[r, 1], jobs[r, 2] = todo[r], states[todo[r]], pairs[todo[r]]
+    return states, pairs, solved, points, jobs
 
 
 @compiled
