@@ -47,6 +47,7 @@ from dqcontrol.model.collision_bounds import bounding_capsule, pair_levers, supp
 from dqcontrol.model.collision_closed_forms import closed_form_table
 from dqcontrol.model.collision_kernels import (
     FORM_SIZE,
+    SEPARATED_M,
     capsule_gaps,
     chain_kinematics,
     collect_pairs,
@@ -663,8 +664,9 @@ class CollisionModel:
     ) -> None:
         """Coal's distance ``solved[m]`` for each job ``(m, configuration, pair)`` of ``jobs``
         ``(k, 3)`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
-        ``points[m]`` ``(3, 3)`` where it is below ``influence_m``. A configuration's shapes
-        are placed only where coal solves one of its pairs."""
+        ``points[m]`` ``(3, 3)`` where it is below ``influence_m`` (the normal only where the
+        shapes touch or overlap: :func:`collect_pairs` takes it from the points otherwise).
+        A configuration's shapes are placed only where coal solves one of its pairs."""
         if not len(jobs):
             return
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
@@ -679,7 +681,9 @@ class CollisionModel:
             solved[m] = d = res.min_distance
             if d < influence_m:  # a failed query too: far below any distance
                 out = points[m]
-                out[0], out[1], out[2] = res.getNearestPoint1(), res.getNearestPoint2(), res.normal
+                out[0], out[1] = res.getNearestPoint1(), res.getNearestPoint2()
+                if not d > SEPARATED_M:  # apart, the normal is the points' direction
+                    out[2] = res.normal
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians
