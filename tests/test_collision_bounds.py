@@ -1,7 +1,8 @@
 """The broad phase of the collision queries: segment distances against a dense search, the
 capsule and support bounds against coal's distances on seeded random poses (never above,
-exact for a half-space), and the bound from a pair's last solved distance (never drops a
-pair within reach, same answers as a fresh model)."""
+exact for a half-space), the same bounds below an influence distance as without one, and
+the bound from a pair's last solved distance (never drops a pair within reach, same answers
+as a fresh model)."""
 
 from __future__ import annotations
 
@@ -55,7 +56,7 @@ def _random_pose(rng: np.random.Generator) -> pin.SE3:
     return pin.SE3(pin.exp3(rng.normal(size=3)), rng.uniform(-0.25, 0.25, 3))
 
 
-def _gap_of(shape_a, pose_a, shape_b, pose_b, plane=None) -> float:
+def _gap_of(shape_a, pose_a, shape_b, pose_b, plane=None, influence_m=math.inf) -> float:
     """``capsule_gaps`` for one pair of shapes (each on its own joint, placed by pose)."""
     rot = np.stack([np.eye(3), pose_a.rotation, pose_b.rotation])[None]
     trans = np.stack([np.zeros(3), pose_a.translation, pose_b.translation])[None]
@@ -75,7 +76,7 @@ def _gap_of(shape_a, pose_a, shape_b, pose_b, plane=None) -> float:
     return float(
         capsule_gaps(
             rot, trans, np.array([1, 2]), ends, radii, forms, one, one + 1,
-            normals, offsets, is_plane, math.inf,
+            normals, offsets, is_plane, influence_m,
         )[0, 0]
     )  # fmt: skip
 
@@ -112,6 +113,57 @@ def test_a_half_space_bound_is_coal_distance(index):
         exact = coal.distance(shape, coal.Transform3s(pose), plane, coal.Transform3s(), req, res)
         bound = _gap_of(shape, pose, None, pin.SE3.Identity(), plane=(normal, offset))
         assert bound == pytest.approx(exact, abs=1e-8)
+
+
+INFLUENCES_M = (0.005, 0.03, 0.1, 0.3)
+
+
+@pytest.mark.parametrize("first", range(len(SHAPES)))
+@pytest.mark.parametrize("second", range(len(SHAPES)))
+def test_an_influence_distance_keeps_the_bound_below_it(first, second):
+    """Cut off at ``d_i`` (bounding balls first, the support gaps only while the bound is
+    below ``d_i``), the bound is the uncut one wherever either is below ``d_i``, never
+    above coal's distance, and at least ``d_i`` elsewhere: the same pairs pass."""
+    rng = np.random.default_rng(1000 + 10 * first + second)
+    req, res = coal.DistanceRequest(), coal.DistanceResult()
+    req.gjk_tolerance = req.epa_tolerance = 1e-10
+    a, b = SHAPES[first], SHAPES[second]
+    passed = 0
+    for trial in range(300):
+        pa, pb = _random_pose(rng), _random_pose(rng)
+        if trial % 2:  # far apart too, where the balls decide
+            pb = pin.SE3(pb.rotation, pb.translation + rng.uniform(-0.6, 0.6, 3))
+        full = _gap_of(a, pa, b, pb)
+        res.clear()
+        exact = coal.distance(a, coal.Transform3s(pa), b, coal.Transform3s(pb), req, res)
+        for influence in INFLUENCES_M:
+            cut = _gap_of(a, pa, b, pb, influence_m=influence)
+            assert cut <= max(exact, 0.0) + 1e-7
+            if min(cut, full) < influence:
+                assert cut == full
+                passed += 1
+            else:
+                assert cut >= influence
+    assert passed > 100
+
+
+@pytest.mark.parametrize("index", range(len(SHAPES)))
+def test_a_half_space_bound_is_kept_below_an_influence_distance(index):
+    rng = np.random.default_rng(50 + index)
+    shape, normal = SHAPES[index], np.array([0.0, 0.0, 1.0])
+    passed = 0
+    for _ in range(200):
+        pose = _random_pose(rng)
+        plane = (normal, float(rng.uniform(-0.6, 0.3)))
+        full = _gap_of(shape, pose, None, pin.SE3.Identity(), plane=plane)
+        for influence in INFLUENCES_M:
+            cut = _gap_of(shape, pose, None, pin.SE3.Identity(), plane, influence)
+            if min(cut, full) < influence:
+                assert cut == full
+                passed += 1
+            else:
+                assert cut >= influence and cut <= full
+    assert passed > 50
 
 
 def test_a_convex_hull_is_inside_its_capsule():

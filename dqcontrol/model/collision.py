@@ -44,13 +44,14 @@ import pinocchio as pin
 
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.collision_bounds import bounding_capsule, pair_levers, support_form
-from dqcontrol.model.collision_closed_forms import closed_form_table, solve_closed_forms
+from dqcontrol.model.collision_closed_forms import closed_form_table
 from dqcontrol.model.collision_kernels import (
     FORM_SIZE,
+    SEPARATED_M,
     capsule_gaps,
     chain_kinematics,
     collect_pairs,
-    motion_gaps,
+    screen_pairs,
 )
 from dqcontrol.model.pinocchio_model import build_angle_model, lock_joints
 from dqcontrol.model.robot import RobotModel
@@ -540,8 +541,9 @@ class CollisionModel:
         """The last distance solved of each pair and its configuration (none yet), and the
         joints' levers on each pair (:func:`pair_levers`; revolute chains only, where
         :meth:`_kinematics_batch` is compiled)."""
-        self._levers = None
-        if self._revolute is not None:
+        self._remember = self._revolute is not None
+        self._levers = np.zeros((self.num_pairs, self.robot.nq))  # every reference stays -inf
+        if self._remember:
             self._levers = pair_levers(
                 self.model, self._joint_of, self._ends, self._radii, self._a, self._b
             )
@@ -613,22 +615,33 @@ class CollisionModel:
         solved, in closed form or by coal; ``placed``: the configuration whose shapes are
         already placed in :attr:`geometry_data`."""
         rot, trans, jac = self._kinematics_batch(qs)
-        gaps = self._gaps(rot, trans, influence_m)
-        if self._levers is not None:
-            motion_gaps(qs, self._reference_q, self._reference_m, self._levers, gaps)
-        states, pairs = np.nonzero(gaps < influence_m)
-        solved, points, todo = solve_closed_forms(
-            rot, trans, states, pairs, self._a, self._b, self._joint_of, *self._closed
+        states, pairs, solved, points, jobs = screen_pairs(
+            rot,
+            trans,
+            qs,
+            self._joint_of,
+            self._ends,
+            self._radii,
+            self._forms,
+            self._a,
+            self._b,
+            self._normals,
+            self._offsets,
+            self._plane,
+            self._reference_q,
+            self._reference_m,
+            self._levers,
+            *self._closed,
+            influence_m,
         )
-        self.closed_form_count += states.size - todo.size
-        self._narrow_phase(qs, states, pairs, todo, solved, points, influence_m, placed)
-        hits = np.flatnonzero(solved < influence_m)
+        self.closed_form_count += states.size - len(jobs)
+        self._narrow_phase(qs, jobs, solved, points, influence_m, placed)
         return collect_pairs(
             qs,
             states,
             pairs,
             solved,
-            hits,
+            influence_m,
             points,
             jac,
             self._support,
@@ -637,51 +650,52 @@ class CollisionModel:
             self._b,
             self._reference_q,
             self._reference_m,
-            self._levers is not None,
+            self._remember,
         )
 
     def _narrow_phase(
         self,
         qs: np.ndarray,
-        states: np.ndarray,
-        pairs: np.ndarray,
-        todo: np.ndarray,
+        jobs: np.ndarray,
         solved: np.ndarray,
         points: np.ndarray,
         influence_m: float,
         placed: int,
     ) -> None:
-        """Coal's distance ``solved[m]`` for each ``(states[m], pairs[m])``, ``m`` in
-        ``todo`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
-        ``points[m]`` ``(3, 3)`` where it is below ``influence_m``. A configuration's shapes
-        are placed only where coal solves one of its pairs."""
+        """Coal's distance ``solved[m]`` for each job ``(m, configuration, pair)`` of ``jobs``
+        ``(k, 3)`` (grouped by configuration), and its witness points ``a``, ``b`` and normal
+        ``points[m]`` ``(3, 3)`` where it is below ``influence_m`` (the normal only where the
+        shapes touch or overlap: :func:`collect_pairs` takes it from the points otherwise).
+        A configuration's shapes are placed only where coal solves one of its pairs."""
+        if not len(jobs):
+            return
         model, data, gm, gd = self.model, self.data, self.geometry, self.geometry_data
-        compute = pin.computeDistance
+        compute, place = pin.computeDistance, pin.updateGeometryPlacements
         last = placed
-        self.query_count += todo.size
-        for m, i, k in zip(todo.tolist(), states[todo].tolist(), pairs[todo].tolist(), strict=True):
+        self.query_count += len(jobs)
+        for m, i, k in jobs.tolist():
             if i != last:
-                pin.forwardKinematics(model, data, qs[i])
-                pin.updateGeometryPlacements(model, data, gm, gd)
+                place(model, data, gm, gd, qs[i])  # the kinematics, then the shapes
                 last = i
             res = compute(gm, gd, k)
             solved[m] = d = res.min_distance
             if d < influence_m:  # a failed query too: far below any distance
-                points[m] = (res.getNearestPoint1(), res.getNearestPoint2(), res.normal)
+                out = points[m]
+                out[0], out[1] = res.getNearestPoint1(), res.getNearestPoint2()
+                if not d > SEPARATED_M:  # apart, the normal is the points' direction
+                    out[2] = res.normal
 
     def _kinematics_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint placements ``(N, njoints, 3, 3)``, ``(N, njoints, 3)`` and world Jacobians
         ``(N, 6, n)`` (as Pinocchio's ``data.J``) of a batch of configurations: a chain of
         1-DoF revolute joints in the compiled :func:`chain_kinematics`, other models
         through Pinocchio."""
+        if self._revolute is not None:
+            return chain_kinematics(qs, *self._revolute)
         count, nj = qs.shape[0], self.model.njoints
         rot = np.empty((count, nj, 3, 3))
         trans = np.empty((count, nj, 3))
         jac = np.zeros((count, 6, self.robot.nq))
-        if self._revolute is not None:
-            parents, rotations, shifts, k1, k2, axes, iq = self._revolute
-            chain_kinematics(qs, parents, rotations, shifts, k1, k2, axes, iq, rot, trans, jac)
-            return rot, trans, jac
         rot[:, 0], trans[:, 0] = np.eye(3), 0.0
         model, data = self.model, self.data
         for i in range(count):

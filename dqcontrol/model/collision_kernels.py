@@ -12,15 +12,17 @@ import math
 import numpy as np
 
 from dqcontrol._compiled import compiled
+from dqcontrol.model.collision_closed_forms import solve_closed_forms
 
 __all__ = [
     "FAILED_DISTANCE_M",
     "SEPARATED_M",
     "capsule_gaps",
     "chain_kinematics",
+    "close_pairs",
     "collect_pairs",
     "distance_gradients",
-    "motion_gaps",
+    "screen_pairs",
     "segment_distance",
 ]
 
@@ -46,19 +48,19 @@ def chain_kinematics(
     k2: np.ndarray,
     axes: np.ndarray,
     iq: np.ndarray,
-    rot: np.ndarray,
-    trans: np.ndarray,
-    jac: np.ndarray,
-) -> None:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint placements and world Jacobians of a chain of 1-DoF revolute joints.
 
     For every configuration ``i`` and joint ``j``: ``R_j = R_parent (R_p + sin q K_p +
     (1 - cos q) K²_p)``, ``t_j = R_parent t_p + t_parent``, and joint ``j``'s Jacobian column
-    ``[t_j × ω_j; ω_j]`` with ``ω_j = R_j a_j`` (Pinocchio's ``data.J``). Writes ``rot``
+    ``[t_j × ω_j; ω_j]`` with ``ω_j = R_j a_j`` (Pinocchio's ``data.J``). Returns ``rot``
     ``(N, njoints, 3, 3)``, ``trans`` ``(N, njoints, 3)`` and ``jac`` ``(N, 6, n)``; joint 0
     is the world (identity)."""
-    count, nj = qs.shape[0], rotations.shape[0]
-    for i in range(count):
+    nj = rotations.shape[0]
+    rot = np.empty((qs.shape[0], nj, 3, 3))
+    trans = np.empty((qs.shape[0], nj, 3))
+    jac = np.zeros((qs.shape[0], 6, qs.shape[1]))
+    for i in range(qs.shape[0]):
         rot[i, 0] = 0.0
         trans[i, 0] = 0.0
         for r in range(3):
@@ -92,6 +94,7 @@ def chain_kinematics(
             jac[i, 3, col] = w0
             jac[i, 4, col] = w1
             jac[i, 5, col] = w2
+    return rot, trans, jac
 
 
 @compiled
@@ -181,11 +184,13 @@ def _place_shapes(
     forms_local: np.ndarray,
     ends_w: np.ndarray,
     forms: np.ndarray,
+    mids: np.ndarray,
 ) -> None:
-    """The capsules' ends ``ends_w`` ``(g, 2, 3)`` and support forms ``forms`` ``(g, 17)`` in
-    the world, from those in the joints' frames and one configuration's joint placements
-    ``rot`` ``(njoints, 3, 3)``, ``trans`` ``(njoints, 3)``: the centre and the ends are
-    points, the half-spans and the disc axis directions; the radii are kept."""
+    """The capsules' ends ``ends_w`` ``(g, 2, 3)``, their middles ``mids`` ``(g, 3)`` and
+    the support forms ``forms`` ``(g, 17)`` in the world, from those in the joints' frames
+    and one configuration's joint placements ``rot`` ``(njoints, 3, 3)``, ``trans``
+    ``(njoints, 3)``: the centre and the ends are points, the half-spans and the disc axis
+    directions; the radii are kept."""
     for g in range(ends.shape[0]):
         j = joint_of[g]
         for r in range(3):
@@ -194,12 +199,27 @@ def _place_shapes(
                 ends_w[g, e, r] = trans[j, r] + (
                     r0 * ends[g, e, 0] + r1 * ends[g, e, 1] + r2 * ends[g, e, 2]
                 )
+            mids[g, r] = 0.5 * (ends_w[g, 0, r] + ends_w[g, 1, r])
             for v in range(5):  # centre, three half-spans, disc axis
                 c = 3 * v
                 x = r0 * forms_local[g, c] + r1 * forms_local[g, c + 1]
                 x += r2 * forms_local[g, c + 2]
                 forms[g, c + r] = x + trans[j, r] if v == 0 else x
         forms[g, 15], forms[g, 16] = forms_local[g, 15], forms_local[g, 16]
+
+
+@compiled
+def _ball_radii(ends: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """The radius [m] of the ball around each capsule's middle that holds it: half its
+    segment's length and its radius, and :func:`segment_distance`'s rounding allowance, so
+    that the balls' gap is never above the capsules' one."""
+    out = np.empty(radii.shape[0])
+    for g in range(radii.shape[0]):
+        dx, dy = ends[g, 1, 0] - ends[g, 0, 0], ends[g, 1, 1] - ends[g, 0, 1]
+        dz = ends[g, 1, 2] - ends[g, 0, 2]
+        half = 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz)
+        out[g] = half + radii[g] + 1e-9 + 2e-6 * half
+    return out
 
 
 @compiled
@@ -222,33 +242,46 @@ def capsule_gaps(
 
     Shape ``g`` is inside the capsule of radius ``radii[g]`` around the segment ``ends[g]``
     ``(2, 3)`` in the frame of joint ``joint_of[g]``, with the support function
-    ``forms_local[g]`` there (:func:`support`). A pair ``(first[p], second[p])`` is at least
-    the largest of: its segments' distance less both radii, and the support gap along the
-    segments' nearest points and along the centres. A half-space ``second[p]``
-    (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset`` away. The support
-    gaps are only tried for pairs whose capsules are within ``influence_m``."""
+    ``forms_local[g]`` there (:func:`support`), and inside the ball around the segment's
+    middle (:func:`_ball_radii`). A pair ``(first[p], second[p])`` is at least the largest
+    of: its capsules' distance and the support gaps along the segments' nearest points and
+    along the centres, tried in turn until one reaches ``influence_m``. A half-space
+    ``second[p]`` (``is_plane``: ``{x : nᵀx ≤ offset}``) is exactly ``-h(-n) - offset``
+    away. Pairs whose bounding balls are further apart than ``influence_m`` take the balls'
+    distance."""
     count, shapes, pairs = rot.shape[0], ends.shape[0], first.shape[0]
-    ends_w = np.empty((shapes, 2, 3))
+    ends_w, mids = np.empty((shapes, 2, 3)), np.empty((shapes, 3))
     forms = np.empty((shapes, FORM_SIZE))
     out = np.empty((count, pairs))
+    reach = _ball_radii(ends, radii)
     for i in range(count):
-        _place_shapes(rot[i], trans[i], joint_of, ends, forms_local, ends_w, forms)
+        _place_shapes(rot[i], trans[i], joint_of, ends, forms_local, ends_w, forms, mids)
         for p in range(pairs):
             a, b = first[p], second[p]
             if is_plane[b]:
                 nx, ny, nz = plane_normals[b, 0], plane_normals[b, 1], plane_normals[b, 2]
-                out[i, p] = -support(forms, a, -nx, -ny, -nz) - plane_offsets[b] - 1e-9
+                gap = nx * mids[a, 0] + ny * mids[a, 1] + nz * mids[a, 2] - reach[a]
+                out[i, p] = gap - plane_offsets[b] - 1e-9
+                if out[i, p] < influence_m:
+                    out[i, p] = -support(forms, a, -nx, -ny, -nz) - plane_offsets[b] - 1e-9
+                continue
+            cx, cy, cz = mids[a, 0] - mids[b, 0], mids[a, 1] - mids[b, 1], mids[a, 2] - mids[b, 2]
+            out[i, p] = best = math.sqrt(cx * cx + cy * cy + cz * cz) - reach[a] - reach[b]
+            if best >= influence_m:
                 continue
             gap, gx, gy, gz = segment_distance(ends_w, a, b)
-            best = gap - radii[a] - radii[b]
+            out[i, p] = best = gap - radii[a] - radii[b]
             if best >= influence_m:
-                out[i, p] = best
                 continue
-            best = max(best, separation(forms, a, b, -gx, -gy, -gz))
-            vx = forms[b, 0] - forms[a, 0]
-            vy = forms[b, 1] - forms[a, 1]
-            vz = forms[b, 2] - forms[a, 2]
-            out[i, p] = max(best, separation(forms, a, b, vx, vy, vz))
+            out[i, p] = best = max(best, separation(forms, a, b, -gx, -gy, -gz))
+            if best >= influence_m:
+                continue
+            cx, cy, cz = (
+                forms[b, 0] - forms[a, 0],
+                forms[b, 1] - forms[a, 1],
+                forms[b, 2] - forms[a, 2],
+            )
+            out[i, p] = max(best, separation(forms, a, b, cx, cy, cz))
     return out
 
 
@@ -294,31 +327,105 @@ def distance_gradients(
 
 
 @compiled
-def motion_gaps(
+def close_pairs(
+    gaps: np.ndarray,
     qs: np.ndarray,
     reference_q: np.ndarray,
     reference_m: np.ndarray,
     levers_m: np.ndarray,
-    gaps: np.ndarray,
-) -> None:
-    """Raise the lower bounds ``gaps`` ``(N, pairs)`` [m] to what each pair's distance at a
-    reference configuration allows.
+    influence_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The configurations and pairs ``(k,)``, ``(k,)`` (by configuration, then pair) whose
+    lower bounds ``gaps`` ``(N, pairs)`` [m] and whose motion bounds are both below
+    ``influence_m``.
 
     Pair ``p`` was ``reference_m[p]`` apart at ``reference_q[p]`` (``-inf``: unknown). Turning
     joint ``c`` by ``Δq_c`` moves no point of the pair's shapes, relative to the other shape,
     by more than ``levers_m[p, c] |Δq_c|``, so the distance at ``qs[i]`` is at least
     ``reference_m[p] - Σ_c levers_m[p, c] |qs[i, c] - reference_q[p, c]|`` (less an allowance
     for the reference's solver tolerance)."""
-    count, pairs, n = qs.shape[0], reference_m.shape[0], qs.shape[1]
+    count, pairs, n = qs.shape[0], gaps.shape[1], qs.shape[1]
+    states = np.empty(count * pairs, dtype=np.int64)
+    found = np.empty(count * pairs, dtype=np.int64)
+    k = 0
     for i in range(count):
         for p in range(pairs):
-            bound = reference_m[p] - 1e-6
-            if bound <= gaps[i, p]:
+            if not gaps[i, p] < influence_m:
                 continue
-            for c in range(n):
-                bound -= levers_m[p, c] * abs(qs[i, c] - reference_q[p, c])
-            if bound > gaps[i, p]:
-                gaps[i, p] = bound
+            bound = reference_m[p] - 1e-6
+            if bound >= influence_m:
+                for c in range(n):
+                    bound -= levers_m[p, c] * abs(qs[i, c] - reference_q[p, c])
+                if bound >= influence_m:
+                    continue
+            states[k], found[k] = i, p
+            k += 1
+    return states[:k], found[:k]
+
+
+@compiled
+def screen_pairs(
+    rot: np.ndarray,
+    trans: np.ndarray,
+    qs: np.ndarray,
+    joint_of: np.ndarray,
+    ends: np.ndarray,
+    radii: np.ndarray,
+    forms_local: np.ndarray,
+    first: np.ndarray,
+    second: np.ndarray,
+    plane_normals: np.ndarray,
+    plane_offsets: np.ndarray,
+    is_plane: np.ndarray,
+    reference_q: np.ndarray,
+    reference_m: np.ndarray,
+    levers_m: np.ndarray,
+    kind: np.ndarray,
+    swapped: np.ndarray,
+    local_rot: np.ndarray,
+    local_trans: np.ndarray,
+    size: np.ndarray,
+    influence_m: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs that may be within ``influence_m`` [m] at each configuration of ``qs``
+    (:func:`capsule_gaps`, then :func:`close_pairs`; the arguments are theirs), solved
+    where a closed form exists (``kind`` … ``size``: the tables of
+    :func:`~dqcontrol.model.collision_closed_forms.solve_closed_forms`): configuration
+    ``(K,)``, pair ``(K,)``, distance ``(K,)``, points ``(K, 3, 3)`` and the ones left for
+    coal ``(k, 3)``: index ``m``, configuration, pair."""
+    gaps = capsule_gaps(
+        rot,
+        trans,
+        joint_of,
+        ends,
+        radii,
+        forms_local,
+        first,
+        second,
+        plane_normals,
+        plane_offsets,
+        is_plane,
+        influence_m,
+    )
+    states, pairs = close_pairs(gaps, qs, reference_q, reference_m, levers_m, influence_m)
+    solved, points, todo = solve_closed_forms(
+        rot,
+        trans,
+        states,
+        pairs,
+        first,
+        second,
+        joint_of,
+        kind,
+        swapped,
+        local_rot,
+        local_trans,
+        size,
+    )
+    jobs = np.empty((todo.shape[0], 3), dtype=np.int64)
+    for r in range(todo.shape[0]):
+        jobs[r, 0], jobs[r, 1], jobs[r, 2] = todo[r], states[todo[r]], pairs[todo[r]]
+    return states, pairs, solved, points, jobs
 
 
 @compiled
@@ -327,7 +434,7 @@ def collect_pairs(
     states: np.ndarray,
     pairs: np.ndarray,
     solved_m: np.ndarray,
-    hits: np.ndarray,
+    influence_m: float,
     points: np.ndarray,
     jac: np.ndarray,
     support: np.ndarray,
@@ -340,7 +447,7 @@ def collect_pairs(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The pairs found close from the distances solved for ``(states[m], pairs[m])``
     (``solved_m`` ``(K,)``, witness points ``a``, ``b`` and normal ``points`` ``(K, 3, 3)``
-    in coal's conventions; ``hits`` ``(k,)`` the close ones): configuration, pair, distance,
+    in coal's conventions), those below ``influence_m`` [m]: configuration, pair, distance,
     points (with the separation normal) and gradients ``(k, n)``.
 
     A failed query (below :data:`FAILED_DISTANCE_M`) is reported at ``-inf`` with NaN points
@@ -348,7 +455,8 @@ def collect_pairs(
     ``(p_b - p_a)/d``: the direction in which the distance grows, whichever witness points
     GJK chose on parallel faces; coal's normal where they touch or overlap. With
     ``remember``, each solved pair's distance and configuration become its reference
-    (:func:`motion_gaps`; a failed one unknown, ``-inf``)."""
+    (:func:`close_pairs`; a failed one unknown, ``-inf``)."""
+    hits = np.flatnonzero(solved_m < influence_m)
     count = hits.shape[0]
     state = np.empty(count, dtype=np.int64)
     pair = np.empty(count, dtype=np.int64)

@@ -103,7 +103,7 @@ class CollisionLimit(Limit):
         self.last_min_distance_m = math.inf
         self.last_rows = 0
         self.pairs_in_influence = 0
-        self._key: bytes | None = None
+        self._key: tuple | None = None
         self._rows: Inequality | None = None
 
     def reset(self) -> None:
@@ -119,10 +119,10 @@ class CollisionLimit(Limit):
                 f"the collision model has {self.collision.robot.nq} joints, the controller's "
                 f"robot {ctx.robot.nq}"
             )
-        consistent = bool(np.any(pred.weights))
-        key = ctx.q.tobytes() + ctx.qd_prev.tobytes() + np.float64(ctx.period_s).tobytes()
+        consistent = np.count_nonzero(pred.weights) > 0
+        key: tuple = (ctx.q.tobytes(), ctx.qd_prev.tobytes(), float(ctx.period_s))
         if consistent:
-            key += pred.q_lin.tobytes() + pred.q_base.tobytes() + pred.weights.tobytes()
+            key += (pred.q_lin.tobytes(), pred.q_base.tobytes(), pred.weights.tobytes())
         if key == self._key:  # the same step asked again (set-up, then bounds)
             return self._rows
         out = self._predicted(ctx) if consistent else self._damper(ctx)
@@ -152,7 +152,7 @@ class CollisionLimit(Limit):
         at every predicted state (one batched query: the measured state, then the
         linearisation points)."""
         pred, layout = ctx.prediction, ctx.layout
-        qs = np.vstack([ctx.q[None, :], pred.q_lin])
+        qs = np.concatenate((ctx.q[None, :], pred.q_lin))
         batch = self.collision.query_batch(qs, self.influence_m)
         c, lower, closest = predicted_rows(
             batch.state,
