@@ -23,35 +23,12 @@ import math
 import numpy as np
 
 from dqcontrol._compiled import compiled
+from dqcontrol.controllers.cholesky import cholesky_into
 
-__all__ = ["cholesky_into", "solve_on_active_set"]
+__all__ = ["solve_on_active_set"]
 
 #: Returned by :func:`solve_on_active_set`.
 SOLVED, NOT_POSITIVE_DEFINITE, DEPENDENT_ROWS, INFEASIBLE, WRONG_SIGN = 0, 1, 2, 3, 4
-
-
-@compiled
-def cholesky_into(a: np.ndarray, out: np.ndarray, share: float) -> bool:
-    """``out`` = the lower Cholesky factor of the symmetric ``a``; False when a squared
-    pivot is not above ``share`` times the largest diagonal entry (or is NaN)."""
-    n = a.shape[0]
-    scale = 0.0
-    for i in range(n):
-        scale = max(scale, a[i, i])
-    for j in range(n):
-        s = a[j, j]
-        for k in range(j):
-            s -= out[j, k] * out[j, k]
-        if not s > share * scale:
-            return False
-        d = math.sqrt(s)
-        out[j, j] = d
-        for i in range(j + 1, n):
-            t = a[i, j]
-            for k in range(j):
-                t -= out[i, k] * out[j, k]
-            out[i, j] = t / d
-    return True
 
 
 @compiled

@@ -21,7 +21,8 @@ from ctypes import c_int
 import numpy as np
 from scipy.linalg import lapack
 
-from dqcontrol.controllers.backends.active_set import SOLVED, cholesky_into, solve_on_active_set
+from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
+from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.problem import DenseQP, Solution
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
 from dqcontrol.errors import ParameterError

@@ -9,11 +9,10 @@ check is given a threshold a little above ``ε`` (see the term), so that roundin
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from dqcontrol._compiled import compiled
+from dqcontrol.controllers.cholesky import cholesky_into
 
 __all__ = ["clearly_regular"]
 
@@ -49,17 +48,4 @@ def clearly_regular(
             for e in range(n if rows else r):
                 s += tangent[i, e] * tangent[j, e] if rows else tangent[e, i] * tangent[e, j]
             gram[i, j] = s
-    for j in range(size):  # lower Cholesky factor in place of gram's lower triangle
-        d = gram[j, j] - threshold_sq
-        for e in range(j):
-            d -= gram[j, e] * gram[j, e]
-        if not d > 0.0:
-            return False
-        root = math.sqrt(d)
-        gram[j, j] = root
-        for i in range(j + 1, size):
-            s = gram[i, j]
-            for e in range(j):
-                s -= gram[i, e] * gram[j, e]
-            gram[i, j] = s / root
-    return True
+    return cholesky_into(gram, gram, 0.0, threshold_sq)
