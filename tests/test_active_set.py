@@ -178,3 +178,28 @@ def test_the_factor_is_cholesky_and_refuses_a_singular_matrix(n):
     low_rank = g.T[:, : n // 2] @ g.T[:, : n // 2].T  # rank n/2
     assert _factor(low_rank) is None
     assert _factor(-p_mat) is None
+
+
+def test_a_changed_row_count_keeps_the_rows_that_exist_as_the_guess():
+    """A limit that adds or drops rows between steps: the last set's rows that still exist
+    are the guess, and whatever the backend answers is DAQP's optimum; a row added far
+    from its bounds leaves the set as it was, without DAQP."""
+    rng = np.random.default_rng(6)
+    qp = _random_qp(rng)
+    backend = DaqpBackend()
+    assert backend.solve(0, qp).ok
+    calls = []
+    for name in ("_solve_ldp", "_solve_as_is"):
+        inner = getattr(backend, name)
+        setattr(backend, name, lambda *a, _f=inner: calls.append(1) or _f(*a))
+    spare = rng.standard_normal(qp.c.size)
+    grown = DenseQP(
+        qp.P, qp.c, np.vstack([qp.A, spare]), np.append(qp.lower, -50.0), np.append(qp.upper, 50.0)
+    )
+    sol = backend.solve(0, grown)
+    assert sol.ok and not calls
+    np.testing.assert_allclose(sol.x, _cold(grown).x, atol=1e-9)
+    shrunk = DenseQP(qp.P, qp.c, qp.A[:-3], qp.lower[:-3], qp.upper[:-3])
+    sol = backend.solve(0, shrunk)
+    assert sol.ok
+    np.testing.assert_allclose(sol.x, _cold(shrunk).x, atol=1e-9)

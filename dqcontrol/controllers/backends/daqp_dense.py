@@ -103,7 +103,7 @@ class DaqpBackend:
             return Solution(False, f"invalid_bounds: lower > upper or NaN in rows {bad}")
         factor = None
         last = self._active.get(key) if self.reuse_active_set else None
-        if last is not None and last[0] == qp.A.shape:
+        if last is not None and last[0][1] == qp.A.shape[1]:
             factor = _factor(qp.P)
             kept = None if factor is None else self._on_last_active_set(key, qp, factor, start)
             if kept is not None:
@@ -124,14 +124,19 @@ class DaqpBackend:
     ) -> Solution | None:
         """The optimum from the key's last active set (mended up to
         :data:`ACTIVE_SET_CHANGES` times), or ``None`` when it fails the KKT check (or there
-        is none for this shape)."""
+        is none for this number of variables). Where a limit's row count has changed since,
+        the rows of the last set that still exist are the guess: the check decides."""
         entry = self._active.get(key)
-        if entry is None or entry[0] != qp.A.shape:
+        if entry is None or entry[0][1] != qp.A.shape[1]:
             return None
+        active, at_upper = entry[1], entry[2]
+        if entry[0][0] != qp.A.shape[0]:  # a limit's row count changed: the rows that exist
+            keep = active < qp.A.shape[0]
+            active, at_upper = active[keep], at_upper[keep]
         a = np.ascontiguousarray(qp.A)
         z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
         status, active, at_upper, changes = solve_on_active_set(
-            factor, np.ascontiguousarray(qp.c), a, qp.lower, qp.upper, entry[1], entry[2],
+            factor, np.ascontiguousarray(qp.c), a, qp.lower, qp.upper, active, at_upper,
             self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES,
             z, duals,
         )  # fmt: skip
