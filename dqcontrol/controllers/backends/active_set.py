@@ -28,7 +28,7 @@ from dqcontrol.controllers.cholesky import cholesky_into
 __all__ = ["solve_on_active_set"]
 
 #: Returned by :func:`solve_on_active_set`.
-SOLVED, NOT_POSITIVE_DEFINITE, DEPENDENT_ROWS, INFEASIBLE, WRONG_SIGN = 0, 1, 2, 3, 4
+SOLVED, DEPENDENT_ROWS, INFEASIBLE, WRONG_SIGN = 0, 1, 2, 3
 
 
 @compiled
@@ -78,13 +78,13 @@ def solve_on_active_set(
     conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
     bounds, every multiplier of the right sign to ``dual_tol`` times the largest. Where
     they fail, the most broken row joins the set at the bound it breaks or, with every row
-    met, the multiplier of the most wrong sign leaves it, and the check runs again. Writes
-    ``z`` and ``duals`` (one per row of ``a``, zero off the set; positive at an upper
-    bound) and returns ``(status,
-    active, at_upper, changes)``: ``SOLVED`` (0) with the set of the optimum and how many
-    rows joined or left it, or why the last set failed: ``DEPENDENT_ROWS`` (its rows are
-    not independent enough to give unique multipliers), ``INFEASIBLE`` (a row out of its
-    bounds) or ``WRONG_SIGN``.
+    met, the multiplier of the most wrong sign leaves it, and the check runs again.
+
+    Writes ``z`` and ``duals`` (one per row of ``a``, zero off the set; positive at an
+    upper bound) and returns ``(status, active, at_upper, changes)``: ``SOLVED`` (0) with
+    the set of the optimum and how many rows joined or left it, or why the last set
+    failed: ``DEPENDENT_ROWS`` (its rows are not independent enough to give unique
+    multipliers), ``INFEASIBLE`` (a row out of its bounds) or ``WRONG_SIGN``.
     """
     status = SOLVED
     for changes in range(max_changes + 1):
