@@ -146,6 +146,8 @@ class DaqpBackend:
         return Solution(True, "solved", changes, _since(start), z, duals)
 
     def _remember_active_set(self, key: object, qp: DenseQP, sol: Solution) -> None:
+        """Keep the rows DAQP's answer holds at a bound (non-zero multipliers) as the key's
+        next guess; forget the guess after a failure."""
         if not sol.ok or sol.duals is None or sol.duals.size != qp.A.shape[0]:
             self._active.pop(key, None)
             return
