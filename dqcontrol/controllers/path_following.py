@@ -218,7 +218,13 @@ class PathFollowingController(Controller):
         self._cache: dict = {}
         self._a_max_key: tuple = (None, np.zeros((0, self.n)))
         self._last: Problem | None = None
-        self._memo = KinematicsMemo(robot)
+        self._set_step_outputs()
+        self._reset_state()
+
+    def _set_step_outputs(self) -> None:
+        """What every step reuses to give its result: the kinematics kept from the last
+        step, the messages and the constructors of the diagnostics and the result."""
+        self._memo = KinematicsMemo(self.robot)
         self._levels_time = 0.0  # the prioritised solves of the current step [s]
         slack_mrad = self.tuning.position_slack_rad * 1e3
         self._messages = {k: v.format(slack_mrad) for k, v in _RELAXED_MESSAGES.items()}
@@ -227,7 +233,6 @@ class PathFollowingController(Controller):
             StepResult, qd_command=np.zeros(self.n), s=0.0, sigma=0.0, sigma_next=0.0,
             pose=np.zeros(8), target=np.zeros(8), diagnostics=StepDiagnostics("solved"),
         )  # fmt: skip
-        self._reset_state()
 
     # ------------------------------------------------------------------ composition
     def _set_limits(self, extra: tuple[Limit, ...]) -> None:
