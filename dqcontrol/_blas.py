@@ -3,30 +3,61 @@
 OpenBLAS hands a product or a factorisation above a few hundred thousand flops to its
 thread pool; on a machine whose other cores are busy, waking a second thread costs up to
 milliseconds, more than the work. :func:`single_blas_thread` sets every BLAS library loaded
-in the process to one thread (through ``threadpoolctl``, a few microseconds) and restores
-the previous counts on leaving; nested uses cost nothing more. The setting is the
-process's: BLAS calls from other threads during a step run on one thread too.
+in the process (NumPy's and SciPy's) to one thread and restores the previous counts on
+leaving; nested uses cost nothing more. The libraries are found once by ``threadpoolctl``;
+an OpenBLAS without OpenMP is then switched through its own ``openblas_get/set_num_threads``
+(under a microsecond, where ``threadpoolctl``'s generic calls take a few), any other library
+through ``threadpoolctl``. The setting is the process's: BLAS calls from other threads during a
+step run on one thread too.
 """
 
 from __future__ import annotations
 
+import ctypes
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 __all__ = ["single_blas_thread"]
 
 _lock = threading.Lock()
-_state: dict = {"libraries": None, "depth": 0, "saved": []}
+_state: dict = {"switches": None, "depth": 0, "saved": []}
+
+#: The affixes of OpenBLAS's symbols across its builds (plain, SciPy's, 64-bit integers).
+_PREFIXES = ("", "scipy_")
+_SUFFIXES = ("", "64_", "_64")
 
 
-def _libraries() -> list:
-    if _state["libraries"] is None:
+def _openblas_switch(lib) -> tuple[Callable[[], int], Callable[[int], None]] | None:
+    """``(get, set)`` of an OpenBLAS library's thread count through its own symbols, or
+    ``None`` (another library, OpenBLAS on OpenMP, or symbols not found)."""
+    if lib.internal_api != "openblas" or getattr(lib, "threading_layer", "") == "openmp":
+        return None
+    dynlib = getattr(lib, "dynlib", None)
+    for prefix in _PREFIXES:
+        for suffix in _SUFFIXES:
+            get = getattr(dynlib, f"{prefix}openblas_get_num_threads{suffix}", None)
+            put = getattr(dynlib, f"{prefix}openblas_set_num_threads{suffix}", None)
+            if get is not None and put is not None:
+                get.restype, get.argtypes = ctypes.c_int, []
+                put.restype, put.argtypes = None, [ctypes.c_int]
+                return get, put
+    return None
+
+
+def _switches() -> list[tuple[Callable[[], int], Callable[[int], None]]]:
+    """``(get, set)`` of every BLAS library loaded, found at the first call (after loading
+    SciPy's, which the steps' factorisations use: a library loaded after this call is
+    not switched)."""
+    if _state["switches"] is None:
+        import scipy.linalg  # noqa: F401 - loads SciPy's BLAS before the libraries are listed
         from threadpoolctl import ThreadpoolController
 
-        found = ThreadpoolController().lib_controllers
-        _state["libraries"] = [lib for lib in found if lib.user_api == "blas"]
-    return _state["libraries"]
+        found = [lib for lib in ThreadpoolController().lib_controllers if lib.user_api == "blas"]
+        _state["switches"] = [
+            _openblas_switch(lib) or (lib.get_num_threads, lib.set_num_threads) for lib in found
+        ]
+    return _state["switches"]
 
 
 @contextmanager
@@ -34,10 +65,11 @@ def single_blas_thread() -> Iterator[None]:
     """Run the ``with`` block with one BLAS thread."""
     with _lock:
         if _state["depth"] == 0:
-            libraries = _libraries()
-            _state["saved"] = [lib.num_threads for lib in libraries]
-            for lib in libraries:
-                lib.set_num_threads(1)
+            switches = _switches()
+            _state["saved"] = saved = [get() for get, _ in switches]
+            for (_, put), count in zip(switches, saved, strict=True):
+                if count != 1:
+                    put(1)
         _state["depth"] += 1
     try:
         yield
@@ -45,5 +77,6 @@ def single_blas_thread() -> Iterator[None]:
         with _lock:
             _state["depth"] -= 1
             if _state["depth"] == 0:
-                for lib, count in zip(_state["libraries"], _state["saved"], strict=True):
-                    lib.set_num_threads(count)
+                for (_, put), count in zip(_state["switches"], _state["saved"], strict=True):
+                    if count != 1:
+                        put(count)

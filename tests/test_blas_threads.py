@@ -1,6 +1,7 @@
 """One BLAS thread during a control step, the previous counts restored after it."""
 
 import numpy as np
+import scipy.linalg  # noqa: F401 - SciPy's BLAS is switched too: loaded before the counts are read
 from threadpoolctl import threadpool_info
 
 from dqcontrol._blas import single_blas_thread
