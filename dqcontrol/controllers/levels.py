@@ -39,7 +39,7 @@ from dqcontrol.controllers.problem import (
     merge_bounds,
     objective,
 )
-from dqcontrol.controllers.reduced import ReducedObjective, reduced_objective, rows_in_basis
+from dqcontrol.controllers.reduced import ReducedQP, level_rows
 
 __all__ = [
     "LevelsResult",
@@ -220,16 +220,13 @@ def _narrowed(
 def reduced_qp(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> DenseQP:
     """Level ``k``'s QP in ``y`` with ``z = point + basis y``: ``y`` has no bounds of its
     own, every row of the problem's ``A`` is a general row."""
-    reduced = reduced_objective(problem.levels[k].residuals, point, basis)
-    return _in_basis(problem, point, basis, reduced)
+    reduced = _reduced(problem, k, point, basis)
+    return reduced.dense(reduced.objective())
 
 
-def _in_basis(
-    problem: Problem, point: np.ndarray, basis: np.ndarray, reduced: ReducedObjective
-) -> DenseQP:
-    """The QP of :func:`reduced_qp` from the level's objective in the basis."""
-    rows, lower, upper = rows_in_basis(problem.C, basis, point, problem.lower, problem.upper)
-    return DenseQP(reduced.hessian, reduced.gradient, rows, lower, upper)
+def _reduced(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> ReducedQP:
+    rows = level_rows(problem.levels[k].residuals)
+    return ReducedQP(rows, basis, point, problem.C, problem.lower, problem.upper)
 
 
 def _reduced_level(
@@ -237,16 +234,22 @@ def _reduced_level(
 ) -> tuple[Solution, np.ndarray | None]:
     """Level ``k`` in the null space of the held rows (backend key ``(k, dim)``), and the
     level's held rows in ``basis``; the solution and duals are those of the whole
-    problem."""
+    problem. A backend with ``solve_reduced`` is given the level's parts, any other its
+    dense QP."""
     dim = basis.shape[1]
     if dim == 0:  # the levels above leave no freedom
         return Solution(True, "solved", 0, 0.0, point.copy(), None), None
-    reduced = reduced_objective(problem.levels[k].residuals, point, basis)
-    sol = backend.solve((k, dim), _in_basis(problem, point, basis, reduced))
+    reduced = _reduced(problem, k, point, basis)
+    solve_reduced = getattr(backend, "solve_reduced", None)
+    if solve_reduced is not None:
+        sol, held = solve_reduced((k, dim), reduced)
+    else:
+        objective = reduced.objective()
+        sol, held = backend.solve((k, dim), reduced.dense(objective)), objective.held
     if not sol.ok or sol.x is None:
-        return sol, reduced.held
+        return sol, held
     duals = None if sol.duals is None else sol.duals[dim:]
-    return sol._replace(x=point + basis @ sol.x, duals=duals), reduced.held
+    return sol._replace(x=point + basis @ sol.x, duals=duals), held
 
 
 def _banded_level(problem: Problem, k: int, points: list[np.ndarray], backend: Backend) -> Solution:

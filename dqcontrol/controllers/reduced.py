@@ -3,25 +3,31 @@
 With ``z = z₀ + Z y``, a residual's rows ``A z - b`` become ``(A Z) y + (A z₀ - b)``: the
 reduced level's Hessian and gradient are sums over the rows of ``A Z`` and ``A z₀ - b``
 (each residual's ``2 w`` and row weights), never the ``n × n`` Hessian of the whole
-level. ``A Z`` is computed from the residual's own form: per block for block-diagonal rows,
-skipping zeros for sparse rows. The general rows of the limits ``C Z`` skip ``C``'s zeros
+level. The level's residuals are stacked once as the non-zero entries of their rows
+(:func:`level_rows`; kept while the rows are read-only), so ``A Z`` skips every zero in one
+compiled pass. The general rows of the limits ``C Z`` skip ``C``'s zeros
 too (the coupling of neighbouring intervals, a trust region: a few entries per row); a
 read-only ``C`` gives its non-zero entries once (:func:`~dqcontrol.controllers.gram.kept`).
 """
 
 from __future__ import annotations
 
+import weakref
 from typing import NamedTuple
 
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.gram import kept
-from dqcontrol.controllers.problem import Residual
+from dqcontrol.controllers.gram import frozen, kept
+from dqcontrol.controllers.problem import DenseQP, Residual
 
 __all__ = [
+    "LevelRows",
     "ReducedObjective",
+    "ReducedQP",
+    "level_rows",
     "nonzero_entries",
+    "objective_in_basis",
     "reduced_objective",
     "rows_in_basis",
     "sparse_product",
@@ -54,32 +60,6 @@ def _add_row(line: np.ndarray, v: float, basis: np.ndarray, point: np.ndarray, j
     for c in range(dim):
         line[c] += v * source[c]
     line[dim] += v * point[j]
-
-
-@compiled
-def _block_rows(
-    blocks: np.ndarray,
-    basis: np.ndarray,
-    point: np.ndarray,
-    b: np.ndarray,
-    w2: float,
-    row_weights: np.ndarray,
-    out: np.ndarray,
-    scale: np.ndarray,
-) -> None:
-    """``out = [A basis | A point - b]`` for ``A = blockdiag(blocks)`` (``blocks``
-    ``(p, r, m)``, ``basis`` at least ``p m`` rows) skipping the blocks' zeros, and the
-    rows' scales."""
-    p, r, m = blocks.shape
-    out[:] = 0.0
-    for i in range(p):
-        for a in range(r):
-            row = i * r + a
-            for k in range(m):
-                v = blocks[i, a, k]
-                if v != 0.0:
-                    _add_row(out[row], v, basis, point, i * m + k)
-            _finish_row(out, row, b, w2, row_weights, scale)
 
 
 @compiled
@@ -147,22 +127,6 @@ def sparse_product(a: np.ndarray, right: np.ndarray) -> np.ndarray:
     return out
 
 
-_NO_WEIGHTS = np.zeros(0)
-
-
-def _residual_rows(
-    r: Residual, basis: np.ndarray, point: np.ndarray, out: np.ndarray, scale: np.ndarray
-) -> None:
-    """``out = [A basis | A point - b]`` for the residual's rows ``A``, and each row's
-    ``2 w`` times its weight in ``scale``."""
-    weights = _NO_WEIGHTS if r.row_weights is None else r.row_weights
-    if r.blocks is not None:
-        _block_rows(r.blocks, basis, point, r.b, 2.0 * r.weight, weights, out, scale)
-    else:
-        assert r.A is not None, "a residual has A or blocks"
-        _entry_rows(nonzero_entries(r.A), basis, point, r.b, 2.0 * r.weight, weights, out, scale)
-
-
 @compiled
 def _weighted_gram(rows: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(Mᵀ S M, Mᵀ S e)`` for ``rows = [M | e]`` and ``S = diag(scale)`` (one product;
@@ -182,23 +146,167 @@ def _weighted_gram(rows: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.
     return hessian, gradient
 
 
+class LevelRows(NamedTuple):
+    """A level's residuals stacked: the held ones first, then the others that weigh.
+
+    Attributes:
+        entries: the non-zero entries of the stacked rows ``A``, ``(nnz, 3)``: row, column,
+            value (row by row, columns in order).
+        b: the stacked ``b``.
+        scale: each row's ``2 w`` times its row weight.
+        held: how many rows (the first) the lower levels hold.
+    """
+
+    entries: np.ndarray
+    b: np.ndarray
+    scale: np.ndarray
+    held: int
+
+
+@compiled
+def _block_entries(blocks: np.ndarray) -> np.ndarray:
+    """:func:`nonzero_entries` of the block-diagonal rows of ``blocks`` ``(p, r, m)``."""
+    p, r, m = blocks.shape
+    count = 0
+    for v in blocks.ravel():
+        count += v != 0.0
+    out = np.empty((count, 3))
+    e = 0
+    for i in range(p):
+        for a in range(r):
+            for k in range(m):
+                v = blocks[i, a, k]
+                if v != 0.0:
+                    out[e, 0] = i * r + a
+                    out[e, 1] = i * m + k
+                    out[e, 2] = v
+                    e += 1
+    return out
+
+
+def _stacked_entries(arrays: tuple[np.ndarray, ...], kinds: tuple[bool, ...]) -> np.ndarray:
+    """The entries of residual rows ``arrays`` (``kinds[i]``: the array is ``blocks``), each
+    one's rows after the previous ones'."""
+    parts, start = [], 0
+    for rows, is_blocks in zip(arrays, kinds, strict=True):
+        entries = _block_entries(rows) if is_blocks else _nonzero_entries(rows)
+        entries[:, 0] += start
+        parts.append(entries)
+        start += rows.shape[0] * rows.shape[1] if is_blocks else rows.shape[0]
+    return np.concatenate(parts) if parts else np.zeros((0, 3))
+
+
+def _row_scale(r: Residual) -> np.ndarray:
+    w2 = 2.0 * r.weight
+    return np.full(r.b.size, w2) if r.row_weights is None else w2 * r.row_weights
+
+
+def _static_rows(used: list[Residual]) -> tuple[np.ndarray, np.ndarray]:
+    """The entries and the row scales of the stacked residuals ``used``."""
+    operands = tuple(_rows_of(r) for r in used)
+    kinds = tuple(r.blocks is not None for r in used)
+    entries = _stacked_entries(operands, kinds)
+    return entries, np.concatenate([_row_scale(r) for r in used])
+
+
+#: ``(rows, weight, row weights) of each residual, by id -> (weak references to them, the
+#: entries, the row scales)``: the parts of :class:`LevelRows` that stay while a level's
+#: rows are read-only and its weights the same.
+_STATIC: dict[tuple, tuple[tuple, np.ndarray, np.ndarray]] = {}
+_STATIC_CAPACITY = 64
+
+
+def _rows_of(r: Residual) -> np.ndarray:
+    """The residual's ``blocks``, or its ``A``."""
+    rows = r.blocks if r.blocks is not None else r.A
+    assert rows is not None, "a residual has A or blocks"
+    return rows
+
+
+def _read_only(r: Residual) -> bool:
+    return not _rows_of(r).flags.writeable and (
+        r.row_weights is None or not r.row_weights.flags.writeable
+    )
+
+
+def _kept_static(used: list[Residual]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_static_rows`, kept while every residual's rows and row weights are
+    read-only."""
+    if not all(_read_only(r) for r in used):
+        return _static_rows(used)
+    arrays = [a for r in used for a in (_rows_of(r), r.row_weights)]
+    key = (*map(id, arrays), *(r.weight for r in used))
+    entry = _STATIC.get(key)
+    if entry is not None and all(
+        (a is None and ref is None) or (ref is not None and ref() is a)
+        for ref, a in zip(entry[0], arrays, strict=True)
+    ):
+        return entry[1], entry[2]
+    if len(_STATIC) >= _STATIC_CAPACITY:
+        _STATIC.clear()
+    entries, scale = _static_rows(used)
+    refs = tuple(None if a is None else weakref.ref(a) for a in arrays)
+    _STATIC[key] = (refs, frozen(entries), frozen(scale))
+    return entries, scale
+
+
+_EMPTY_ENTRIES = frozen(np.zeros((0, 3)))
+
+
+def level_rows(residuals: tuple[Residual, ...]) -> LevelRows:
+    """The :class:`LevelRows` of a level's residuals (the entries and row scales computed
+    once while every residual's rows are read-only and the weights stay the same)."""
+    held = [r for r in residuals if r.held]
+    used = held + [r for r in residuals if not r.held and 2.0 * r.weight != 0.0]
+    if not used:
+        return LevelRows(_EMPTY_ENTRIES, np.zeros(0), np.zeros(0), 0)
+    entries, scale = _kept_static(used)
+    b = np.concatenate([r.b for r in used])
+    return LevelRows(entries, b, scale, sum(r.b.size for r in held))
+
+
+def objective_in_basis(rows: LevelRows, point: np.ndarray, basis: np.ndarray) -> ReducedObjective:
+    """``Σ w ‖A (point + basis y) - b‖²`` of the stacked ``rows`` as ``½ yᵀ H y + gᵀ y``
+    up to a constant, and the held rows ``A basis``."""
+    stacked = np.empty((rows.b.size, basis.shape[1] + 1))  # [A basis | A point - b]
+    scale = np.empty(rows.b.size)
+    _entry_rows(rows.entries, basis, point, rows.b, 1.0, rows.scale, stacked, scale)
+    hessian, gradient = _weighted_gram(stacked, scale)
+    return ReducedObjective(hessian, gradient, stacked[: rows.held, :-1])
+
+
+class ReducedQP(NamedTuple):
+    """A level's QP in ``y`` with ``z = point + basis y``, as its parts: the level's stacked
+    rows, and the rows ``[I; C]`` of the problem (``general``: ``C``; ``lower``/``upper``
+    theirs). :meth:`objective` and :meth:`dense` give it as a dense QP; a backend may solve
+    it from the parts instead (``solve_reduced``, docs/theory.md §7.5)."""
+
+    rows: LevelRows
+    basis: np.ndarray
+    point: np.ndarray
+    general: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def objective(self) -> ReducedObjective:
+        """The level's objective in ``y`` and its held rows there."""
+        return objective_in_basis(self.rows, self.point, self.basis)
+
+    def dense(self, objective: ReducedObjective) -> DenseQP:
+        """The dense QP in ``y`` with ``objective``: ``y`` has no bounds of its own, every
+        row of ``[I; C]`` is a general row (:func:`rows_in_basis`)."""
+        rows, lower, upper = rows_in_basis(
+            self.general, self.basis, self.point, self.lower, self.upper
+        )
+        return DenseQP(objective.hessian, objective.gradient, rows, lower, upper)
+
+
 def reduced_objective(
     residuals: tuple[Residual, ...], point: np.ndarray, basis: np.ndarray
 ) -> ReducedObjective:
     """``Σ w ‖A (point + basis y) - b‖²`` as ``½ yᵀ H y + gᵀ y`` up to a constant, and
     the held rows ``A basis`` of the held residuals stacked in order."""
-    held = [r for r in residuals if r.held]
-    used = held + [r for r in residuals if not r.held and 2.0 * r.weight != 0.0]
-    total = sum(r.b.size for r in used)
-    rows = np.empty((total, basis.shape[1] + 1))  # [A basis | A point - b] of every one
-    scale = np.empty(total)  # 2 w times the row's weight
-    start = 0
-    for r in used:
-        end = start + r.b.size
-        _residual_rows(r, basis, point, rows[start:end], scale[start:end])
-        start = end
-    hessian, gradient = _weighted_gram(rows, scale)
-    return ReducedObjective(hessian, gradient, rows[: sum(r.b.size for r in held), :-1])
+    return objective_in_basis(level_rows(residuals), point, basis)
 
 
 @compiled

@@ -464,7 +464,9 @@ def collect_pairs(
     out = np.empty((count, 3, 3))
     for k in range(count):
         m = hits[k]
-        out[k] = points[m]
+        for i in range(3):  # entry by entry: a slice assignment compiles NumPy's shape
+            for j in range(3):  # checks and their messages, seconds of compilation
+                out[k, i, j] = points[m, i, j]
         state[k], pair[k] = states[m], pairs[m]
         d = solved_m[m]
         if not d > FAILED_DISTANCE_M:
@@ -481,5 +483,6 @@ def collect_pairs(
         for m in range(states.shape[0]):  # in order: the last configuration stays
             d = solved_m[m]
             reference_m[pairs[m]] = d if d > FAILED_DISTANCE_M else -np.inf
-            reference_q[pairs[m]] = qs[states[m]]
+            for j in range(qs.shape[1]):
+                reference_q[pairs[m], j] = qs[states[m], j]
     return state, pair, distance, out, grads

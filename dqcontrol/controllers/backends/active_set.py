@@ -94,20 +94,49 @@ def solve_on_active_set(
         row, above = _worst_row(a, lower, upper, z, primal_tol)
         if row >= 0:
             status = INFEASIBLE
-            active = np.append(active, row)
-            at_upper = np.append(at_upper, above)
+            active, at_upper = _joined(active, at_upper, row, above)
             continue
         j = _worst_multiplier(lower, upper, active, at_upper, lam, dual_tol)
         if j >= 0:
             status = WRONG_SIGN
-            keep = np.arange(active.shape[0]) != j
-            active, at_upper = active[keep], at_upper[keep]
+            active, at_upper = _left(active, at_upper, j)
             continue
         duals[:] = 0.0
         for i in range(active.shape[0]):
             duals[active[i]] = lam[i]
         return SOLVED, active, at_upper, changes
     return status, active, at_upper, max_changes + 1
+
+
+@compiled
+def _joined(
+    active: np.ndarray, at_upper: np.ndarray, row: int, above: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The set with ``row`` joined at its upper (``above``) or lower bound (new arrays,
+    filled entry by entry: ``np.append`` would compile NumPy's shape checks and their
+    messages into every kernel that calls it)."""
+    k = active.shape[0]
+    rows = np.empty(k + 1, dtype=active.dtype)
+    upper = np.empty(k + 1, dtype=np.bool_)
+    for i in range(k):
+        rows[i] = active[i]
+        upper[i] = at_upper[i]
+    rows[k] = row
+    upper[k] = above
+    return rows, upper
+
+
+@compiled
+def _left(active: np.ndarray, at_upper: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray]:
+    """The set without its entry ``j`` (new arrays)."""
+    k = active.shape[0]
+    rows = np.empty(k - 1, dtype=active.dtype)
+    upper = np.empty(k - 1, dtype=np.bool_)
+    for i in range(k - 1):
+        source = i if i < j else i + 1
+        rows[i] = active[source]
+        upper[i] = at_upper[source]
+    return rows, upper
 
 
 @compiled

@@ -10,7 +10,11 @@ of the levels above) DAQP's own handling costs the same and is kept.
 
 Before DAQP, a level is solved on the active set of its last solve and the KKT conditions
 are checked (:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set`): when
-the set has not changed, that is the optimum, found without DAQP's update.
+the set has not changed, that is the optimum, found without DAQP's update. A level reduced
+to the null space of the levels above is given as its parts (:meth:`DaqpBackend.
+solve_reduced`): its QP is formed and solved on the last active set in one compiled call
+(:mod:`~dqcontrol.controllers.backends.reduced_active_set`), the same numbers as forming the
+dense QP first.
 """
 
 from __future__ import annotations
@@ -22,9 +26,11 @@ import numpy as np
 from scipy.linalg import lapack
 
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
+from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.problem import DenseQP, Solution
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
+from dqcontrol.controllers.reduced import ReducedQP, nonzero_entries
 from dqcontrol.errors import ParameterError
 
 __all__ = ["DaqpBackend"]
@@ -88,12 +94,57 @@ class DaqpBackend:
         self._models: dict = {}
         self._ldp: dict = {}
         self._active: dict = {}
+        self._reduced: dict = {}
 
     def reset(self) -> None:
         """Forget every level's workspace and active set."""
         self._models.clear()
         self._ldp.clear()
         self._active.clear()
+        self._reduced.clear()
+
+    def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
+        """Solve level ``key`` given as a :class:`~dqcontrol.controllers.reduced.ReducedQP`
+        (the answer in ``y``, as :meth:`solve` of its dense QP) and return it with the
+        level's held rows in the basis. With a last active set of the same shape (and at
+        most :data:`SMALL_FACTOR` variables) the QP is formed and solved on that set in one
+        compiled call; otherwise, or where that does not end with a checked optimum, its
+        dense QP goes to :meth:`solve`."""
+        start = time.perf_counter()
+        dim = qp.basis.shape[1]
+        size = dim + qp.lower.size
+        entry = self._active.get(key) if self.reuse_active_set else None
+        if entry is None or entry[0] != (size, dim) or dim > SMALL_FACTOR:
+            objective = qp.objective()
+            return self.solve(key, qp.dense(objective)), objective.held
+        buffers = self._reduced_buffers(key, qp.rows.b.size, size, dim)
+        rows, qp_rows, qp_lower, qp_upper = buffers
+        y, duals = np.empty(dim), np.empty(size)
+        settings = np.array([
+            self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE,
+            ACTIVE_SET_CHANGES, PIVOT_SHARE,
+        ])  # fmt: skip
+        status, active, at_upper, changes, hessian, gradient = reduced_on_active_set(
+            qp.rows.entries, qp.rows.b, qp.rows.scale, qp.basis, qp.point,
+            nonzero_entries(qp.general), qp.lower, qp.upper, entry[1], entry[2], settings,
+            rows, qp_rows, qp_lower, qp_upper, y, duals,
+        )  # fmt: skip
+        held = rows[: qp.rows.held, :-1].copy()
+        if status == SOLVED and np.isfinite(y).all():
+            self._active[key] = ((size, dim), active, at_upper)
+            return Solution(True, "solved", changes, _since(start), y, duals), held
+        dense = DenseQP(hessian, gradient, qp_rows.copy(), qp_lower.copy(), qp_upper.copy())
+        return self.solve(key, dense), held
+
+    def _reduced_buffers(self, key: object, count: int, size: int, dim: int) -> tuple:
+        """The key's buffers of :func:`reduced_on_active_set` (its level's rows, the QP's
+        rows and bounds), kept while the sizes stay the same."""
+        buffers = self._reduced.get(key)
+        if buffers is None or buffers[0].shape != (count, dim + 1) or buffers[1].shape[0] != size:
+            buffers = (np.empty((count, dim + 1)), np.empty((size, dim)), np.empty(size),
+                       np.empty(size))  # fmt: skip
+            self._reduced[key] = buffers
+        return buffers
 
     def solve(self, key: object, qp: DenseQP) -> Solution:
         """Solve level ``key``'s QP with DAQP (warm start: its previous active set)."""

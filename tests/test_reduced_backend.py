@@ -1,0 +1,78 @@
+"""A reduced level solved from its parts (``DaqpBackend.solve_reduced``: the QP formed and
+solved on the last active set in one compiled call) against the same backend given the
+dense QP of the level: the same answer bit for bit, over solves that reuse the last
+active set, mend it, or fall back to DAQP."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_core_levels_properties import _problem
+
+from dqcontrol.controllers.backends.daqp_dense import DaqpBackend
+from dqcontrol.controllers.gram import frozen
+from dqcontrol.controllers.levels import solve_levels
+from dqcontrol.controllers.problem import Residual
+from dqcontrol.controllers.reduced import level_rows, objective_in_basis, reduced_objective
+
+
+class _DenseOnly:
+    """A DAQP backend seen without ``solve_reduced``: every level as its dense QP."""
+
+    name = "daqp"
+
+    def __init__(self) -> None:
+        self._inner = DaqpBackend()
+
+    def solve(self, key, qp):
+        return self._inner.solve(key, qp)
+
+    def reset(self) -> None:
+        self._inner.reset()
+
+
+def _same(a, b) -> None:
+    assert a.failed_level == b.failed_level
+    assert len(a.per_level) == len(b.per_level)
+    for x, y in zip(a.per_level, b.per_level, strict=True):
+        assert (x.ok, x.status, x.iterations) == (y.ok, y.status, y.iterations)
+        assert np.array_equal(x.x, y.x)
+        assert (x.duals is None) == (y.duals is None)
+        if x.duals is not None:
+            assert np.array_equal(x.duals, y.duals)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_solving_from_the_parts_gives_the_dense_answer_bit_for_bit(seed):
+    # the same structure with loose and tight boxes in turn: the last active set is right
+    # (a repeated problem), wrong (the other boxes: mended or handed to DAQP), or absent
+    parts, dense = DaqpBackend(), _DenseOnly()
+    calls = []
+    solve_reduced = parts.solve_reduced
+
+    def counted(key, qp):
+        calls.append(key)
+        return solve_reduced(key, qp)
+
+    parts.solve_reduced = counted
+    for tight in (False, False, True, True, False):
+        problem = _problem(seed, 3, 3, (4, 3), tight)
+        _same(solve_levels(problem, parts), solve_levels(problem, dense))
+    assert calls, "the lower levels went through solve_reduced"
+
+
+def test_level_rows_follow_changed_weights_and_writable_rows():
+    rng = np.random.default_rng(3)
+    point, basis = rng.normal(size=6), np.linalg.qr(rng.normal(size=(6, 4)))[0]
+    rows = frozen(rng.normal(size=(3, 6)))
+    first = (Residual("a", 1.0, rng.normal(size=3), A=rows),)
+    again = (Residual("a", 2.0, first[0].b, A=rows),)  # the same rows, another weight
+    for residuals in (first, again, first):
+        got = objective_in_basis(level_rows(residuals), point, basis)
+        dense = 2.0 * residuals[0].weight * (rows @ basis).T @ (rows @ basis)
+        np.testing.assert_allclose(got.hessian, dense, rtol=1e-12)
+    writable = rng.normal(size=(3, 6))
+    live = (Residual("b", 1.0, rng.normal(size=3), A=writable),)
+    before = reduced_objective(live, point, basis).hessian
+    writable *= 2.0  # rows that may change are read again at every call
+    np.testing.assert_allclose(reduced_objective(live, point, basis).hessian, 4.0 * before)
