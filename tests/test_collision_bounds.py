@@ -56,18 +56,29 @@ def _random_pose(rng: np.random.Generator) -> pin.SE3:
     return pin.SE3(pin.exp3(rng.normal(size=3)), rng.uniform(-0.25, 0.25, 3))
 
 
+_SHAPE_DATA: dict[int, tuple] = {}
+
+
+def _shape_data(shape) -> tuple:
+    """The bounding capsule's ends and radius and the support form of ``shape``, computed
+    once per shape (the shape is kept with them, so its id stays its own)."""
+    entry = _SHAPE_DATA.get(id(shape))
+    if entry is None or entry[0] is not shape:
+        capsule = bounding_capsule(shape)
+        centre, spans, axis, disc, ball = support_form(shape, capsule)
+        form = np.concatenate([centre, spans.ravel(), axis, [disc, ball]])
+        entry = _SHAPE_DATA[id(shape)] = (shape, (capsule[:2], capsule[2], form))
+    return entry[1]
+
+
 def _gap_of(shape_a, pose_a, shape_b, pose_b, plane=None, influence_m=math.inf) -> float:
     """``capsule_gaps`` for one pair of shapes (each on its own joint, placed by pose)."""
     rot = np.stack([np.eye(3), pose_a.rotation, pose_b.rotation])[None]
     trans = np.stack([np.zeros(3), pose_a.translation, pose_b.translation])[None]
     ends, radii, forms = np.zeros((2, 2, 3)), np.zeros(2), np.zeros((2, FORM_SIZE))
     for k, shape in enumerate((shape_a, shape_b)):
-        if shape is None:
-            continue
-        capsule = bounding_capsule(shape)
-        ends[k], radii[k] = capsule[:2], capsule[2]
-        centre, spans, axis, disc, ball = support_form(shape, capsule)
-        forms[k] = np.concatenate([centre, spans.ravel(), axis, [disc, ball]])
+        if shape is not None:
+            ends[k], radii[k], forms[k] = _shape_data(shape)
     normals, offsets = np.zeros((2, 3)), np.zeros(2)
     is_plane = np.array([False, plane is not None])
     if plane is not None:

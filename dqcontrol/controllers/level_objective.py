@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.gram import add_diagonal_blocks, block_gram, subtract_block_lin
+from dqcontrol.controllers.gram import add_diagonal_blocks, block_gram, frozen, subtract_block_lin
 from dqcontrol.controllers.problem import DecisionLayout, Residual, objective
 
 __all__ = ["level_objective"]
 
-_NO_WEIGHTS = np.zeros(0)
+_NO_WEIGHTS = frozen(np.zeros(0))  # read-only as row weights are: one compiled form
 
 
 @compiled

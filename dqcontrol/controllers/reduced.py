@@ -115,8 +115,9 @@ def _nonzero_entries(a: np.ndarray) -> np.ndarray:
 
 def nonzero_entries(a: np.ndarray) -> np.ndarray:
     """The non-zero entries of ``a`` row by row, ``(nnz, 3)``: row, column, value (the
-    indices exact as floats); computed once for a read-only ``a``."""
-    return kept((a,), _nonzero_entries)
+    indices exact as floats); computed once for a read-only ``a``. Always read-only, so
+    that the kernels reading them are compiled for one form."""
+    return frozen(kept((a,), _nonzero_entries))
 
 
 def sparse_product(a: np.ndarray, right: np.ndarray) -> np.ndarray:
@@ -206,7 +207,7 @@ def _static_rows(used: list[Residual]) -> tuple[np.ndarray, np.ndarray]:
     operands = tuple(_rows_of(r) for r in used)
     kinds = tuple(r.blocks is not None for r in used)
     entries = _stacked_entries(operands, kinds)
-    return entries, np.concatenate([_row_scale(r) for r in used])
+    return frozen(entries), frozen(np.concatenate([_row_scale(r) for r in used]))
 
 
 #: ``(rows, weight, row weights) of each residual, by id -> (weak references to them, the
@@ -246,7 +247,7 @@ def _kept_static(used: list[Residual]) -> tuple[np.ndarray, np.ndarray]:
         _STATIC.clear()
     entries, scale = _static_rows(used)
     refs = tuple(None if a is None else weakref.ref(a) for a in arrays)
-    _STATIC[key] = (refs, frozen(entries), frozen(scale))
+    _STATIC[key] = (refs, entries, scale)
     return entries, scale
 
 
@@ -259,7 +260,7 @@ def level_rows(residuals: tuple[Residual, ...]) -> LevelRows:
     held = [r for r in residuals if r.held]
     used = held + [r for r in residuals if not r.held and 2.0 * r.weight != 0.0]
     if not used:
-        return LevelRows(_EMPTY_ENTRIES, np.zeros(0), np.zeros(0), 0)
+        return LevelRows(_EMPTY_ENTRIES, np.zeros(0), frozen(np.zeros(0)), 0)
     entries, scale = _kept_static(used)
     b = np.concatenate([r.b for r in used])
     return LevelRows(entries, b, scale, sum(r.b.size for r in held))

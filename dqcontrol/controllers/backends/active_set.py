@@ -177,7 +177,7 @@ def _equality_optimum(
             schur[j, i] = t
     if k:
         schur_factor = np.zeros((k, k))
-        if not cholesky_into(schur, schur_factor, 1e-12):
+        if not cholesky_into(schur, schur_factor, 1e-12, 0.0):
             return False
         half = np.empty(k)
         _forward(schur_factor, rhs, half)

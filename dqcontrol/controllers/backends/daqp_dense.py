@@ -20,6 +20,7 @@ dense QP first.
 from __future__ import annotations
 
 import time
+import weakref
 from ctypes import c_int
 
 import numpy as np
@@ -95,6 +96,7 @@ class DaqpBackend:
         self._ldp: dict = {}
         self._active: dict = {}
         self._reduced: dict = {}
+        self._copies: dict = {}
 
     def reset(self) -> None:
         """Forget every level's workspace and active set."""
@@ -102,6 +104,7 @@ class DaqpBackend:
         self._ldp.clear()
         self._active.clear()
         self._reduced.clear()
+        self._copies.clear()
 
     def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
         """Solve level ``key`` given as a :class:`~dqcontrol.controllers.reduced.ReducedQP`
@@ -184,7 +187,7 @@ class DaqpBackend:
         if entry[0][0] != qp.A.shape[0]:  # a limit's row count changed: the rows that exist
             keep = active < qp.A.shape[0]
             active, at_upper = active[keep], at_upper[keep]
-        a = np.ascontiguousarray(qp.A)
+        a = self._writable_rows(key, np.ascontiguousarray(qp.A))
         z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
         status, active, at_upper, changes = solve_on_active_set(
             factor, np.ascontiguousarray(qp.c), a, qp.lower, qp.upper, active, at_upper,
@@ -195,6 +198,18 @@ class DaqpBackend:
             return None
         self._active[key] = (qp.A.shape, active, at_upper)
         return Solution(True, "solved", changes, _since(start), z, duals)
+
+    def _writable_rows(self, key: object, a: np.ndarray) -> np.ndarray:
+        """``a``, or a writable copy of a read-only ``a`` that owns its data (such rows never
+        change: the copy is kept for the key while ``a`` is the same array). The active-set
+        kernel is then compiled for writable rows only, the form the reduced levels give it."""
+        if a.flags.writeable or a.base is not None:
+            return a
+        kept = self._copies.get(key)
+        if kept is None or kept[0]() is not a:
+            kept = (weakref.ref(a), a.copy())
+            self._copies[key] = kept
+        return kept[1]
 
     def _remember_active_set(self, key: object, qp: DenseQP, sol: Solution) -> None:
         """Keep the rows DAQP's answer holds at a bound (non-zero multipliers) as the key's
@@ -300,7 +315,7 @@ def _factor(p_mat: np.ndarray) -> np.ndarray | None:
     or NaN)."""
     if p_mat.shape[0] <= SMALL_FACTOR:
         factor = np.zeros(p_mat.shape)
-        return factor if cholesky_into(p_mat, factor, PIVOT_SHARE) else None
+        return factor if cholesky_into(p_mat, factor, PIVOT_SHARE, 0.0) else None
     # the upper factor of ``p_matᵀ = p_mat`` in Fortran order is ``L`` in C order
     upper, info = lapack.dpotrf(p_mat.T, lower=0, clean=1)
     if info != 0:

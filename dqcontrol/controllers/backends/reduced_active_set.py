@@ -66,7 +66,7 @@ def reduced_on_active_set(
         if not qp_lower[i] <= qp_upper[i]:
             return INVALID_BOUNDS, active, at_upper, 0, hessian, gradient
     factor = np.zeros(hessian.shape)
-    if not cholesky_into(hessian, factor, settings[3]):
+    if not cholesky_into(hessian, factor, settings[3], 0.0):
         return NOT_DEFINITE, active, at_upper, 0, hessian, gradient
     status, active, at_upper, changes = solve_on_active_set(
         factor, gradient, qp_rows, qp_lower, qp_upper, active, at_upper,

@@ -28,6 +28,16 @@ from dqcontrol.controllers.terms.path_error import tangent_projectors
 __all__ = ["TrackingTerm"]
 
 
+def _kinematics(ctx: StepContext) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The poses, Jacobians, targets and their derivatives, C-contiguous (a prediction may
+    give strided views): the compiled kernels then have one form to compile."""
+    contiguous = np.ascontiguousarray
+    return (
+        contiguous(ctx.poses), contiguous(ctx.jacobians), contiguous(ctx.targets),
+        contiguous(ctx.target_derivatives),
+    )  # fmt: skip
+
+
 class TrackingTerm(Term):
     """``λ1 Σ_i ‖J_i qd_i - s_i w_i‖²``.
 
@@ -48,9 +58,8 @@ class TrackingTerm(Term):
 
     def residual(self, ctx: StepContext) -> Residual:
         """The task rows of every block (docs/theory.md §4)."""
-        g = task_matrices(
-            ctx.poses, ctx.jacobians, ctx.targets, ctx.target_derivatives, self.gain_per_s
-        )
+        xs, jacs, xd, dxd = _kinematics(ctx)
+        g = task_matrices(xs, jacs, xd, dxd, self.gain_per_s)
         if self.tangent:
             g = np.einsum("pak,pkm->pam", tangent_projectors(ctx.poses), g)
         rows = g.shape[1]
@@ -63,8 +72,6 @@ class TrackingTerm(Term):
         """Add the task's Gram blocks in place (compiled), for the untangled, scaled task."""
         if self.tangent or not ctx.layout.with_scaling:
             return False
-        add_task_grams(
-            ctx.poses, ctx.jacobians, ctx.targets, ctx.target_derivatives, self.gain_per_s,
-            2.0 * self.weight, hessian,
-        )  # fmt: skip
+        xs, jacs, xd, dxd = _kinematics(ctx)
+        add_task_grams(xs, jacs, xd, dxd, self.gain_per_s, 2.0 * self.weight, hessian)
         return True
