@@ -22,6 +22,13 @@ class Backend(Protocol):
     key, set up on the first solve and updated afterwards (warm start: the previous
     active set); a change of shape sets it up again. ``solve`` never raises for a failed
     solve: the :class:`Solution` says so.
+
+    A backend may also offer ``solve_reduced(key, qp)`` for a level reduced to the null
+    space of the levels above, given as its parts
+    (:class:`~dqcontrol.controllers.reduced.ReducedQP`), returning the :class:`Solution`
+    of its dense QP and the level's held rows in the basis
+    (:meth:`~dqcontrol.controllers.backends.daqp_dense.DaqpBackend.solve_reduced`); the
+    levels use it where it exists and :meth:`solve` with the dense QP otherwise.
     """
 
     name: str
