@@ -62,12 +62,15 @@ CONTROLLERS: dict[str, tuple[str, dict]] = {
     "predictive_p10": ("PredictiveController", {"num_instants": 10}),
     "predictive_noscale_p10": ("PredictiveNoScalingController", {"num_instants": 10}),
     "proportional": ("ProportionalController", {}),
+    "path_following_p10": ("PathFollowingController", {"num_intervals": 10}),
 }
 ALIASES = {
     "p6": "predictive_p6",
     "p10": "predictive_p10",
     "noscale_p10": "predictive_noscale_p10",
     "noscale": "predictive_noscale_p10",
+    "pf": "path_following_p10",
+    "pf10": "path_following_p10",
 }
 PERIOD_S = 0.001
 CIRCLE_S = 2.0
