@@ -76,3 +76,22 @@ def test_level_rows_follow_changed_weights_and_writable_rows():
     before = reduced_objective(live, point, basis).hessian
     writable *= 2.0  # rows that may change are read again at every call
     np.testing.assert_allclose(reduced_objective(live, point, basis).hessian, 4.0 * before)
+
+
+def test_level_rows_of_strided_blocks_are_their_dense_rows():
+    # a term may give a view of wider blocks (the tracking term's rows without the s column)
+    rng = np.random.default_rng(5)
+    wide = rng.normal(size=(3, 4, 6))
+    wide[np.abs(wide) < 0.5] = 0.0
+    blocks = wide[:, :, :5]
+    residual = Residual("view", 0.5, rng.normal(size=12), blocks=blocks)
+    dense = np.zeros((12, 15))
+    for i in range(3):
+        dense[4 * i : 4 * i + 4, 5 * i : 5 * i + 5] = blocks[i]
+    point, basis = rng.normal(size=15), np.linalg.qr(rng.normal(size=(15, 6)))[0]
+    got = reduced_objective((residual,), point, basis)
+    rows = dense @ basis
+    np.testing.assert_allclose(got.hessian, 2.0 * 0.5 * rows.T @ rows, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(
+        got.gradient, 2.0 * 0.5 * rows.T @ (dense @ point - residual.b), rtol=1e-12, atol=1e-14
+    )

@@ -225,6 +225,7 @@ def reduced_qp(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -
 
 
 def _reduced(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> ReducedQP:
+    """Level ``k`` in ``z = point + basis y`` as its parts."""
     rows = level_rows(problem.levels[k].residuals)
     return ReducedQP(rows, basis, point, problem.C, problem.lower, problem.upper)
 

@@ -169,8 +169,10 @@ def _block_entries(blocks: np.ndarray) -> np.ndarray:
     """:func:`nonzero_entries` of the block-diagonal rows of ``blocks`` ``(p, r, m)``."""
     p, r, m = blocks.shape
     count = 0
-    for v in blocks.ravel():
-        count += v != 0.0
+    for i in range(p):
+        for a in range(r):
+            for k in range(m):
+                count += blocks[i, a, k] != 0.0
     out = np.empty((count, 3))
     e = 0
     for i in range(p):
