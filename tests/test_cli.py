@@ -40,8 +40,33 @@ def test_run_writes_runs_figures_replays_and_comparison(default_run, capsys):
     assert (folder / "comparison.png").stat().st_size > 10_000
     assert json.loads((folder / "p10.json").read_text())["meta"]["horizon_s"] == 1.0
     pf = json.loads((folder / "pf.json").read_text())["meta"]
-    assert pf["controller"] == "path_following" and pf["acceleration_limit"] == 10.0
+    # each controller's own acceleration bound: the thesis's for the thesis's controllers,
+    # the dynamics-aware one for path following
+    assert pf["controller"] == "path_following" and pf["acceleration_limit"] == "dynamics"
+    assert json.loads((folder / "p10.json").read_text())["meta"]["acceleration_limit"] == 10.0
     assert pf["radius_m"] == 0.1  # the trajectory's own metadata
+
+
+def test_an_acceleration_limit_given_bounds_every_controller(tmp_path, capsys, monkeypatch):
+    import dqcontrol.viz.figures as figures
+    import dqcontrol.viz.meshcat_viewer as viewer
+
+    monkeypatch.setattr(figures, "plot_run", lambda *a, **k: [])
+    monkeypatch.setattr(viewer, "export_replay_html", lambda *a, path_points, **k: a[2])
+    code = main(
+        ["run", "--short", "--simulator", "kinematic", "--controllers", "local,pf",
+         "--duration", "4", "--acceleration-limit", "5", "--out", str(tmp_path)]
+    )  # fmt: skip
+    capsys.readouterr()
+    assert code == 0
+    folder = tmp_path / "lbr4p_circle_T4s_kinematic"
+    for label in ("local", "pf"):
+        log, record = load_run(folder / f"{label}.npz")
+        assert log.meta["acceleration_limit"] == 5.0
+        assert record["metrics"]["acceleration_violations"] == 0
+        # the joint accelerations between samples stay within the 5 rad/s² asked for
+        qd = np.asarray(log.qd_command)
+        assert np.abs(np.diff(qd, axis=0)).max() / 0.05 <= 5.0 + 1e-6
 
 
 def test_run_compares_local_p10_and_path_following(tmp_path, capsys, monkeypatch):

@@ -138,10 +138,11 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
         extra["extra_limits"] = (CollisionLimit(collision, safety_distance_m=args.safety_distance),)
     shared = {
         "velocity_limits": velocity_limits,
-        "acceleration_limit": args.acceleration_limit,
         "gain_per_s": args.gain,
         "horizon_s": args.horizon,
     }
+    if args.acceleration_limit is not None:  # otherwise each controller's own default
+        shared["acceleration_limit"] = args.acceleration_limit
     if args.simulator == "mujoco":  # a controller that models the servos gets their lag
         from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
 
@@ -337,6 +338,22 @@ def _run_controller(label: str, args, robot, q0, robot_meta: dict, velocity, vie
     return label, result, controller.trajectory
 
 
+def _acceleration_meta(controller, args) -> float | str | None:
+    """The acceleration bound the controller runs with: ``"dynamics"`` (the dynamics-aware
+    one), the ``--acceleration-limit`` given, or the controller's own constant [rad/s²]."""
+    import numpy as np
+
+    if getattr(controller, "dynamic_acceleration", False):
+        return "dynamics"
+    if args.acceleration_limit is not None:
+        return float(args.acceleration_limit)
+    for name in ("a_const", "a_max"):
+        value = getattr(controller, name, None)
+        if value is not None:
+            return float(np.max(value))
+    return None
+
+
 def _run_meta(args, label: str, controller, q0, velocity, task_meta: dict) -> dict:
     """The ``meta`` saved with a run: ``task_meta`` (the robot's and the trajectory's), the
     label, the start, the bounds, the gain and horizon, and the collision options."""
@@ -345,7 +362,7 @@ def _run_meta(args, label: str, controller, q0, velocity, task_meta: dict) -> di
         "label": label,
         "q0": [float(v) for v in q0],
         "velocity_limits": [float(v) for v in velocity],
-        "acceleration_limit": args.acceleration_limit,
+        "acceleration_limit": _acceleration_meta(controller, args),
         "gain_per_s": getattr(controller, "gain_per_s", None),
         "horizon_s": getattr(controller, "horizon_s", None),
         "command": "dqcontrol run",

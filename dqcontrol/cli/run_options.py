@@ -163,9 +163,11 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--acceleration-limit",
         type=positive_float("rad/s^2"),
-        default=THESIS_ACCELERATION_LIMIT,
+        default=None,
         metavar="A",
-        help="joint acceleration bound [rad/s^2] of every controller (default: 10)",
+        help="joint acceleration bound [rad/s^2] of every controller (default: each "
+        f"controller's own: {THESIS_ACCELERATION_LIMIT:g} for the thesis's controllers, the "
+        "dynamics-aware bound from the robot's inertia and effort limits for path following)",
     )
 
 
