@@ -128,7 +128,7 @@ def test_every_tool_builds_from_the_registry():
     assert scenarios.ControllerSpec is ControllerSpec
 
 
-def test_the_thesis_numbers_are_shared():
+def test_the_thesis_numbers_are_shared(lbr4p):
     from dqcontrol.cli import build_parser
     from dqcontrol.faults.campaign import PERIOD_S
 
@@ -143,8 +143,14 @@ def test_the_thesis_numbers_are_shared():
     )
     args = build_parser().parse_args(["run"])
     assert args.period == thesis.THESIS_PERIOD_S and args.horizon == thesis.THESIS_HORIZON_S
-    assert args.acceleration_limit == thesis.THESIS_ACCELERATION_LIMIT
     assert args.controllers == ("local", "p10", "pf")
+    # without --acceleration-limit each controller keeps its own bound: the thesis's for the
+    # thesis's controllers, the dynamics-aware one for path following
+    assert args.acceleration_limit is None
+    for name in ("local", "p10", "noscale"):
+        a_max = build_controller(name, lbr4p, Circle(2.0), thesis.THESIS_PERIOD_S).a_const
+        np.testing.assert_array_equal(a_max, thesis.THESIS_ACCELERATION_LIMIT)
+    assert build_controller("pf", lbr4p, Circle(2.0), 0.05).dynamic_acceleration
 
 
 # ---------------------------------------------------------------------------- trajectories
