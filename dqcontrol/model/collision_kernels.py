@@ -394,34 +394,14 @@ def screen_pairs(
     ``(K,)``, pair ``(K,)``, distance ``(K,)``, points ``(K, 3, 3)`` and the ones left for
     coal ``(k, 3)``: index ``m``, configuration, pair."""
     gaps = capsule_gaps(
-        rot,
-        trans,
-        joint_of,
-        ends,
-        radii,
-        forms_local,
-        first,
-        second,
-        plane_normals,
-        plane_offsets,
-        is_plane,
-        influence_m,
-    )
+        rot, trans, joint_of, ends, radii, forms_local, first, second, plane_normals,
+        plane_offsets, is_plane, influence_m,
+    )  # fmt: skip
     states, pairs = close_pairs(gaps, qs, reference_q, reference_m, levers_m, influence_m)
     solved, points, todo = solve_closed_forms(
-        rot,
-        trans,
-        states,
-        pairs,
-        first,
-        second,
-        joint_of,
-        kind,
-        swapped,
-        local_rot,
-        local_trans,
-        size,
-    )
+        rot, trans, states, pairs, first, second, joint_of, kind, swapped, local_rot,
+        local_trans, size,
+    )  # fmt: skip
     jobs = np.empty((todo.shape[0], 3), dtype=np.int64)
     for r in range(todo.shape[0]):
         jobs[r, 0], jobs[r, 1], jobs[r, 2] = todo[r], states[todo[r]], pairs[todo[r]]

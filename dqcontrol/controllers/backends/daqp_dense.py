@@ -111,8 +111,8 @@ class DaqpBackend:
         (the answer in ``y``, as :meth:`solve` of its dense QP) and return it with the
         level's held rows in the basis. With a last active set of the same shape (and at
         most :data:`SMALL_FACTOR` variables) the QP is formed and solved on that set in one
-        compiled call; otherwise, or where that does not end with a checked optimum, its
-        dense QP goes to :meth:`solve`."""
+        compiled call; otherwise its dense QP goes to :meth:`solve`, and where that call does
+        not end with a checked optimum, to DAQP."""
         start = time.perf_counter()
         dim = qp.basis.shape[1]
         size = dim + qp.lower.size
@@ -136,8 +136,9 @@ class DaqpBackend:
         if status == SOLVED and np.isfinite(y).all():
             self._active[key] = ((size, dim), active, at_upper)
             return Solution(True, "solved", changes, _since(start), y, duals), held
+        # the same guess on the same numbers would fail again: straight to DAQP
         dense = DenseQP(hessian, gradient, qp_rows.copy(), qp_lower.copy(), qp_upper.copy())
-        return self.solve(key, dense), held
+        return self._solve(key, dense, start, try_last=False), held
 
     def _reduced_buffers(self, key: object, count: int, size: int, dim: int) -> tuple:
         """The key's buffers of :func:`reduced_on_active_set` (its level's rows, the QP's
@@ -151,12 +152,15 @@ class DaqpBackend:
 
     def solve(self, key: object, qp: DenseQP) -> Solution:
         """Solve level ``key``'s QP with DAQP (warm start: its previous active set)."""
-        start = time.perf_counter()
+        return self._solve(key, qp, time.perf_counter(), self.reuse_active_set)
+
+    def _solve(self, key: object, qp: DenseQP, start: float, try_last: bool) -> Solution:
+        """:meth:`solve`, first on the key's last active set where ``try_last``."""
         if not (qp.lower <= qp.upper).all():
             bad = np.flatnonzero(~(qp.lower <= qp.upper))[:5].tolist()
             return Solution(False, f"invalid_bounds: lower > upper or NaN in rows {bad}")
         factor = None
-        last = self._active.get(key) if self.reuse_active_set else None
+        last = self._active.get(key) if try_last else None
         if last is not None and last[0][1] == qp.A.shape[1]:
             factor = _factor(qp.P)
             kept = None if factor is None else self._on_last_active_set(key, qp, factor, start)
