@@ -1,6 +1,8 @@
 """The path-following controller at short periods: the path weights of the predicted states
-do not shrink with ``T``, and a plan that cannot brake in time on the new grid is loosened
-before the predicted position rows are dropped (docs/theory.md §8.2, §8.6)."""
+do not shrink with ``T``, the coupling rows keep a larger acceleration reserve where the
+loop re-plans within the plan's second interval, and a plan that cannot brake in time on
+the new grid is loosened before the predicted position rows are dropped (docs/theory.md
+§8.2, §8.4, §8.6)."""
 
 from __future__ import annotations
 
@@ -8,17 +10,22 @@ import numpy as np
 import pytest
 
 from dqcontrol.controllers import PathFollowingController
-from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
+from dqcontrol.controllers.path_following_tuning import (
+    RESERVE_REPLANNED_OFTEN,
+    RESERVE_REPLANNED_ONCE,
+    PathFollowingTuning,
+)
 from dqcontrol.controllers.terms.path_error import PathErrorTerm
 from dqcontrol.errors import ParameterError
 from dqcontrol.experiments.thesis import LBR4P_Q0, THESIS_VELOCITY_LIMITS
-from dqcontrol.trajectories import Circle
+from dqcontrol.sim.kinematic import run_kinematic
+from dqcontrol.trajectories import Circle, Sinusoid
 
 
-def _controller(robot, period_s: float, **kwargs) -> PathFollowingController:
+def _controller(robot, period_s: float, trajectory=None, **kwargs) -> PathFollowingController:
     return PathFollowingController(
-        robot, Circle(2.0), period_s, velocity_limits=THESIS_VELOCITY_LIMITS,
-        acceleration_limit=5.0, **kwargs,
+        robot, Circle(2.0) if trajectory is None else trajectory, period_s,
+        velocity_limits=THESIS_VELOCITY_LIMITS, acceleration_limit=5.0, **kwargs,
     )  # fmt: skip
 
 
@@ -80,3 +87,28 @@ def test_a_plan_that_cannot_brake_in_time_is_loosened_before_its_rows_are_droppe
 def test_a_negative_position_slack_is_refused():
     with pytest.raises(ParameterError, match="position_slack_rad"):
         PathFollowingTuning(position_slack_rad=-1e-3)
+
+
+def test_the_default_reserve_follows_how_often_the_loop_replans_the_second_interval(lbr4p):
+    for period_s, reserve in ((0.05, RESERVE_REPLANNED_ONCE), (0.01, RESERVE_REPLANNED_ONCE),
+                              (0.001, RESERVE_REPLANNED_OFTEN)):  # fmt: skip
+        ctrl = _controller(lbr4p, period_s)
+        coupling = ctrl.layout.durations_s[1:] + ctrl.layout.durations_s[:-1]
+        limit = next(lim for lim in ctrl.limits if lim.name == "acceleration")
+        np.testing.assert_allclose(limit.coupling_s, 0.5 * coupling * reserve, rtol=1e-15)
+    given = _controller(lbr4p, 0.001, tuning=PathFollowingTuning(acceleration_reserve=0.8))
+    assert given._reserve() == 0.8
+
+
+def test_at_1khz_a_tight_constant_bound_keeps_the_path(lbr4p):
+    # Table 1's setting for this controller (5 rad/s², the thesis's velocity bounds) on the
+    # sinusoid at 2 s; with the reserve of a slow loop the applied command falls behind the
+    # plan and the tool leaves the path by more than the kinematic loop's 0.1 mm
+    def deviation_m(tuning):
+        ctrl = _controller(lbr4p, 0.001, Sinusoid(2.0), tuning=tuning)
+        metrics = run_kinematic(ctrl, LBR4P_Q0.copy(), max_time_s=6.0).metrics
+        assert metrics.completed
+        return metrics.path_deviation_max_m
+
+    assert deviation_m(None) <= 0.1e-3
+    assert deviation_m(PathFollowingTuning(acceleration_reserve=RESERVE_REPLANNED_ONCE)) > 0.1e-3

@@ -302,6 +302,11 @@ class PathFollowingController(Controller):
         posture = Level((self.posture, DampingTerm(layout, mu), *extra), 1e-6, "posture")
         return path, progress, posture
 
+    def _reserve(self) -> float:
+        """The share of ``a_max`` the coupling rows allow
+        (:meth:`PathFollowingTuning.reserve_for`)."""
+        return self.tuning.reserve_for(self.period_s, float(self.layout.durations_s[1]))
+
     def _limits(self) -> tuple[Limit, ...]:
         layout = self.layout
         self._trust = TrustRegionLimit(
@@ -329,7 +334,7 @@ class PathFollowingController(Controller):
             VelocityLimit(layout, self.qd_max),
             AppliedCommandBox(layout, self.q_min, self.q_max, self.qd_max, self.period_s),
             ScalingRange(layout, 0.0, self.s_max),
-            AccelerationLimit(layout, self.period_s, coupling, self.tuning.acceleration_reserve),
+            AccelerationLimit(layout, self.period_s, coupling, self._reserve()),
             PredictedPositionLimit(
                 layout, self.q_min, self.q_max, self.qd_max, reach_rad=self._trust.radii_rad
             ),

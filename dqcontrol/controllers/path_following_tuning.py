@@ -9,7 +9,15 @@ from dataclasses import dataclass
 from dqcontrol.controllers.base import check_positive
 from dqcontrol.errors import ParameterError
 
-__all__ = ["PathFollowingTuning"]
+__all__ = ["RESERVE_REPLANNED_ONCE", "RESERVE_REPLANNED_OFTEN", "PathFollowingTuning"]
+
+#: Default share of ``a_max`` between intervals where the loop re-plans at most once within
+#: the plan's second interval: the reserve absorbs the linearisation's error.
+RESERVE_REPLANNED_ONCE = 0.9
+#: The same where the loop re-plans several times within the plan's second interval: the
+#: applied command then ramps, a period at a time, towards a velocity the plan reaches at
+#: once, and behind a velocity servo it must also lead the joint (docs/theory.md §8.4).
+RESERVE_REPLANNED_OFTEN = 0.6
 
 
 @dataclass(frozen=True)
@@ -32,7 +40,8 @@ class PathFollowingTuning:
         relinearise_threshold_rad: a measured ``q`` this far from the predicted one counts as
             a disturbance [rad].
         acceleration_reserve: share of ``a_max`` the plan may use between intervals, in
-            ``(0, 1]`` (the applied command may use all of it).
+            ``(0, 1]`` (the applied command may use all of it); ``None`` (default): by the
+            loop's period (:meth:`reserve_for`).
         trust_radius_rad: ``ρ_q``, the trust region of the joint states now [rad]; it grows
             as ``1 + t/t_g`` with the state's time ``t``.
         trust_radius_phase_s: ``ρ_σ``, the same for the phase [s].
@@ -51,7 +60,7 @@ class PathFollowingTuning:
     linearisation_tolerance: float = 1e-4
     linearisation_tolerance_m: float = 1e-5
     relinearise_threshold_rad: float = 0.02
-    acceleration_reserve: float = 0.9
+    acceleration_reserve: float | None = None
     trust_radius_rad: float = 0.05
     trust_radius_phase_s: float = 0.02
     trust_growth_time_s: float = 0.05
@@ -62,17 +71,30 @@ class PathFollowingTuning:
         units = {
             "path_tolerance": "-", "progress_tolerance": "-", "damping": "-",
             "linearisation_tolerance": "rad/s", "linearisation_tolerance_m": "m",
-            "relinearise_threshold_rad": "rad", "acceleration_reserve": "-",
+            "relinearise_threshold_rad": "rad",
             "trust_radius_rad": "rad", "trust_radius_phase_s": "s", "trust_growth_time_s": "s",
             "path_full_weight_time_s": "s", "position_slack_rad": "rad",
         }  # fmt: skip
         for name, unit in units.items():
             object.__setattr__(self, name, check_positive(name, getattr(self, name), unit))
-        if self.acceleration_reserve > 1.0:
-            raise ParameterError(
-                f"acceleration_reserve must be in (0, 1], got {self.acceleration_reserve!r}"
-            )
+        reserve = self.acceleration_reserve
+        if reserve is not None:
+            reserve = check_positive("acceleration_reserve", reserve, "-")
+            if reserve > 1.0:
+                raise ParameterError(f"acceleration_reserve must be in (0, 1], got {reserve!r}")
+            object.__setattr__(self, "acceleration_reserve", reserve)
         rounds = self.max_linearisations
         if isinstance(rounds, bool) or int(rounds) != rounds or rounds < 1:
             raise ParameterError(f"max_linearisations must be an integer ≥ 1, got {rounds!r}")
         object.__setattr__(self, "max_linearisations", int(rounds))
+
+    def reserve_for(self, period_s: float, second_interval_s: float) -> float:
+        """The share of ``a_max`` the coupling rows allow: the one given, or by default
+        :data:`RESERVE_REPLANNED_OFTEN` where the loop re-plans at least twice within the
+        plan's second interval (``Δ_1 ≥ 2 T``) and :data:`RESERVE_REPLANNED_ONCE` otherwise
+        (docs/theory.md §8.4)."""
+        if self.acceleration_reserve is not None:
+            return self.acceleration_reserve
+        if second_interval_s >= 2.0 * period_s:
+            return RESERVE_REPLANNED_OFTEN
+        return RESERVE_REPLANNED_ONCE
