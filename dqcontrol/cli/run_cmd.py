@@ -57,8 +57,9 @@ replays need the [viz] extra (pip install 'dqcontrol[viz]'), MuJoCo the [sim] ex
 
 Defaults: the LBR4p on the circle (R = 0.1 m) with T_tot = 2 s, the local, the predictive
 (p = 10) and the path-following (p = 10) controllers, T = 0.05 s, tau_p = 1 s, K = 10 1/s,
-MuJoCo, the thesis's bounds |qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s and |qdd| <= 10 rad/s^2
-for every controller."""
+MuJoCo, the thesis's velocity bounds |qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s for every
+controller, |qdd| <= 10 rad/s^2 for the thesis's controllers and the dynamics-aware
+acceleration bound for path following."""
 
 _EPILOG = f"""\
 controllers (comma-separated, any case):
