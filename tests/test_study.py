@@ -405,6 +405,10 @@ def test_table1_command_selects_its_cases_from_the_shipped_study(selection):
     study = select_table1(load_study("table1"), simulator="kinematic", **selection)
     assert study_cases(study) == t1.table1_cases(**selection)
     assert study.settings == t1.Table1Settings(simulator="kinematic")
+    faster = select_table1(load_study("table1"), period_s=0.001, **selection)
+    assert study_cases(faster) == t1.table1_cases(**selection)
+    assert faster.period_s == 0.001
+    assert faster.settings == t1.Table1Settings(period_s=0.001)
 
 
 @pytest.mark.parametrize(

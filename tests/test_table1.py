@@ -267,10 +267,32 @@ def test_table1_command_reduced_grid(tmp_path, capsys, simulator):
     assert not [p for p in out.rglob("*.tmp")]
 
 
-def test_bad_option_is_one_line_error(tmp_path, capsys):
-    assert main(["table1", "--periods", "3", "--out", str(tmp_path), "--no-progress"]) == 1
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--periods", "3"], "not in the thesis's grid"),
+        (["--control-period", "0.0015"], "whole number of 0.001 s physics steps"),
+        (["--control-period", "1", "--simulator", "kinematic"], "shorter than the horizon"),
+    ],
+)
+def test_bad_option_is_one_line_error(tmp_path, capsys, argv, message):
+    assert main(["table1", *argv, "--out", str(tmp_path), "--no-progress"]) == 1
     err = capsys.readouterr().err
-    assert "not in the thesis's grid" in err and "Traceback" not in err
+    assert message in err and "Traceback" not in err
+
+
+def test_table1_command_at_another_control_period(tmp_path):
+    out = tmp_path / "results"
+    argv = ["table1", "--controllers", "pf", "--trajectories", "circle", "--periods", "1",
+            "--simulator", "kinematic", "--control-period", "0.005", "--out", str(out)]  # fmt: skip
+    assert main([*argv, "--workers", "1", "--no-progress", "--bound-samples", "0"]) == 0
+    md = (out / "table1.md").read_text()
+    assert "control period T = 0.005 s" in md and "T = 0.05 s (not this table's)" in md
+    assert "--control-period 0.005" in md
+    _, (row,) = _read_csv(out / "table1.csv")
+    assert row["completed"] == "yes" and float(row["path_dev_max_mm"]) <= 0.1
+    _, record = load_run(out / "table1_runs" / "circle_T1s_pf.json")
+    assert record["meta"]["period_s"] == 0.005
 
 
 #: The kinematic loop without the time-optimal bound.

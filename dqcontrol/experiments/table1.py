@@ -737,9 +737,14 @@ def _settings_lines(settings: Table1Settings, physics_dt_s: float | None = None)
         + f"; phase prediction "
         f"'{pred.phase_prediction}', solver '{pred.solver}'"
         + (f"; extra options {extra}" if extra else ""),
-        "- the thesis: CoppeliaSim, same T and τ_p, K = 200·T_tot (circle) and 500/P "
-        "(sinusoid), i.e. T·K ≥ 2 — outside the stable range (docs/theory.md §4.3); its numbers "
-        "are shown beside ours, not matched",
+        "- the thesis: CoppeliaSim, "
+        + (
+            "same T and τ_p"
+            if settings.period_s == THESIS_PERIOD_S
+            else f"T = {THESIS_PERIOD_S:g} s (not this table's), same τ_p"
+        )
+        + ", K = 200·T_tot (circle) and 500/P (sinusoid), i.e. T·K ≥ 2 — outside the stable "
+        "range (docs/theory.md §4.3); its numbers are shown beside ours, not matched",
         "- units: e_mean = mean ‖vec8(x_d) - vec8(x)‖ (dimensionless, as in the thesis); "
         "u_mean = mean ‖qd_cmd‖ [rad/s]; metrics over the samples until σ reaches T_tot",
         _path_following_line(settings),

@@ -98,12 +98,14 @@ def select_table1(
     trajectories: Iterable[str] | None = None,
     controllers: Iterable[str] | None = None,
     simulator: str | None = None,
+    period_s: float | None = None,
     bound_samples: int | None = None,
     save_runs: bool | None = None,
 ) -> Study:
     """``study`` (a ``table1`` study) reduced to a selection of
     :func:`~dqcontrol.experiments.table1.table1_cases` (same arguments, same errors) and
-    with another simulator, bound resolution or run logs (``None``: the study's).
+    with another simulator, control period [s], bound resolution or run logs (``None``:
+    the study's).
 
     Raises:
         ParameterError: an unknown name or period, or an empty selection.
@@ -119,13 +121,15 @@ def select_table1(
         if kept:
             entries.append(replace(entry, durations_s=kept))
     sim = study.simulator if simulator is None else simulator
-    settings = replace(study.settings, simulator=sim)
+    period = study.period_s if period_s is None else period_s
+    settings = replace(study.settings, simulator=sim, period_s=period)
     if bound_samples is not None:
         settings = replace(settings, bound_samples=bound_samples)
     output = study.output if save_runs is None else replace(study.output, save_runs=save_runs)
     return replace(
         study,
         simulator=sim,
+        period_s=period,
         settings=settings,
         trajectories=tuple(entries),
         controllers=tuple(c for c in study.controllers if c in names),
