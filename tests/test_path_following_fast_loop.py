@@ -90,14 +90,19 @@ def test_a_negative_position_slack_is_refused():
 
 
 def test_the_default_reserve_follows_how_often_the_loop_replans_the_second_interval(lbr4p):
-    for period_s, reserve in ((0.05, RESERVE_REPLANNED_ONCE), (0.01, RESERVE_REPLANNED_ONCE),
-                              (0.001, RESERVE_REPLANNED_OFTEN)):  # fmt: skip
-        ctrl = _controller(lbr4p, period_s)
+    given = PathFollowingTuning(acceleration_reserve=0.8)
+    for period_s, tuning, reserve in (
+        (0.05, None, RESERVE_REPLANNED_ONCE),
+        (0.01, None, RESERVE_REPLANNED_ONCE),  # the second interval is 12.2 ms
+        (0.005, None, RESERVE_REPLANNED_OFTEN),
+        (0.001, None, RESERVE_REPLANNED_OFTEN),
+        (0.001, given, 0.8),
+        (0.05, given, 0.8),
+    ):
+        ctrl = _controller(lbr4p, period_s, tuning=tuning)
         coupling = ctrl.layout.durations_s[1:] + ctrl.layout.durations_s[:-1]
         limit = next(lim for lim in ctrl.limits if lim.name == "acceleration")
         np.testing.assert_allclose(limit.coupling_s, 0.5 * coupling * reserve, rtol=1e-15)
-    given = _controller(lbr4p, 0.001, tuning=PathFollowingTuning(acceleration_reserve=0.8))
-    assert given._reserve() == 0.8
 
 
 def test_at_1khz_a_tight_constant_bound_keeps_the_path(lbr4p):
