@@ -108,12 +108,13 @@ def test_the_default_reserve_follows_how_often_the_loop_replans_the_second_inter
 def test_at_1khz_a_tight_constant_bound_keeps_the_path(lbr4p):
     # Table 1's setting for this controller (5 rad/s², the thesis's velocity bounds) on the
     # sinusoid at 2 s; with the reserve of a slow loop the applied command falls behind the
-    # plan and the tool leaves the path by more than the kinematic loop's 0.1 mm
-    def deviation_m(tuning):
+    # plan and the tool leaves the path by more than the kinematic loop's 0.1 mm (within the
+    # first second)
+    def metrics(tuning, max_time_s):
         ctrl = _controller(lbr4p, 0.001, Sinusoid(2.0), tuning=tuning)
-        metrics = run_kinematic(ctrl, LBR4P_Q0.copy(), max_time_s=6.0).metrics
-        assert metrics.completed
-        return metrics.path_deviation_max_m
+        return run_kinematic(ctrl, LBR4P_Q0.copy(), max_time_s=max_time_s).metrics
 
-    assert deviation_m(None) <= 0.1e-3
-    assert deviation_m(PathFollowingTuning(acceleration_reserve=RESERVE_REPLANNED_ONCE)) > 0.1e-3
+    default = metrics(None, 6.0)
+    assert default.completed and default.path_deviation_max_m <= 0.1e-3
+    slow_loop = PathFollowingTuning(acceleration_reserve=RESERVE_REPLANNED_ONCE)
+    assert metrics(slow_loop, 1.0).path_deviation_max_m > 0.1e-3
