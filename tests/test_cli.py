@@ -218,3 +218,34 @@ def test_view_with_nothing_to_do_exits_2(default_run, capsys):
         main(["view", str(folder / "p10.npz"), "--no-viewer"])
     assert exc.value.code == 2
     assert "nothing to do" in capsys.readouterr().err
+
+
+class _Log:
+    def __init__(self, sigma: list[float], s: list[float]) -> None:
+        self.sigma, self.s = np.array(sigma), np.array(s)
+
+    def __len__(self) -> int:
+        return self.sigma.size
+
+
+def _result(log: _Log, interrupted: bool = False, note: str = ""):
+    from dqcontrol.sim.loop import RunResult
+
+    return RunResult(log, None, interrupted, note)  # type: ignore[arg-type]
+
+
+def test_an_incomplete_run_says_where_and_why_it_stopped():
+    from dqcontrol.cli.run_cmd import _stop
+    from dqcontrol.trajectories import Circle
+
+    task = Circle(2.0)
+    stalled = _stop(_result(_Log([0.0, 1.25], [0.4, 0.0])), task)
+    assert stalled == (
+        "the phase reached 1.25 s of T_tot = 2 s, where it stopped (s = 0): the path ahead "
+        "is out of reach or blocked"
+    )
+    slow = _stop(_result(_Log([0.0, 1.5], [0.4, 0.3])), task)
+    assert slow.endswith("1.5 s of T_tot = 2 s when the run's time limit came")
+    cut = _stop(_result(_Log([0.0, 0.5], [0.4, 0.3]), True, "interrupted by the user"), task)
+    assert cut.endswith("0.5 s of T_tot = 2 s (interrupted by the user)")
+    assert _stop(_result(_Log([], []), True), task) == "the phase reached 0 s of T_tot = 2 s"

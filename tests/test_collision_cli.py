@@ -66,7 +66,11 @@ def test_run_with_an_obstacle_reports_distance_and_contacts(capsys, tmp_path):
         ]
     )  # fmt: skip
     assert code == 1  # the path is blocked: the task does not complete
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
+    stop = re.search(r"pf did not complete the trajectory: the phase reached ([\d.]+) s of "
+                     r"T_tot = 2 s, where it stopped \(s = 0\)", err)  # fmt: skip
+    assert stop is not None, err
+    assert 0.5 < float(stop.group(1)) < 1.0  # before the ball, which is on the path at 1 s
     line = re.search(
         r"pf: min distance ([\d.]+) mm; contacts robot-obstacle (\d+), self (\d+)", out
     )

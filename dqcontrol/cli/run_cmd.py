@@ -431,12 +431,24 @@ def _replay_last(viewer, runs: list, args: argparse.Namespace) -> None:
 
 
 def _exit_code(runs: list) -> int:
-    """0 when every run completed the trajectory, else 1 (and the incomplete ones on stderr)."""
-    incomplete = [label for label, r, _ in runs if r.interrupted or not r.metrics.completed]
-    if incomplete:
-        print(
-            f"dqcontrol run: {', '.join(incomplete)} did not complete the trajectory",
-            file=sys.stderr,
-        )
-        return 1
-    return 0
+    """0 when every run completed the trajectory, else 1 (and, on stderr, for each
+    incomplete run how far it got and why it stopped)."""
+    incomplete = [
+        (label, r, traj) for label, r, traj in runs if r.interrupted or not r.metrics.completed
+    ]
+    for label, r, traj in incomplete:
+        print(f"dqcontrol run: {label} did not complete the trajectory: {_stop(r, traj)}",
+              file=sys.stderr)  # fmt: skip
+    return 1 if incomplete else 0
+
+
+def _stop(result, trajectory) -> str:
+    """Where an incomplete run stopped: its phase against ``T_tot``, and the loop's note or
+    what a phase at rest means."""
+    reached = float(result.log.sigma[-1]) if len(result.log) else 0.0
+    where = f"the phase reached {reached:.3g} s of T_tot = {trajectory.duration:g} s"
+    if result.interrupted:
+        return f"{where} ({result.note})" if result.note else where
+    if len(result.log) and float(result.log.s[-1]) < 1e-3:
+        return f"{where}, where it stopped (s = 0): the path ahead is out of reach or blocked"
+    return f"{where} when the run's time limit came"
