@@ -30,7 +30,7 @@ from dqcontrol.cli.robot_options import (
     load_robot,
     robot_label,
 )
-from dqcontrol.cli.run_options import add_run_options, float_list
+from dqcontrol.cli.run_options import add_run_options, float_list, physics_steps_error
 from dqcontrol.cli.run_output import (
     TABLE_LEGEND,
     collision_report,
@@ -79,9 +79,6 @@ examples:
   dqcontrol run --controllers pf --obstacle sphere:0.49,-0.39,0.70,0.03
   dqcontrol run --obstacle plane:0,0,1,0.45 --obstacle box:0.3,-0.5,0.4,0.2,0.1,0.3 \
       --self-collision"""
-
-#: The physics step of the MuJoCo simulation [s]; ``T`` must be a multiple of it.
-PHYSICS_DT_S = 0.001
 
 
 # ---------------------------------------------------------------------- the parser
@@ -221,12 +218,9 @@ def _check_options(args) -> tuple:
     if args.simulator == "mujoco" and not args.connect:
         check_mujoco_meshes(parser, robot)
     if args.simulator == "mujoco":
-        steps = round(args.period / PHYSICS_DT_S)
-        if steps < 1 or abs(args.period - steps * PHYSICS_DT_S) > 1e-9:
-            parser.error(
-                f"--period: with --simulator mujoco, T must be a whole number of "
-                f"{PHYSICS_DT_S:g} s physics steps (e.g. 0.001, 0.01, 0.05), got {args.period:g}"
-            )
+        message = physics_steps_error("--period", args.period)
+        if message is not None:
+            parser.error(message)
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)

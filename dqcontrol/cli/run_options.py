@@ -20,6 +20,7 @@ from dqcontrol.experiments.thesis import (
 
 __all__ = [
     "DEFAULT_CONTROLLERS",
+    "PHYSICS_DT_S",
     "add_collision_options",
     "add_controller_options",
     "add_output_options",
@@ -27,11 +28,26 @@ __all__ = [
     "add_task_options",
     "float_list",
     "parse_controllers",
+    "physics_steps_error",
     "positive_float",
 ]
 
 #: The controllers of ``dqcontrol run`` without ``--controllers``.
 DEFAULT_CONTROLLERS = ("local", "p10", "pf")
+#: The physics step of the MuJoCo simulation [s]; a control period must be a multiple of it.
+PHYSICS_DT_S = 0.001
+
+
+def physics_steps_error(option: str, period_s: float) -> str | None:
+    """The message for a control period given as ``option`` that is not a whole number of
+    MuJoCo's physics steps, or ``None`` when it is one."""
+    steps = round(period_s / PHYSICS_DT_S)
+    if steps >= 1 and abs(period_s - steps * PHYSICS_DT_S) <= 1e-9:
+        return None
+    return (
+        f"{option}: with --simulator mujoco, T must be a whole number of {PHYSICS_DT_S:g} s "
+        f"physics steps (e.g. 0.001, 0.01, 0.05), got {period_s:g}"
+    )
 
 
 # ---------------------------------------------------------------------- option types

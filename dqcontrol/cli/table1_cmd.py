@@ -7,7 +7,7 @@ import shlex
 import sys
 
 from dqcontrol.cli.common import add_out_option, add_progress_option
-from dqcontrol.cli.run_options import positive_float
+from dqcontrol.cli.run_options import physics_steps_error, positive_float
 
 __all__ = ["register"]
 
@@ -207,7 +207,6 @@ def _run(args: argparse.Namespace) -> int:
 def _check_control_period(period_s: float, simulator: str, horizon_s: float) -> None:
     """``--control-period`` shorter than the horizon and, in MuJoCo, a whole number of
     physics steps (a :class:`~dqcontrol.errors.ParameterError` naming the option)."""
-    from dqcontrol.cli.run_cmd import PHYSICS_DT_S
     from dqcontrol.errors import ParameterError
 
     if not period_s < horizon_s:
@@ -215,12 +214,9 @@ def _check_control_period(period_s: float, simulator: str, horizon_s: float) -> 
             f"--control-period T must be shorter than the horizon tau_p = {horizon_s:g} s, "
             f"got {period_s:g}"
         )
-    steps = round(period_s / PHYSICS_DT_S)
-    if simulator == "mujoco" and (steps < 1 or abs(period_s - steps * PHYSICS_DT_S) > 1e-9):
-        raise ParameterError(
-            f"--control-period: with --simulator mujoco, T must be a whole number of "
-            f"{PHYSICS_DT_S:g} s physics steps (e.g. 0.001, 0.01, 0.05), got {period_s:g}"
-        )
+    message = physics_steps_error("--control-period", period_s)
+    if simulator == "mujoco" and message is not None:
+        raise ParameterError(message)
 
 
 def _command_line(args: argparse.Namespace) -> str:
