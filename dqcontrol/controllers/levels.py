@@ -10,8 +10,10 @@ null space of every held row so far (:func:`~dqcontrol.controllers.null_space.nu
 each level narrowing the last basis), so its QP has ``dim Z_k`` variables instead of all.
 Should that reduced level fail (rounding at a degenerate vertex can leave no ``y`` that
 meets the limits to the solver's tolerance), it is solved again over all variables with
-each held row within ``±tolerance`` of its value (two-sided rows) instead. One level with
-weights is the thesis's controllers.
+each held row within ``±tolerance`` of its value (two-sided rows) instead. A backend with
+``solve_warm_levels`` may solve the first levels in one call on their last active sets
+(docs/theory.md §7.5); the levels it leaves go on one by one. One level with weights is
+the thesis's controllers.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from dqcontrol.controllers.problem import (
     Limit,
     Problem,
     Solution,
+    WarmLevels,
     fixed_variables,
     merge_bounds,
     objective,
@@ -168,15 +171,26 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
 
 
 def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
+    first = DenseQP(
+        *level_objective(problem.layout, problem.levels[0].residuals),
+        problem.A, problem.lower, problem.upper,
+    )  # fmt: skip
     points: list[np.ndarray] = []
     per_level: list[Solution] = []
     best: Solution | None = None
     basis: np.ndarray | None = None  # the null space the next level moves in
-    for k in range(len(problem.levels)):
+    warm = _warm_levels(problem, backend, first)
+    if warm is not None:
+        per_level = list(warm.solutions)
+        points = [s.x for s in per_level]
+        best = per_level[-1]
+        basis = warm.basis
+        if basis is None and len(points) < len(problem.levels):
+            basis = _narrowed(problem, len(points) - 1, warm.last_basis, warm.last_held)
+    for k in range(len(points), len(problem.levels)):
         held = None  # level k's held rows in the basis, where the reduced level gave them
         if k == 0:
-            p_mat, c = level_objective(problem.layout, problem.levels[0].residuals)
-            sol = backend.solve(0, DenseQP(p_mat, c, problem.A, problem.lower, problem.upper))
+            sol = backend.solve(0, first)
         else:
             assert basis is not None, "a lower level has the basis of the held rows"
             sol, held = _reduced_level(problem, k, points[-1], basis, backend)
@@ -196,6 +210,24 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     return LevelsResult(best, tuple(per_level), None)
 
 
+def _warm_levels(problem: Problem, backend: Backend, first: DenseQP) -> WarmLevels | None:
+    """The first levels from a backend that solves them on their last active sets in one
+    call (``solve_warm_levels``), for a problem of several levels; ``None`` otherwise."""
+    solve_warm = getattr(backend, "solve_warm_levels", None)
+    if solve_warm is None or len(problem.levels) < 2:
+        return None
+    lower = tuple(level_rows(level.residuals) for level in problem.levels[1:])
+    return solve_warm(first, _held_dense(problem, 0), lower, problem.C)
+
+
+def _held_dense(problem: Problem, k: int) -> np.ndarray:
+    """Level ``k``'s held rows stacked, dense ``(r, len(z))`` (no rows: ``(0, len(z))``)."""
+    mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
+    if not mats:
+        return np.zeros((0, problem.layout.num_vars))
+    return mats[0] if len(mats) == 1 else np.vstack(mats)
+
+
 def _narrowed(
     problem: Problem, k: int, basis: np.ndarray | None, held: np.ndarray | None = None
 ) -> np.ndarray:
@@ -204,10 +236,9 @@ def _narrowed(
     if basis is not None and basis.shape[1] == 0:
         return basis
     if held is None:
-        mats = [r.dense(problem.layout) for r in problem.levels[k].residuals if r.held]
-        if not mats:
+        rows = _held_dense(problem, k)
+        if rows.shape[0] == 0:
             return np.eye(problem.layout.num_vars) if basis is None else basis
-        rows = mats[0] if len(mats) == 1 else np.vstack(mats)
         if basis is None:
             return null_space(rows)
         held = rows @ basis

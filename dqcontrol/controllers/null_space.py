@@ -36,25 +36,17 @@ _SMALL_WORK = 1 << 18
 
 def null_space(rows: np.ndarray) -> np.ndarray:
     """An orthonormal basis ``(n, n - rank)`` of the null space of ``rows`` ``(r, n)``."""
-    r, n = rows.shape
-    if r == 0:
-        return np.eye(n)
-    if r < n:
-        basis = _full_rank_complement(rows)
+    outcome, basis = compiled_null_space(np.ascontiguousarray(rows))
+    if outcome == _DONE:
+        return basis
+    if outcome == _DENSE:
+        basis = _lapack_complement(rows)
         if basis is not None:
             return basis
     return _pivoted(rows)
 
 
-def _full_rank_complement(rows: np.ndarray) -> np.ndarray | None:
-    """The basis when the ``r < n`` rows are clearly independent, else ``None``."""
-    outcome, basis = _profile_complement(np.ascontiguousarray(rows.T))
-    if outcome == _DONE:
-        return basis
-    return None if outcome == _DEPENDENT else _lapack_complement(rows)
-
-
-#: Outcomes of :func:`_profile_complement`.
+#: Outcomes of :func:`_profile_complement` and :func:`compiled_null_space`.
 _DONE, _DEPENDENT, _DENSE = 0, 1, 2
 
 
@@ -115,7 +107,7 @@ def _profile_complement(columns: np.ndarray) -> tuple[int, np.ndarray]:
 
 
 def _lapack_complement(rows: np.ndarray) -> np.ndarray | None:
-    """:func:`_full_rank_complement` from LAPACK's QR (``dgeqrf``, ``dormqr``)."""
+    """The basis of clearly independent rows from LAPACK's QR (``dgeqrf``, ``dormqr``)."""
     r, n = rows.shape
     qr, tau, _work, info = lapack.dgeqrf(np.array(rows.T, order="F"))
     if info != 0:
@@ -157,6 +149,26 @@ def _pivoted_complement(columns: np.ndarray) -> np.ndarray:
     if rank == n:
         return np.zeros((n, 0))
     return applied_q(columns, np.full(rank, n - 1), tau[:rank], rank)
+
+
+@compiled
+def compiled_null_space(rows: np.ndarray) -> tuple[int, np.ndarray]:
+    """``(outcome, basis)``: :data:`_DONE` with the basis of :func:`null_space` where its
+    compiled factorisations give it; otherwise the basis is empty and the outcome names
+    the LAPACK factorisation :func:`null_space` takes instead: :data:`_DENSE` (rows
+    without a profile to follow: ``dgeqrf``, then the pivoted QR should they not be
+    clearly independent) or :data:`_DEPENDENT` (rows too many for the compiled pivoted QR:
+    ``dgeqp3``)."""
+    r, n = rows.shape
+    if r == 0:
+        return _DONE, np.eye(n)
+    if r < n:
+        outcome, basis = _profile_complement(np.ascontiguousarray(rows.T))
+        if outcome != _DEPENDENT:
+            return outcome, basis
+    if n * r * min(n, r) > _SMALL_WORK:
+        return _DEPENDENT, np.zeros((n, 0))
+    return _DONE, _pivoted_complement(np.ascontiguousarray(rows.T))
 
 
 def _lapack_pivoted(rows: np.ndarray) -> np.ndarray:

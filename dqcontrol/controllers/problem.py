@@ -60,6 +60,7 @@ __all__ = [
     "Problem",
     "Residual",
     "Solution",
+    "WarmLevels",
     "Term",
     "fixed_variables",
     "merge_bounds",
@@ -613,3 +614,21 @@ class Solution(NamedTuple):
     solve_time_s: float = 0.0
     x: np.ndarray | None = None
     duals: np.ndarray | None = None
+
+
+class WarmLevels(NamedTuple):
+    """The first levels of a problem as a backend solved them in one call
+    (``solve_warm_levels``, docs/theory.md §7.5).
+
+    Attributes:
+        solutions: the levels solved, from the first; each ``x`` is the whole point.
+        basis: the basis of the null space the next level moves in, where computed.
+        last_basis, last_held: otherwise the basis the last level solved moved in and its
+            held rows in it (``None`` after the first level), from which the next level's
+            basis is narrowed.
+    """
+
+    solutions: tuple[Solution, ...]
+    basis: np.ndarray | None
+    last_basis: np.ndarray | None
+    last_held: np.ndarray | None

@@ -14,7 +14,9 @@ the set has not changed, that is the optimum, found without DAQP's update. A lev
 to the null space of the levels above is given as its parts (:meth:`DaqpBackend.
 solve_reduced`): its QP is formed and solved on the last active set in one compiled call
 (:mod:`~dqcontrol.controllers.backends.reduced_active_set`), the same numbers as forming the
-dense QP first.
+dense QP first. While every level's last set holds, all the levels of a problem are solved
+so in one call (:meth:`DaqpBackend.solve_warm_levels`,
+:mod:`~dqcontrol.controllers.backends.warm_levels`).
 """
 
 from __future__ import annotations
@@ -28,10 +30,11 @@ from scipy.linalg import lapack
 
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
+from dqcontrol.controllers.backends.warm_levels import warm_levels
 from dqcontrol.controllers.cholesky import cholesky_into
-from dqcontrol.controllers.problem import DenseQP, Solution
+from dqcontrol.controllers.problem import DenseQP, Solution, WarmLevels
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
-from dqcontrol.controllers.reduced import ReducedQP, nonzero_entries
+from dqcontrol.controllers.reduced import LevelRows, ReducedQP, nonzero_entries
 from dqcontrol.errors import ParameterError
 
 __all__ = ["DaqpBackend"]
@@ -97,6 +100,7 @@ class DaqpBackend:
         self._active: dict = {}
         self._reduced: dict = {}
         self._copies: dict = {}
+        self._recent: dict = {}  # level -> the key ``(level, dim)`` it was last solved with
 
     def reset(self) -> None:
         """Forget every level's workspace and active set."""
@@ -105,6 +109,87 @@ class DaqpBackend:
         self._active.clear()
         self._reduced.clear()
         self._copies.clear()
+        self._recent.clear()
+
+    def solve_warm_levels(
+        self, first: DenseQP, held: np.ndarray, lower: tuple[LevelRows, ...], general: np.ndarray
+    ) -> WarmLevels | None:
+        """The levels solved on their last active sets in one compiled call
+        (:func:`~dqcontrol.controllers.backends.warm_levels.warm_levels`), as far as that
+        goes: ``first`` is the first level's QP (key ``0``), ``held`` its held rows,
+        ``lower`` the stacked rows of each lower level (keys ``(k, dim)``), ``general``
+        the problem's ``C``. ``None`` where not even the first level is solved so; the
+        levels solved share the call's time equally."""
+        start = time.perf_counter()
+        last = self._active.get(0) if self.reuse_active_set else None
+        nv, rows = first.c.size, first.A.shape[0]
+        if last is None or last[0][1] != nv:
+            return None
+        factor = _factor(first.P)
+        if factor is None:
+            return None
+        actives, uppers, dims = self._last_sets(last, len(lower), rows)
+        count = len(lower) + 1
+        points, duals = np.empty((count, nv)), np.empty((count, rows))
+        changes, has_duals = np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool)
+        done, kept, kept_upper, counts, solved_dims, basis, ready, last_basis, last_held = (
+            warm_levels(
+                factor, np.ascontiguousarray(first.c), self._writable_rows(0, first.A),
+                first.lower, first.upper, np.ascontiguousarray(held),
+                tuple(r.entries for r in lower), tuple(r.b for r in lower),
+                tuple(r.scale for r in lower), np.array([r.held for r in lower]),
+                actives, uppers, dims, nonzero_entries(general),
+                self._settings_array(), SMALL_FACTOR, points, duals, changes, has_duals,
+            )
+        )  # fmt: skip
+        if done == 0:
+            return None
+        share = _since(start) / done
+        solutions, offset = [], 0
+        for k in range(done):
+            dim, size = int(solved_dims[k]), int(counts[k])
+            if has_duals[k]:
+                key = 0 if k == 0 else (k, dim)
+                shape = first.A.shape if k == 0 else (dim + rows, dim)
+                self._active[key] = (shape, kept[offset : offset + size],
+                                     kept_upper[offset : offset + size])  # fmt: skip
+                self._recent[k] = key
+            offset += size
+            sol_duals = duals[k] if has_duals[k] else None
+            solutions.append(Solution(True, "solved", int(changes[k]), share, points[k], sol_duals))
+        if done == count or ready:
+            return WarmLevels(tuple(solutions), basis if done < count else None, None, None)
+        if done == 1:  # the first level's held rows go to LAPACK: narrowed from scratch
+            return WarmLevels(tuple(solutions), None, None, None)
+        return WarmLevels(tuple(solutions), None, last_basis, last_held)
+
+    def _last_sets(self, first: tuple, lower: int, rows: int) -> tuple[tuple, tuple, np.ndarray]:
+        """The last active sets of the first level (entry ``first``) and of the ``lower``
+        levels below it (the key each was last solved with), their ``at_upper`` flags,
+        and the number of variables each lower set was for (``-1``: none for ``rows``
+        rows)."""
+        active, at_upper = first[1], first[2]
+        if first[0][0] != rows:  # a limit's row count changed: the rows that exist
+            keep = active < rows
+            active, at_upper = active[keep], at_upper[keep]
+        actives, uppers, dims = [active], [at_upper], np.full(lower, -1)
+        for k in range(1, lower + 1):
+            entry = self._active.get(self._recent.get(k))
+            if entry is not None and entry[0][0] - entry[0][1] == rows:
+                actives.append(entry[1])
+                uppers.append(entry[2])
+                dims[k - 1] = entry[0][1]
+            else:
+                actives.append(np.zeros(0, dtype=np.int64))
+                uppers.append(np.zeros(0, dtype=bool))
+        return tuple(actives), tuple(uppers), dims
+
+    def _settings_array(self) -> np.ndarray:
+        """``(primal_tol, dual_tol, max_changes, pivot_share)`` of the active-set kernels."""
+        return np.array([
+            self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE,
+            ACTIVE_SET_CHANGES, PIVOT_SHARE,
+        ])  # fmt: skip
 
     def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
         """Solve level ``key`` given as a :class:`~dqcontrol.controllers.reduced.ReducedQP`
@@ -116,6 +201,8 @@ class DaqpBackend:
         start = time.perf_counter()
         dim = qp.basis.shape[1]
         size = dim + qp.lower.size
+        if isinstance(key, tuple):
+            self._recent[key[0]] = key
         entry = self._active.get(key) if self.reuse_active_set else None
         if entry is None or entry[0] != (size, dim) or dim > SMALL_FACTOR:
             objective = qp.objective()
@@ -123,10 +210,7 @@ class DaqpBackend:
         buffers = self._reduced_buffers(key, qp.rows.b.size, size, dim)
         rows, qp_rows, qp_lower, qp_upper = buffers
         y, duals = np.empty(dim), np.empty(size)
-        settings = np.array([
-            self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE,
-            ACTIVE_SET_CHANGES, PIVOT_SHARE,
-        ])  # fmt: skip
+        settings = self._settings_array()
         status, active, at_upper, changes, hessian, gradient = reduced_on_active_set(
             qp.rows.entries, qp.rows.b, qp.rows.scale, qp.basis, qp.point,
             nonzero_entries(qp.general), qp.lower, qp.upper, entry[1], entry[2], settings,
