@@ -171,10 +171,8 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
 
 
 def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
-    first = DenseQP(
-        *level_objective(problem.layout, problem.levels[0].residuals),
-        problem.A, problem.lower, problem.upper,
-    )  # fmt: skip
+    p_mat, c = level_objective(problem.layout, problem.levels[0].residuals)
+    first = DenseQP(p_mat, c, problem.A, problem.lower, problem.upper)
     points: list[np.ndarray] = []
     per_level: list[Solution] = []
     best: Solution | None = None
@@ -182,7 +180,7 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     warm = _warm_levels(problem, backend, first)
     if warm is not None:
         per_level = list(warm.solutions)
-        points = [s.x for s in per_level]
+        points = [s.x for s in per_level if s.x is not None]
         best = per_level[-1]
         basis = warm.basis
         if basis is None and len(points) < len(problem.levels):

@@ -40,9 +40,9 @@ def null_space(rows: np.ndarray) -> np.ndarray:
     if outcome == _DONE:
         return basis
     if outcome == _DENSE:
-        basis = _lapack_complement(rows)
-        if basis is not None:
-            return basis
+        complement = _lapack_complement(rows)
+        if complement is not None:
+            return complement
     return _pivoted(rows)
 
 
