@@ -22,7 +22,7 @@ from scipy.linalg import lapack
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.householder import applied_q, pivoted_qr, profile_qr
 
-__all__ = ["RANK_TOLERANCE", "null_space"]
+__all__ = ["RANK_TOLERANCE", "compiled_null_space", "null_space"]
 
 #: A pivot of the QR below this share of the largest one counts as zero.
 RANK_TOLERANCE = 1e-10

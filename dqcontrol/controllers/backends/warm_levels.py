@@ -125,23 +125,13 @@ def warm_levels(
             has_duals[k] = False
             changes[k] = 0
         else:
-            size = dim + lower.shape[0]
             if last_dims[k - 1] != dim or dim > max_dim:
                 return k, kept_active, kept_upper, counts, dims, basis, True, empty, rows_held
-            entries = level_entries[k - 1]
-            b = level_b[k - 1]
-            rows = np.empty((b.shape[0], dim + 1))
-            qp_rows = np.empty((size, dim))
-            qp_lower = np.empty(size)
-            qp_upper = np.empty(size)
-            y = np.empty(dim)
-            y_duals = np.empty(size)
-            status, active, at_upper, count, _h, _g = reduced_on_active_set(
-                entries, b, level_scale[k - 1], basis, point, general, lower, upper,
-                last_active[k], last_upper[k], settings, rows, qp_rows, qp_lower, qp_upper,
-                y, y_duals,
+            solved, y, y_duals, active, at_upper, count, rows_held = _lower_level(
+                level_entries[k - 1], level_b[k - 1], level_scale[k - 1], level_held[k - 1],
+                basis, point, general, lower, upper, last_active[k], last_upper[k], settings,
             )  # fmt: skip
-            if status != SOLVED or not _finite(y):
+            if not solved:
                 return k, kept_active, kept_upper, counts, dims, basis, True, empty, rows_held
             point = point + basis @ y
             points[k] = point
@@ -151,7 +141,6 @@ def warm_levels(
             counts[k] = active.shape[0]
             kept_active = np.concatenate((kept_active, active))
             kept_upper = np.concatenate((kept_upper, at_upper))
-            rows_held = np.ascontiguousarray(rows[: level_held[k - 1], :-1])
         if k + 1 == levels or dim == 0 or rows_held.shape[0] == 0:
             continue
         outcome, narrow = compiled_null_space(rows_held)
@@ -159,3 +148,37 @@ def warm_levels(
             return k + 1, kept_active, kept_upper, counts, dims, empty, False, basis, rows_held
         basis = basis @ narrow
     return levels, kept_active, kept_upper, counts, dims, basis, True, empty, np.zeros((0, 0))
+
+
+@compiled
+def _lower_level(
+    entries: np.ndarray,
+    b: np.ndarray,
+    scale: np.ndarray,
+    held: int,
+    basis: np.ndarray,
+    point: np.ndarray,
+    general: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    active: np.ndarray,
+    at_upper: np.ndarray,
+    settings: np.ndarray,
+) -> tuple:
+    """A lower level in ``z = point + basis y`` on its last active set
+    (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`):
+    ``(solved, y, duals, active, at_upper, changes, held rows in the basis)``."""
+    dim = basis.shape[1]
+    size = dim + lower.shape[0]
+    rows = np.empty((b.shape[0], dim + 1))
+    qp_rows = np.empty((size, dim))
+    qp_lower = np.empty(size)
+    qp_upper = np.empty(size)
+    y = np.empty(dim)
+    duals = np.empty(size)
+    status, active, at_upper, count, _h, _g = reduced_on_active_set(
+        entries, b, scale, basis, point, general, lower, upper, active, at_upper, settings,
+        rows, qp_rows, qp_lower, qp_upper, y, duals,
+    )  # fmt: skip
+    solved = status == SOLVED and _finite(y)
+    return solved, y, duals, active, at_upper, count, np.ascontiguousarray(rows[:held, :-1])
