@@ -36,17 +36,24 @@ from dqcontrol.trajectories import Circle
 PERIOD_S = 0.001
 
 
-def path_level_hessian() -> tuple[np.ndarray, np.ndarray, int]:
-    """``(P, S, n + 1)``: the path level's Hessian after 300 steps, the map from the
-    decision to the predicted states and the size of a state's block."""
+def bench_step_controller(steps: int = 300) -> PathFollowingController:
+    """The path-following controller of ``dqcontrol bench`` (LBR4p, 2 s circle,
+    ``T = 1 ms``, ``p = 10``) after ``steps`` steps of the kinematic loop."""
     ctrl = PathFollowingController(
         load_lbr4p(), Circle(2.0), PERIOD_S, velocity_limits=THESIS_VELOCITY_LIMITS,
         acceleration_limit=THESIS_ACCELERATION_LIMIT,
     )  # fmt: skip
     ctrl.reset(LBR4P_Q0)
     q = LBR4P_Q0.copy()
-    for _ in range(300):
+    for _ in range(steps):
         q = q + PERIOD_S * ctrl.step(q).qd_command
+    return ctrl
+
+
+def path_level_hessian() -> tuple[np.ndarray, np.ndarray, int]:
+    """``(P, S, n + 1)``: the path level's Hessian after 300 steps, the map from the
+    decision to the predicted states and the size of a state's block."""
+    ctrl = bench_step_controller()
     problem = ctrl.last_problem()
     p_mat, _ = level_objective(problem.layout, problem.levels[0].residuals)
     model = ctrl.prediction_model

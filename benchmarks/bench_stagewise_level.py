@@ -28,10 +28,9 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from bench_stagewise_factor import bench_step_controller
 from numba import njit
 
-from dqcontrol import load_lbr4p
-from dqcontrol.controllers import PathFollowingController
 from dqcontrol.controllers.backends.active_set import (
     SOLVED,
     _worst_multiplier,
@@ -45,28 +44,14 @@ from dqcontrol.controllers.backends.daqp_dense import (
 from dqcontrol.controllers.householder import applied_q, profile_qr
 from dqcontrol.controllers.level_objective import level_objective
 from dqcontrol.controllers.null_space import compiled_null_space
-from dqcontrol.experiments.thesis import (
-    LBR4P_Q0,
-    THESIS_ACCELERATION_LIMIT,
-    THESIS_VELOCITY_LIMITS,
-)
-from dqcontrol.trajectories import Circle
 
-PERIOD_S = 0.001
 PRIMAL_TOL = 1e-9
 
 
 def path_level() -> dict:
     """The path level of the bench's step after 300 steps, its last active set and the
     prediction's interval lengths."""
-    ctrl = PathFollowingController(
-        load_lbr4p(), Circle(2.0), PERIOD_S, velocity_limits=THESIS_VELOCITY_LIMITS,
-        acceleration_limit=THESIS_ACCELERATION_LIMIT,
-    )  # fmt: skip
-    ctrl.reset(LBR4P_Q0)
-    q = LBR4P_Q0.copy()
-    for _ in range(300):
-        q = q + PERIOD_S * ctrl.step(q).qd_command
+    ctrl = bench_step_controller()
     problem = ctrl.last_problem()
     p_mat, c = level_objective(problem.layout, problem.levels[0].residuals)
     held = problem.levels[0].residuals[0].dense(problem.layout)

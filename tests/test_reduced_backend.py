@@ -124,7 +124,7 @@ def test_the_levels_solved_in_one_call_are_those_solved_one_by_one(monkeypatch):
 
     def counted(*args):
         out = kernel(*args)
-        outcomes.append((out[0], len(args[6]) + 1, bool(out[6])))
+        outcomes.append((out[0], len(args[2][0]) + 1, bool(out[6])))
         return out
 
     monkeypatch.setattr(daqp_dense, "warm_levels", counted)

@@ -132,15 +132,16 @@ class DaqpBackend:
         count = len(lower) + 1
         points, duals = np.empty((count, nv)), np.empty((count, rows))
         changes, has_duals = np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool)
-        done, kept, kept_upper, counts, solved_dims, basis, ready, last_basis, last_held = (
-            warm_levels(
-                factor, np.ascontiguousarray(first.c), self._writable_rows(0, first.A),
-                first.lower, first.upper, np.ascontiguousarray(held),
-                tuple(r.entries for r in lower), tuple(r.b for r in lower),
-                tuple(r.scale for r in lower), np.array([r.held for r in lower]),
-                actives, uppers, dims, nonzero_entries(general),
-                self._settings_array(), SMALL_FACTOR, points, duals, changes, has_duals,
-            )
+        a = self._writable_rows(0, first.A)
+        first_level = (factor, np.ascontiguousarray(first.c), a, first.lower, first.upper)
+        lower_levels = (
+            tuple(r.entries for r in lower), tuple(r.b for r in lower),
+            tuple(r.scale for r in lower), np.array([r.held for r in lower]),
+        )  # fmt: skip
+        settings = np.append(self._settings_array(), SMALL_FACTOR)
+        done, kept, kept_upper, counts, solved_dims, basis, ready, last_held = warm_levels(
+            first_level, np.ascontiguousarray(held), lower_levels, (actives, uppers, dims),
+            nonzero_entries(general), settings, (points, duals, has_duals, changes),
         )  # fmt: skip
         if done == 0:
             return None
@@ -161,7 +162,7 @@ class DaqpBackend:
             return WarmLevels(tuple(solutions), basis if done < count else None, None, None)
         if done == 1:  # the first level's held rows go to LAPACK: narrowed from scratch
             return WarmLevels(tuple(solutions), None, None, None)
-        return WarmLevels(tuple(solutions), None, last_basis, last_held)
+        return WarmLevels(tuple(solutions), None, basis, last_held)
 
     def _last_sets(self, first: tuple, lower: int, rows: int) -> tuple[tuple, tuple, np.ndarray]:
         """The last active sets of the first level (entry ``first``) and of the ``lower``

@@ -47,138 +47,120 @@ def _within(lower: np.ndarray, upper: np.ndarray) -> bool:
 
 @compiled
 def warm_levels(
-    factor: np.ndarray,
-    c: np.ndarray,
-    a: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
+    first: tuple,
     held: np.ndarray,
-    level_entries: tuple,
-    level_b: tuple,
-    level_scale: tuple,
-    level_held: np.ndarray,
-    last_active: tuple,
-    last_upper: tuple,
-    last_dims: np.ndarray,
+    lower_levels: tuple,
+    last: tuple,
     general: np.ndarray,
     settings: np.ndarray,
-    max_dim: int,
-    points: np.ndarray,
-    duals: np.ndarray,
-    changes: np.ndarray,
-    has_duals: np.ndarray,
+    out: tuple,
 ) -> tuple:
     """The levels from the first on, each on its last active set, until one needs more.
 
-    The first level is ``min ½ zᵀ P z + cᵀ z`` (``factor``: ``L`` with ``P = L Lᵀ``) under
-    ``lower ≤ a z ≤ upper`` (``a = [I; C]``) from the set ``last_active[0]`` /
-    ``last_upper[0]``; ``held`` are its held rows. Lower level ``k`` (``k ≥ 1``) is given
-    by its stacked rows (``level_entries[k - 1]``, ``level_b``, ``level_scale``, the
-    first ``level_held[k - 1]`` of them held), reduced to the null space of the rows held
-    above, under the same rows (``general``: the non-zero entries of ``C``), from its last
-    set of ``last_dims[k - 1]`` variables (none: ``-1``; more than ``max_dim``: not
-    here). ``settings``: ``(primal_tol, dual_tol, max_changes, pivot_share)``.
-
-    Writes each solved level's point into ``points[k]``, its multipliers of the rows
-    ``a`` into ``duals[k]`` (``has_duals[k]``: a level without freedom has none) and its
-    set's changes into ``changes[k]``. Returns ``(done, actives, at_upper, counts, dims,
-    basis, basis_ready, last_basis, last_held)``: how many levels were solved; their
-    active sets concatenated (``counts`` rows each) and the null-space dimension each was
-    solved in; the basis the next level moves in where ``basis_ready``, otherwise the
-    basis of the last level solved and its held rows in it, from which the caller narrows
-    it with LAPACK.
+    ``first = (L, c, A, lower, upper)`` is the first level (``P = L Lᵀ``, ``A = [I; C]``),
+    ``held`` its held rows; ``lower_levels = (entries, b, scale, held counts)`` the
+    stacked rows of each lower level, reduced to the null space of the rows held above,
+    under ``A`` (``general``: the non-zero entries of ``C``); ``last = (actives, at_upper,
+    dims)`` each level's last set (a lower level's dimension, ``-1`` for none);
+    ``settings = (primal_tol, dual_tol, max_changes, pivot_share, max_dim)``. Writes each
+    solved level into ``out = (points, duals, has_duals, changes)`` and returns ``(done,
+    actives, at_upper, counts, dims, basis, ready, held_rows)``: the levels solved, their
+    sets (``counts`` rows each) and the dimension each was solved in; with ``ready`` the
+    basis the next level moves in, otherwise the last level's basis and its held rows in
+    it (empty after the first), from which the caller narrows it with LAPACK.
     """
-    n = c.shape[0]
-    levels = 1 + len(level_entries)
+    n = first[1].shape[0]
+    levels = 1 + len(lower_levels[0])
     counts = np.zeros(levels, dtype=np.int64)
     dims = np.full(levels, n, dtype=np.int64)
-    kept_active = np.zeros(0, dtype=np.int64)
-    kept_upper = np.zeros(0, dtype=np.bool_)
-    empty = np.zeros((n, 0))
-    if not _within(lower, upper):
-        return 0, kept_active, kept_upper, counts, dims, empty, False, empty, np.zeros((0, 0))
-    z = np.empty(n)
-    row_duals = np.empty(a.shape[0])
-    status, active, at_upper, count = solve_on_active_set(
-        factor, c, a, lower, upper, last_active[0], last_upper[0],
-        settings[0], settings[1], int(settings[2]), z, row_duals,
-    )  # fmt: skip
-    if status != SOLVED or not _finite(z):
-        return 0, kept_active, kept_upper, counts, dims, empty, False, empty, np.zeros((0, 0))
-    points[0] = z
-    duals[0] = row_duals
-    has_duals[0] = True
-    changes[0] = count
-    counts[0] = active.shape[0]
-    kept_active = np.concatenate((kept_active, active))
-    kept_upper = np.concatenate((kept_upper, at_upper))
+    none = np.zeros((0, 0))
+    solved, actives, uppers, point = _first_level(first, last[0][0], last[1][0], settings, out)
+    if not solved:
+        return 0, actives[:0], uppers[:0], counts, dims, none, False, none
+    counts[0] = actives.shape[0]
     outcome, basis = compiled_null_space(held)
-    if outcome != _DONE:
-        return 1, kept_active, kept_upper, counts, dims, empty, False, empty, np.zeros((0, 0))
-    point = z
+    previous, rows_held = none, none
     for k in range(1, levels):
+        if outcome != _DONE:
+            return k, actives, uppers, counts, dims, previous, False, rows_held
         dim = basis.shape[1]
         dims[k] = dim
-        rows_held = np.zeros((0, 0))
-        if dim == 0:
-            points[k] = point
-            has_duals[k] = False
-            changes[k] = 0
-        else:
-            if last_dims[k - 1] != dim or dim > max_dim:
-                return k, kept_active, kept_upper, counts, dims, basis, True, empty, rows_held
-            solved, y, y_duals, active, at_upper, count, rows_held = _lower_level(
-                level_entries[k - 1], level_b[k - 1], level_scale[k - 1], level_held[k - 1],
-                basis, point, general, lower, upper, last_active[k], last_upper[k], settings,
-            )  # fmt: skip
-            if not solved:
-                return k, kept_active, kept_upper, counts, dims, basis, True, empty, rows_held
-            point = point + basis @ y
-            points[k] = point
-            duals[k] = y_duals[dim:]
-            has_duals[k] = True
-            changes[k] = count
-            counts[k] = active.shape[0]
-            kept_active = np.concatenate((kept_active, active))
-            kept_upper = np.concatenate((kept_upper, at_upper))
-        if k + 1 == levels or dim == 0 or rows_held.shape[0] == 0:
+        if dim == 0:  # the levels above leave no freedom
+            out[0][k] = point
             continue
-        outcome, narrow = compiled_null_space(rows_held)
-        if outcome != _DONE:
-            return k + 1, kept_active, kept_upper, counts, dims, empty, False, basis, rows_held
-        basis = basis @ narrow
-    return levels, kept_active, kept_upper, counts, dims, basis, True, empty, np.zeros((0, 0))
+        if last[2][k - 1] != dim or dim > int(settings[4]):
+            return k, actives, uppers, counts, dims, basis, True, none
+        solved, point, active, at_upper, rows_held = _lower_level(
+            k, lower_levels, basis, point, general, first, last, settings, out
+        )
+        if not solved:
+            return k, actives, uppers, counts, dims, basis, True, none
+        counts[k] = active.shape[0]
+        actives = np.concatenate((actives, active))
+        uppers = np.concatenate((uppers, at_upper))
+        previous = basis
+        if k + 1 < levels and rows_held.shape[0] > 0:
+            outcome, narrow = compiled_null_space(rows_held)
+            if outcome == _DONE:
+                basis = basis @ narrow
+    return levels, actives, uppers, counts, dims, basis, True, none
+
+
+@compiled
+def _keep(out: tuple, k: int, point: np.ndarray, duals: np.ndarray, changes: int) -> None:
+    """Level ``k``'s point, multipliers and set changes into ``out``."""
+    out[0][k] = point
+    out[1][k] = duals
+    out[2][k] = True
+    out[3][k] = changes
+
+
+@compiled
+def _first_level(first: tuple, active: np.ndarray, at_upper: np.ndarray, settings, out) -> tuple:
+    """The first level on its last set: ``(solved, active, at_upper, point)``."""
+    factor, c, a, lower, upper = first
+    z, duals = np.empty(c.shape[0]), np.empty(a.shape[0])
+    if not _within(lower, upper):
+        return False, active, at_upper, z
+    status, active, at_upper, count = solve_on_active_set(
+        factor, c, a, lower, upper, active, at_upper,
+        settings[0], settings[1], int(settings[2]), z, duals,
+    )  # fmt: skip
+    if status != SOLVED or not _finite(z):
+        return False, active, at_upper, z
+    _keep(out, 0, z, duals, count)
+    return True, active, at_upper, z
 
 
 @compiled
 def _lower_level(
-    entries: np.ndarray,
-    b: np.ndarray,
-    scale: np.ndarray,
-    held: int,
+    k: int,
+    lower_levels: tuple,
     basis: np.ndarray,
     point: np.ndarray,
     general: np.ndarray,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    active: np.ndarray,
-    at_upper: np.ndarray,
+    first: tuple,
+    last: tuple,
     settings: np.ndarray,
+    out: tuple,
 ) -> tuple:
-    """A lower level in ``z = point + basis y`` on its last active set
+    """Lower level ``k`` in ``z = point + basis y`` on its last set
     (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`):
-    ``(solved, y, duals, active, at_upper, changes, held rows in the basis)``."""
+    ``(solved, point, active, at_upper, held rows in the basis)``."""
+    lower, upper = first[3], first[4]
     dim = basis.shape[1]
     size = dim + lower.shape[0]
+    b = lower_levels[1][k - 1]
     rows = np.empty((b.shape[0], dim + 1))
-    qp_rows = np.empty((size, dim))
-    qp_lower = np.empty(size)
-    qp_upper = np.empty(size)
-    y = np.empty(dim)
-    duals = np.empty(size)
+    qp_rows, qp_lower, qp_upper = np.empty((size, dim)), np.empty(size), np.empty(size)
+    y, duals = np.empty(dim), np.empty(size)
     status, active, at_upper, count, _h, _g = reduced_on_active_set(
-        entries, b, scale, basis, point, general, lower, upper, active, at_upper, settings,
-        rows, qp_rows, qp_lower, qp_upper, y, duals,
+        lower_levels[0][k - 1], b, lower_levels[2][k - 1], basis, point, general, lower, upper,
+        last[0][k], last[1][k], settings, rows, qp_rows, qp_lower, qp_upper, y, duals,
     )  # fmt: skip
-    solved = status == SOLVED and _finite(y)
-    return solved, y, duals, active, at_upper, count, np.ascontiguousarray(rows[:held, :-1])
+    if status != SOLVED or not _finite(y):
+        return False, point, active, at_upper, np.zeros((0, 0))
+    point = point + basis @ y
+    _keep(out, k, point, duals[dim:], count)
+    held = lower_levels[3][k - 1]
+    return True, point, active, at_upper, np.ascontiguousarray(rows[:held, :-1])
