@@ -140,6 +140,35 @@ def _left(active: np.ndarray, at_upper: np.ndarray, j: int) -> tuple[np.ndarray,
 
 
 @compiled
+def _forward_rows(
+    factor: np.ndarray, a: np.ndarray, active: np.ndarray, n: int, yt: np.ndarray
+) -> None:
+    """``yt[:, j] = L⁻¹ a_j`` for the rows ``a_j = a[active[j]]`` together: each entry is
+    the sum :func:`_forward` forms, in its order, and the sums of the rows run side by side
+    (the inner loop along a row of ``yt``, which the compiler vectorises). Below a row's
+    first non-zero entry its column is zero, as there."""
+    k = active.shape[0]
+    start = n
+    for j in range(k):
+        row = active[j]
+        start = min(start, row if row < n else _first_nonzero(a[row]))
+    yt[:start] = 0.0
+    s = np.empty(k)
+    for i in range(start, n):
+        for j in range(k):
+            s[j] = a[active[j], i]
+        for m in range(start, i):
+            lim = factor[i, m]
+            line = yt[m]
+            for j in range(k):
+                s[j] -= lim * line[j]
+        pivot = factor[i, i]
+        out = yt[i]
+        for j in range(k):
+            out[j] = s[j] / pivot
+
+
+@compiled
 def _equality_optimum(
     factor: np.ndarray,
     c: np.ndarray,
@@ -156,25 +185,24 @@ def _equality_optimum(
     n, k = c.shape[0], active.shape[0]
     g = np.empty(n)
     _forward(factor, c, g)
-    y = np.empty((k, n))  # rows of Yᵀ: L⁻¹ a_j
-    for j in range(k):
-        row = active[j]
-        _forward(factor, a[row], y[j], row if row < n else _first_nonzero(a[row]))
-    schur = np.empty((k, k))
+    yt = np.empty((n, k))  # columns: L⁻¹ a_j
+    _forward_rows(factor, a, active, n, yt)
+    schur = np.zeros((k, k))
+    dots = np.zeros(k)
+    for m in range(n):
+        line = yt[m]
+        gm = g[m]
+        for i in range(k):
+            dots[i] += line[i] * gm
+            for j in range(i + 1):
+                schur[i, j] += line[i] * line[j]
     rhs = np.empty(k)
     for i in range(k):
         row = active[i]
         bound = upper[row] if at_upper[i] else lower[row]
-        s = 0.0
-        for m in range(n):
-            s += y[i, m] * g[m]
-        rhs[i] = -(bound + s)
-        for j in range(i + 1):
-            t = 0.0
-            for m in range(n):
-                t += y[i, m] * y[j, m]
-            schur[i, j] = t
-            schur[j, i] = t
+        rhs[i] = -(bound + dots[i])
+        for j in range(i):
+            schur[j, i] = schur[i, j]
     if k:
         schur_factor = np.zeros((k, k))
         if not cholesky_into(schur, schur_factor, 1e-12, 0.0):
@@ -183,9 +211,10 @@ def _equality_optimum(
         _forward(schur_factor, rhs, half)
         _backward(schur_factor, half, lam)
     v = g.copy()
-    for j in range(k):
-        for m in range(n):
-            v[m] += y[j, m] * lam[j]
+    for m in range(n):
+        line = yt[m]
+        for j in range(k):
+            v[m] += line[j] * lam[j]
     _backward(factor, v, z)
     for m in range(n):
         z[m] = -z[m]
