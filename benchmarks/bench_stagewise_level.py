@@ -44,6 +44,7 @@ from dqcontrol.controllers.backends.daqp_dense import (
 from dqcontrol.controllers.householder import applied_q, profile_qr
 from dqcontrol.controllers.level_objective import level_objective
 from dqcontrol.controllers.null_space import compiled_null_space
+from dqcontrol.controllers.reduced import nonzero_entries
 
 PRIMAL_TOL = 1e-9
 
@@ -208,12 +209,14 @@ def _solvers(lev: dict) -> tuple:
     of the check, the point (``z``; ``x`` in the states) and the path rows' null space."""
     m, dur, n = lev["m"], lev["durations"], lev["c"].size
     active, at_upper, lower, upper = lev["active"], lev["at_upper"], lev["lower"], lev["upper"]
+    general = np.ascontiguousarray(lev["A"][n:])  # the rows after the identity: C
+    entries = nonzero_entries(general)
 
     def today():
         factor = _factor(lev["P"])
         z, duals = np.empty(n), np.empty(lev["A"].shape[0])
         status = solve_on_active_set(
-            factor, lev["c"], lev["A"], lower, upper, active, at_upper, PRIMAL_TOL,
+            factor, lev["c"], general, entries, lower, upper, active, at_upper, PRIMAL_TOL,
             ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES, z, duals,
         )[0]  # fmt: skip
         return status, z, compiled_null_space(lev["held"])[1]
@@ -263,6 +266,8 @@ def _parts(lev: dict) -> dict:
     """Each part of both solves, as a call to time."""
     m, dur, n = lev["m"], lev["durations"], lev["c"].size
     active, at_upper, lower, upper = lev["active"], lev["at_upper"], lev["lower"], lev["upper"]
+    general = np.ascontiguousarray(lev["A"][n:])  # the rows after the identity: C
+    entries = nonzero_entries(general)
     rows_x = columns_in_states(lev["A"], dur, m)
     m_mat = columns_in_states(np.ascontiguousarray(columns_in_states(lev["P"], dur, m).T), dur, m)
     c_x = columns_in_states(lev["c"][None, :], dur, m)[0]
@@ -282,7 +287,8 @@ def _parts(lev: dict) -> dict:
         "today: check": lambda: solve_on_active_set(
             factor_today,
             lev["c"],
-            lev["A"],
+            general,
+            entries,
             lower,
             upper,
             active,

@@ -3,6 +3,8 @@ QPs from a cold start and against scipy's SLSQP."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy.optimize import minimize
@@ -16,6 +18,7 @@ from dqcontrol.controllers.backends.active_set import (
 )
 from dqcontrol.controllers.backends.daqp_dense import DaqpBackend, _factor
 from dqcontrol.controllers.problem import DenseQP
+from dqcontrol.controllers.reduced import nonzero_entries
 
 
 def _random_qp(rng: np.random.Generator, n: int = 12, rows: int = 10) -> DenseQP:
@@ -36,12 +39,14 @@ def _cold(qp: DenseQP):
     return sol
 
 
-def _on(qp: DenseQP, active: np.ndarray, at_upper: np.ndarray, changes: int = 0):
+def _on(qp: DenseQP, active, at_upper, changes: int = 0, sparse: bool = False):
     factor = _factor(qp.P)
     assert factor is not None
     z, duals = np.empty(qp.c.size), np.empty(qp.A.shape[0])
+    general = np.ascontiguousarray(qp.A[qp.c.size :])
+    entries = nonzero_entries(general) if sparse else np.zeros((0, 3))
     status, _active, _at_upper, _changes = solve_on_active_set(
-        factor, qp.c, np.ascontiguousarray(qp.A), qp.lower, qp.upper, active, at_upper,
+        factor, qp.c, general, entries, qp.lower, qp.upper, active, at_upper,
         1e-9, 1e-9, changes, z, duals,
     )  # fmt: skip
     return status, z, duals
@@ -91,6 +96,33 @@ def test_a_wrong_guess_is_refused(seed):
     toward = value > 0.5 * (qp.lower[idle] + qp.upper[idle])
     status, _z, _d = _on(qp, np.append(active, idle), np.append(at_upper, not toward))
     assert status in (INFEASIBLE, WRONG_SIGN)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_check_over_the_non_zero_entries_is_the_dense_one(seed):
+    """General rows with many zeros: summed over their non-zero entries, the check finds
+    the same rows, so right and wrong guesses, mended or not, end in the same status,
+    point and multipliers, bit for bit."""
+    rng = np.random.default_rng(200 + seed)
+    qp = _random_qp(rng)
+    n = qp.c.size
+    general = qp.A[n:] * (rng.random(qp.A[n:].shape) < 0.3)
+    qp = DenseQP(qp.P, qp.c, np.vstack([np.eye(n), general]), qp.lower, qp.upper)
+    ref = _cold(qp)
+    true = np.flatnonzero(ref.duals)
+    idle = np.setdiff1d(np.arange(qp.A.shape[0]), true)
+    sides = ref.duals[true] > 0.0
+    guesses = [
+        (true, sides),
+        (true[1:], sides[1:]),
+        (np.append(true, idle[-1]), np.append(sides, True)),
+    ]
+    for (guess, at_upper), changes in itertools.product(guesses, (0, 3)):
+        dense = _on(qp, guess, at_upper, changes)
+        sparse = _on(qp, guess, at_upper, changes, sparse=True)
+        assert dense[0] == sparse[0]
+        np.testing.assert_array_equal(sparse[1], dense[1])
+        np.testing.assert_array_equal(sparse[2], dense[2])
 
 
 def test_repeated_active_rows_are_reported_dependent():

@@ -37,6 +37,7 @@ from dqcontrol.controllers.problem import (
     Limit,
     Problem,
     Solution,
+    SplitQP,
     WarmLevels,
     fixed_variables,
     merge_bounds,
@@ -172,12 +173,13 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
 
 def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     p_mat, c = level_objective(problem.layout, problem.levels[0].residuals)
-    first = DenseQP(p_mat, c, problem.A, problem.lower, problem.upper)
     points: list[np.ndarray] = []
     per_level: list[Solution] = []
     best: Solution | None = None
     basis: np.ndarray | None = None  # the null space the next level moves in
-    warm = _warm_levels(problem, backend, first)
+    warm = _warm_levels(
+        problem, backend, SplitQP(p_mat, c, problem.C, problem.lower, problem.upper)
+    )
     if warm is not None:
         per_level = list(warm.solutions)
         points = [s.x for s in per_level if s.x is not None]
@@ -188,7 +190,7 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     for k in range(len(points), len(problem.levels)):
         held = None  # level k's held rows in the basis, where the reduced level gave them
         if k == 0:
-            sol = backend.solve(0, first)
+            sol = backend.solve(0, DenseQP(p_mat, c, problem.A, problem.lower, problem.upper))
         else:
             assert basis is not None, "a lower level has the basis of the held rows"
             sol, held = _reduced_level(problem, k, points[-1], basis, backend)
@@ -208,14 +210,14 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     return LevelsResult(best, tuple(per_level), None)
 
 
-def _warm_levels(problem: Problem, backend: Backend, first: DenseQP) -> WarmLevels | None:
+def _warm_levels(problem: Problem, backend: Backend, first: SplitQP) -> WarmLevels | None:
     """The first levels from a backend that solves them on their last active sets in one
     call (``solve_warm_levels``), for a problem of several levels; ``None`` otherwise."""
     solve_warm = getattr(backend, "solve_warm_levels", None)
     if solve_warm is None or len(problem.levels) < 2:
         return None
     lower = tuple(level_rows(level.residuals) for level in problem.levels[1:])
-    return solve_warm(first, _held_dense(problem, 0), lower, problem.C)
+    return solve_warm(first, _held_dense(problem, 0), lower)
 
 
 def _held_dense(problem: Problem, k: int) -> np.ndarray:

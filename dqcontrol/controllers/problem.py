@@ -60,6 +60,7 @@ __all__ = [
     "Problem",
     "Residual",
     "Solution",
+    "SplitQP",
     "WarmLevels",
     "Term",
     "fixed_variables",
@@ -316,6 +317,17 @@ class DenseQP(NamedTuple):
     P: np.ndarray
     c: np.ndarray
     A: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+class SplitQP(NamedTuple):
+    """A :class:`DenseQP` with its general rows apart: ``minimize ½ zᵀ P z + cᵀ z  s.t.
+    lower ≤ [I; C] z ≤ upper``."""
+
+    P: np.ndarray
+    c: np.ndarray
+    C: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
 

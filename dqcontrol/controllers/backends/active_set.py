@@ -58,7 +58,8 @@ def _backward(factor: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 def solve_on_active_set(
     factor: np.ndarray,
     c: np.ndarray,
-    a: np.ndarray,
+    general: np.ndarray,
+    entries: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
     active: np.ndarray,
@@ -69,18 +70,20 @@ def solve_on_active_set(
     z: np.ndarray,
     duals: np.ndarray,
 ) -> tuple[int, np.ndarray, np.ndarray, int]:
-    """The optimum from the guessed active set ``active`` (row indices of ``a``;
-    ``at_upper[j]``: the row ``active[j]`` is held at its upper bound, else its lower one),
-    checked, and mended up to ``max_changes`` times.
+    """The optimum from the guessed active set ``active`` (row indices of ``A = [I; C]``,
+    a backend's rows; ``at_upper[j]``: the row ``active[j]`` is held at its upper bound,
+    else its lower one), checked, and mended up to ``max_changes`` times.
 
-    ``factor`` is ``L`` with ``P = L Lᵀ``; the first ``len(z)`` rows of ``a`` are the
-    identity (a backend's ``A = [I; C]``). The point is the optimum when the KKT
-    conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
+    ``factor`` is ``L`` with ``P = L Lᵀ``; ``general`` is ``C`` (row ``n + i`` of ``A`` is
+    its row ``i``), and ``entries`` its non-zero entries
+    (:func:`~dqcontrol.controllers.reduced.nonzero_entries`), over which the check runs,
+    or none (``(0, 3)``): the check then runs over ``C`` dense. The point is the optimum
+    when the KKT conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
     bounds, every multiplier of the right sign to ``dual_tol`` times the largest. Where
     they fail, the most broken row joins the set at the bound it breaks or, with every row
     met, the multiplier of the most wrong sign leaves it, and the check runs again.
 
-    Writes ``z`` and ``duals`` (one per row of ``a``, zero off the set; positive at an
+    Writes ``z`` and ``duals`` (one per row of ``A``, zero off the set; positive at an
     upper bound) and returns ``(status, active, at_upper, changes)``: ``SOLVED`` (0) with
     the set of the optimum and how many rows joined or left it, or why the last set
     failed: ``DEPENDENT_ROWS`` (its rows are not independent enough to give unique
@@ -89,9 +92,12 @@ def solve_on_active_set(
     status = SOLVED
     for changes in range(max_changes + 1):
         lam = np.zeros(active.shape[0])
-        if not _equality_optimum(factor, c, a, lower, upper, active, at_upper, z, lam):
+        if not _equality_optimum(factor, c, general, lower, upper, active, at_upper, z, lam):
             return DEPENDENT_ROWS, active, at_upper, changes
-        row, above = _worst_row(a, lower, upper, z, primal_tol)
+        if entries.shape[0]:
+            row, above = _worst_sparse_row(general, entries, lower, upper, z, primal_tol)
+        else:
+            row, above = _worst_row(general, lower, upper, z, primal_tol)
         if row >= 0:
             status = INFEASIBLE
             active, at_upper = _joined(active, at_upper, row, above)
@@ -141,9 +147,10 @@ def _left(active: np.ndarray, at_upper: np.ndarray, j: int) -> tuple[np.ndarray,
 
 @compiled
 def _forward_rows(
-    factor: np.ndarray, a: np.ndarray, active: np.ndarray, n: int, yt: np.ndarray
+    factor: np.ndarray, general: np.ndarray, active: np.ndarray, n: int, yt: np.ndarray
 ) -> None:
-    """``yt[:, j] = L⁻¹ a_j`` for the rows ``a_j = a[active[j]]`` together: each entry is
+    """``yt[:, j] = L⁻¹ a_j`` for the rows ``a_j`` of ``A = [I; C]`` (``general``: ``C``)
+    numbered ``active[j]``, together: each entry is
     the sum :func:`_forward` forms, in its order, and the sums of the rows run side by side
     (the inner loop along a row of ``yt``, which the compiler vectorises). Below a row's
     first non-zero entry its column is zero, as there."""
@@ -151,12 +158,13 @@ def _forward_rows(
     start = n
     for j in range(k):
         row = active[j]
-        start = min(start, row if row < n else _first_nonzero(a[row]))
+        start = min(start, row if row < n else _first_nonzero(general[row - n]))
     yt[:start] = 0.0
     s = np.empty(k)
     for i in range(start, n):
         for j in range(k):
-            s[j] = a[active[j], i]
+            row = active[j]
+            s[j] = general[row - n, i] if row >= n else (1.0 if row == i else 0.0)
         for m in range(start, i):
             lim = factor[i, m]
             line = yt[m]
@@ -172,7 +180,7 @@ def _forward_rows(
 def _equality_optimum(
     factor: np.ndarray,
     c: np.ndarray,
-    a: np.ndarray,
+    general: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
     active: np.ndarray,
@@ -186,7 +194,7 @@ def _equality_optimum(
     g = np.empty(n)
     _forward(factor, c, g)
     yt = np.empty((n, k))  # columns: L⁻¹ a_j
-    _forward_rows(factor, a, active, n, yt)
+    _forward_rows(factor, general, active, n, yt)
     schur = np.zeros((k, k))
     dots = np.zeros(k)
     for m in range(n):
@@ -222,36 +230,94 @@ def _equality_optimum(
 
 
 @compiled
-def _worst_row(
-    a: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, primal_tol: float
-) -> tuple[int, bool]:
-    """The row furthest out of its bounds beyond ``primal_tol`` (distances over the row's
-    norm, or over 1 for a row shorter than that: a row that vanishes in a reduced level
-    keeps an absolute tolerance) and whether it is above its upper bound; ``(-1, False)``
-    when every row is within its bounds."""
-    n = z.shape[0]
+def _worst_box_row(
+    lower: np.ndarray, upper: np.ndarray, z: np.ndarray, primal_tol: float
+) -> tuple[float, int, bool]:
+    """Over the rows of ``I``: how far the worst one is out of its bounds beyond
+    ``primal_tol`` (else ``primal_tol``), which (-1: none) and whether above; a NaN in
+    ``z`` is its row, with the distance ``-1``."""
     worst, row, above = primal_tol, -1, False
-    for r in range(n):
+    for r in range(z.shape[0]):
         if z[r] - upper[r] > worst:
             worst, row, above = z[r] - upper[r], r, True
         elif lower[r] - z[r] > worst:
             worst, row, above = lower[r] - z[r], r, False
         elif not (z[r] == z[r]):
-            return r, False
-    for r in range(n, a.shape[0]):
+            return -1.0, r, False
+    return worst, row, above
+
+
+@compiled
+def _breach(value: float, norm2: float, low: float, up: float, worst: float) -> tuple:
+    """``(distance, above)`` of a row of value ``value`` and squared norm ``norm2`` out of
+    ``[low, up]`` by more than ``worst`` times its norm (at least 1), the distance over
+    that norm; ``(0, False)`` where it is not."""
+    norm = max(math.sqrt(norm2), 1.0)
+    if value - up > worst * norm:
+        return (value - up) / norm, True
+    if low - value > worst * norm:
+        return (low - value) / norm, False
+    return 0.0, False
+
+
+@compiled
+def _worst_row(
+    general: np.ndarray, lower: np.ndarray, upper: np.ndarray, z: np.ndarray, primal_tol: float
+) -> tuple[int, bool]:
+    """The row of ``[I; C]`` (``general``: ``C``) furthest out of its bounds beyond
+    ``primal_tol`` (distances over the row's norm, or over 1 for a row shorter than that:
+    a row that vanishes in a reduced level keeps an absolute tolerance) and whether it is
+    above its upper bound; ``(-1, False)`` when every row is within its bounds."""
+    n = z.shape[0]
+    worst, row, above = _worst_box_row(lower, upper, z, primal_tol)
+    if worst < 0.0:
+        return row, above
+    for i in range(general.shape[0]):
+        r, line = n + i, general[i]
         value = 0.0
         for m in range(n):
-            value += a[r, m] * z[m]
+            value += line[m] * z[m]
         if lower[r] - worst <= value <= upper[r] + worst:
             continue  # within the bounds' tolerance for any norm of at least 1
         norm2 = 0.0
         for m in range(n):
-            norm2 += a[r, m] * a[r, m]
-        norm = max(math.sqrt(norm2), 1.0)
-        if value - upper[r] > worst * norm:
-            worst, row, above = (value - upper[r]) / norm, r, True
-        elif lower[r] - value > worst * norm:
-            worst, row, above = (lower[r] - value) / norm, r, False
+            norm2 += line[m] * line[m]
+        distance, high = _breach(value, norm2, lower[r], upper[r], worst)
+        if distance > 0.0:
+            worst, row, above = distance, r, high
+    return row, above
+
+
+@compiled
+def _worst_sparse_row(
+    general: np.ndarray,
+    entries: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    z: np.ndarray,
+    primal_tol: float,
+) -> tuple[int, bool]:
+    """:func:`_worst_row` over the non-zero ``entries`` of ``C`` (row by row, columns in
+    order): the same sums, without their zero terms."""
+    n = z.shape[0]
+    worst, row, above = _worst_box_row(lower, upper, z, primal_tol)
+    if worst < 0.0:
+        return row, above
+    e, count = 0, entries.shape[0]
+    for i in range(general.shape[0]):
+        r, first = n + i, e
+        value = 0.0
+        while e < count and int(entries[e, 0]) == i:
+            value += entries[e, 2] * z[int(entries[e, 1])]
+            e += 1
+        if lower[r] - worst <= value <= upper[r] + worst:
+            continue
+        norm2 = 0.0
+        for k in range(first, e):
+            norm2 += entries[k, 2] * entries[k, 2]
+        distance, high = _breach(value, norm2, lower[r], upper[r], worst)
+        if distance > 0.0:
+            worst, row, above = distance, r, high
     return row, above
 
 

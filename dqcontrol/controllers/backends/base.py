@@ -29,8 +29,9 @@ class Backend(Protocol):
     of its dense QP and the level's held rows in the basis
     (:meth:`~dqcontrol.controllers.backends.daqp_dense.DaqpBackend.solve_reduced`); the
     levels use it where it exists and :meth:`solve` with the dense QP otherwise. It may
-    offer ``solve_warm_levels(first, held, lower, general)`` too: the first levels of a
-    problem of several, solved in one call where their last active sets hold, as a
+    offer ``solve_warm_levels(first, held, lower)`` too: the first levels of a problem of
+    several (the first as a :class:`~dqcontrol.controllers.problem.SplitQP`), solved in
+    one call where their last active sets hold, as a
     :class:`~dqcontrol.controllers.problem.WarmLevels`
     (:meth:`~dqcontrol.controllers.backends.daqp_dense.DaqpBackend.solve_warm_levels`).
     """

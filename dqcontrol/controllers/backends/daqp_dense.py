@@ -32,7 +32,7 @@ from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_se
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.backends.warm_levels import warm_levels
 from dqcontrol.controllers.cholesky import cholesky_into
-from dqcontrol.controllers.problem import DenseQP, Solution, WarmLevels
+from dqcontrol.controllers.problem import DenseQP, Solution, SplitQP, WarmLevels
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
 from dqcontrol.controllers.reduced import LevelRows, ReducedQP, nonzero_entries
 from dqcontrol.errors import ParameterError
@@ -42,6 +42,10 @@ __all__ = ["DaqpBackend"]
 #: DAQP settings of this backend: tighter primal tolerance than DAQP's 1e-6, so that the
 #: rows holding a higher level are met to within 1e-9.
 DEFAULT_DAQP_SETTINGS = {"primal_tol": 1e-9}
+
+#: No entries: :func:`solve_on_active_set` checks the rows dense.
+_DENSE_CHECK = np.zeros((0, 3))
+_DENSE_CHECK.flags.writeable = False
 
 _EXIT = {-1: "primal_infeasible", -2: "cycling", -3: "unbounded", -4: "iteration_limit",
          -5: "nonconvex", -6: "initial_active_set_infeasible"}  # fmt: skip
@@ -112,17 +116,17 @@ class DaqpBackend:
         self._recent.clear()
 
     def solve_warm_levels(
-        self, first: DenseQP, held: np.ndarray, lower: tuple[LevelRows, ...], general: np.ndarray
+        self, first: SplitQP, held: np.ndarray, lower: tuple[LevelRows, ...]
     ) -> WarmLevels | None:
         """The levels solved on their last active sets in one compiled call
         (:func:`~dqcontrol.controllers.backends.warm_levels.warm_levels`), as far as that
         goes: ``first`` is the first level's QP (key ``0``), ``held`` its held rows,
-        ``lower`` the stacked rows of each lower level (keys ``(k, dim)``), ``general``
-        the problem's ``C``. ``None`` where not even the first level is solved so; the
-        levels solved share the call's time equally."""
+        ``lower`` the stacked rows of each lower level (keys ``(k, dim)``). ``None`` where
+        not even the first level is solved so; the levels solved share the call's time
+        equally."""
         start = time.perf_counter()
         last = self._active.get(0) if self.reuse_active_set else None
-        nv, rows = first.c.size, first.A.shape[0]
+        nv, rows = first.c.size, first.lower.size
         if last is None or last[0][1] != nv:
             return None
         factor = _factor(first.P)
@@ -132,8 +136,8 @@ class DaqpBackend:
         count = len(lower) + 1
         points, duals = np.empty((count, nv)), np.empty((count, rows))
         changes, has_duals = np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool)
-        a = self._writable_rows(0, first.A)
-        first_level = (factor, np.ascontiguousarray(first.c), a, first.lower, first.upper)
+        general = self._writable_rows("general", first.C)
+        first_level = (factor, np.ascontiguousarray(first.c), general, first.lower, first.upper)
         lower_levels = (
             tuple(r.entries for r in lower), tuple(r.b for r in lower),
             tuple(r.scale for r in lower), np.array([r.held for r in lower]),
@@ -141,7 +145,7 @@ class DaqpBackend:
         settings = np.append(self._settings_array(), SMALL_FACTOR)
         done, kept, kept_upper, counts, solved_dims, basis, ready, last_held = warm_levels(
             first_level, np.ascontiguousarray(held), lower_levels, (actives, uppers, dims),
-            nonzero_entries(general), settings, (points, duals, has_duals, changes),
+            nonzero_entries(first.C), settings, (points, duals, has_duals, changes),
         )  # fmt: skip
         if done == 0:
             return None
@@ -151,7 +155,7 @@ class DaqpBackend:
             dim, size = int(solved_dims[k]), int(counts[k])
             if has_duals[k]:
                 key = 0 if k == 0 else (k, dim)
-                shape = first.A.shape if k == 0 else (dim + rows, dim)
+                shape = (rows, nv) if k == 0 else (dim + rows, dim)
                 self._active[key] = (shape, kept[offset : offset + size],
                                      kept_upper[offset : offset + size])  # fmt: skip
                 self._recent[k] = key
@@ -279,7 +283,8 @@ class DaqpBackend:
         a = self._writable_rows(key, np.ascontiguousarray(qp.A))
         z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
         status, active, at_upper, changes = solve_on_active_set(
-            factor, np.ascontiguousarray(qp.c), a, qp.lower, qp.upper, active, at_upper,
+            factor, np.ascontiguousarray(qp.c), a[qp.c.size :], _DENSE_CHECK, qp.lower,
+            qp.upper, active, at_upper,
             self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES,
             z, duals,
         )  # fmt: skip

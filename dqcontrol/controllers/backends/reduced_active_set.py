@@ -24,6 +24,8 @@ __all__ = ["INVALID_BOUNDS", "NOT_DEFINITE", "reduced_on_active_set"]
 
 #: Returned by :func:`reduced_on_active_set` beyond the statuses of ``solve_on_active_set``.
 INVALID_BOUNDS, NOT_DEFINITE = 4, 5
+#: No entries: the rows in the basis are dense, the check runs over them as they are.
+_DENSE_CHECK = np.zeros((0, 3))
 
 
 @compiled
@@ -69,7 +71,8 @@ def reduced_on_active_set(
     if not cholesky_into(hessian, factor, settings[3], 0.0):
         return NOT_DEFINITE, active, at_upper, 0, hessian, gradient
     status, active, at_upper, changes = solve_on_active_set(
-        factor, gradient, qp_rows, qp_lower, qp_upper, active, at_upper,
+        factor, gradient, qp_rows[hessian.shape[0] :], _DENSE_CHECK, qp_lower, qp_upper,
+        active, at_upper,
         settings[0], settings[1], int(settings[2]), y, duals,
     )  # fmt: skip
     return status, active, at_upper, changes, hessian, gradient

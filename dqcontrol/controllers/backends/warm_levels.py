@@ -57,24 +57,26 @@ def warm_levels(
 ) -> tuple:
     """The levels from the first on, each on its last active set, until one needs more.
 
-    ``first = (L, c, A, lower, upper)`` is the first level (``P = L Lᵀ``, ``A = [I; C]``),
-    ``held`` its held rows; ``lower_levels = (entries, b, scale, held counts)`` the
+    ``first = (L, c, C, lower, upper)`` is the first level (``P = L Lᵀ``, the rows
+    ``[I; C]``), ``held`` its held rows; ``lower_levels = (entries, b, scale, held counts)`` the
     stacked rows of each lower level, reduced to the null space of the rows held above,
-    under ``A`` (``general``: the non-zero entries of ``C``); ``last = (actives, at_upper,
-    dims)`` each level's last set (a lower level's dimension, ``-1`` for none);
+    under the same rows (``general``: the non-zero entries of ``C``); ``last = (actives,
+    at_upper, dims)`` each level's last set (a lower level's dimension, ``-1`` for none);
     ``settings = (primal_tol, dual_tol, max_changes, pivot_share, max_dim)``. Writes each
     solved level into ``out = (points, duals, has_duals, changes)`` and returns ``(done,
     actives, at_upper, counts, dims, basis, ready, held_rows)``: the levels solved, their
     sets (``counts`` rows each) and the dimension each was solved in; with ``ready`` the
-    basis the next level moves in, otherwise the last level's basis and its held rows in
-    it (empty after the first), from which the caller narrows it with LAPACK.
+    basis the next level moves in, otherwise the last level's basis and its held rows in it
+    (empty after the first), from which the caller narrows it with LAPACK.
     """
     n = first[1].shape[0]
     levels = 1 + len(lower_levels[0])
     counts = np.zeros(levels, dtype=np.int64)
     dims = np.full(levels, n, dtype=np.int64)
     none = np.zeros((0, 0))
-    solved, actives, uppers, point = _first_level(first, last[0][0], last[1][0], settings, out)
+    solved, actives, uppers, point = _first_level(
+        first, general, last[0][0], last[1][0], settings, out
+    )
     if not solved:
         return 0, actives[:0], uppers[:0], counts, dims, none, False, none
     counts[0] = actives.shape[0]
@@ -116,14 +118,17 @@ def _keep(out: tuple, k: int, point: np.ndarray, duals: np.ndarray, changes: int
 
 
 @compiled
-def _first_level(first: tuple, active: np.ndarray, at_upper: np.ndarray, settings, out) -> tuple:
-    """The first level on its last set: ``(solved, active, at_upper, point)``."""
-    factor, c, a, lower, upper = first
-    z, duals = np.empty(c.shape[0]), np.empty(a.shape[0])
+def _first_level(
+    first: tuple, entries: np.ndarray, active: np.ndarray, at_upper: np.ndarray, settings, out
+) -> tuple:
+    """The first level on its last set (its check over the non-zero ``entries`` of
+    ``C``): ``(solved, active, at_upper, point)``."""
+    factor, c, general, lower, upper = first
+    z, duals = np.empty(c.shape[0]), np.empty(lower.shape[0])
     if not _within(lower, upper):
         return False, active, at_upper, z
     status, active, at_upper, count = solve_on_active_set(
-        factor, c, a, lower, upper, active, at_upper,
+        factor, c, general, entries, lower, upper, active, at_upper,
         settings[0], settings[1], int(settings[2]), z, duals,
     )  # fmt: skip
     if status != SOLVED or not _finite(z):
