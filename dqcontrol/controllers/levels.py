@@ -36,6 +36,7 @@ from dqcontrol.controllers.problem import (
     Level,
     Limit,
     Problem,
+    Residual,
     Solution,
     SplitQP,
     WarmLevels,
@@ -74,17 +75,21 @@ def build_problem(
     limits: tuple[Limit, ...],
     cache: dict | None = None,
 ) -> Problem:
-    """Evaluate every term and limit at ``ctx``; ``cache`` keeps constant terms' rows."""
+    """Evaluate every term and limit at ``ctx``; ``cache`` keeps constant terms' rows (a
+    term in several levels is evaluated once)."""
     built = []
+    now: dict[int, Residual] = {}  # this step's residuals, by term
     for lev in levels:
         residuals = []
         for term in lev.terms:
-            if term.constant and cache is not None:
+            res = now.get(id(term))
+            if res is None and term.constant and cache is not None:
                 res = cache.get(id(term))
                 if res is None:
                     res = cache[id(term)] = term.residual(ctx)
-            else:
+            elif res is None:
                 res = term.residual(ctx)
+            now[id(term)] = res
             residuals.append(res)
         built.append(BuiltLevel(lev.name, lev.tolerance, tuple(residuals)))
     bounds, general = _limit_rows(limits, ctx)

@@ -28,6 +28,7 @@ from ctypes import c_int
 import numpy as np
 from scipy.linalg import lapack
 
+from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.backends.warm_levels import warm_levels
@@ -105,6 +106,7 @@ class DaqpBackend:
         self._reduced: dict = {}
         self._copies: dict = {}
         self._recent: dict = {}  # level -> the key ``(level, dim)`` it was last solved with
+        self._kernel_settings: tuple = (None, np.zeros(0))
 
     def reset(self) -> None:
         """Forget every level's workspace and active set."""
@@ -142,7 +144,7 @@ class DaqpBackend:
             tuple(r.entries for r in lower), tuple(r.b for r in lower),
             tuple(r.scale for r in lower), np.array([r.held for r in lower]),
         )  # fmt: skip
-        settings = np.append(self._settings_array(), SMALL_FACTOR)
+        settings = self._settings_array()
         done, kept, kept_upper, counts, solved_dims, basis, ready, last_held = warm_levels(
             first_level, np.ascontiguousarray(held), lower_levels, (actives, uppers, dims),
             nonzero_entries(first.C), settings, (points, duals, has_duals, changes),
@@ -190,11 +192,14 @@ class DaqpBackend:
         return tuple(actives), tuple(uppers), dims
 
     def _settings_array(self) -> np.ndarray:
-        """``(primal_tol, dual_tol, max_changes, pivot_share)`` of the active-set kernels."""
-        return np.array([
-            self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE,
-            ACTIVE_SET_CHANGES, PIVOT_SHARE,
-        ])  # fmt: skip
+        """``(primal_tol, dual_tol, max_changes, pivot_share, max_dim)`` of the active-set
+        kernels (``max_dim``: :data:`SMALL_FACTOR`, for the warm levels), the same array
+        while ``primal_tol`` stays the same."""
+        tol = self.settings.get("primal_tol", 1e-6)
+        if self._kernel_settings[0] != tol:
+            values = [tol, ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES, PIVOT_SHARE, SMALL_FACTOR]
+            self._kernel_settings = (tol, np.array(values, dtype=float))
+        return self._kernel_settings[1]
 
     def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
         """Solve level ``key`` given as a :class:`~dqcontrol.controllers.reduced.ReducedQP`
@@ -415,10 +420,21 @@ def _factor(p_mat: np.ndarray) -> np.ndarray | None:
     if info != 0:
         return None
     factor = upper.T
-    pivots = np.diagonal(factor)
-    if not float(pivots.min()) ** 2 > PIVOT_SHARE * float(np.diagonal(p_mat).max()):
-        return None
-    return factor
+    return factor if _clear_pivots(factor, p_mat, PIVOT_SHARE) else None
+
+
+@compiled
+def _clear_pivots(factor: np.ndarray, p_mat: np.ndarray, share: float) -> bool:
+    """The smallest pivot of ``factor`` squared above ``share`` times the largest diagonal
+    entry of ``p_mat`` (neither NaN)."""
+    smallest, largest = np.inf, -np.inf
+    for i in range(factor.shape[0]):
+        pivot, entry = factor[i, i], p_mat[i, i]
+        if pivot != pivot or entry != entry:
+            return False
+        smallest = min(smallest, pivot)
+        largest = max(largest, entry)
+    return smallest * smallest > share * largest
 
 
 def _sparse_rows(qp: DenseQP) -> bool:
