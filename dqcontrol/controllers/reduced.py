@@ -226,18 +226,13 @@ def _rows_of(r: Residual) -> np.ndarray:
     return rows
 
 
-def _read_only(r: Residual) -> bool:
-    return not _rows_of(r).flags.writeable and (
-        r.row_weights is None or not r.row_weights.flags.writeable
-    )
-
-
 def _kept_static(used: list[Residual]) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_static_rows`, kept while every residual's rows and row weights are
     read-only."""
-    if not all(_read_only(r) for r in used):
-        return _static_rows(used)
     arrays = [a for r in used for a in (_rows_of(r), r.row_weights)]
+    for a in arrays:
+        if a is not None and a.flags.writeable:
+            return _static_rows(used)
     key = (*map(id, arrays), *(r.weight for r in used))
     entry = _STATIC.get(key)
     if entry is not None and all(
@@ -259,13 +254,18 @@ _EMPTY_ENTRIES = frozen(np.zeros((0, 3)))
 def level_rows(residuals: tuple[Residual, ...]) -> LevelRows:
     """The :class:`LevelRows` of a level's residuals (the entries and row scales computed
     once while every residual's rows are read-only and the weights stay the same)."""
-    held = [r for r in residuals if r.held]
-    used = held + [r for r in residuals if not r.held and 2.0 * r.weight != 0.0]
+    held, others, count = [], [], 0
+    for r in residuals:
+        if r.held:
+            held.append(r)
+            count += r.b.size
+        elif 2.0 * r.weight != 0.0:
+            others.append(r)
+    used = held + others
     if not used:
         return LevelRows(_EMPTY_ENTRIES, np.zeros(0), frozen(np.zeros(0)), 0)
     entries, scale = _kept_static(used)
-    b = np.concatenate([r.b for r in used])
-    return LevelRows(entries, b, scale, sum(r.b.size for r in held))
+    return LevelRows(entries, np.concatenate([r.b for r in used]), scale, count)
 
 
 def objective_in_basis(rows: LevelRows, point: np.ndarray, basis: np.ndarray) -> ReducedObjective:
