@@ -20,6 +20,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
+from dqcontrol.controllers.backends.clear_rows import clear_unconstrained_level
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.null_space import compiled_null_space
 
@@ -149,7 +150,10 @@ def _lower_level(
     settings: np.ndarray,
     out: tuple,
 ) -> tuple:
-    """Lower level ``k`` in ``z = point + basis y`` on its last set
+    """Lower level ``k`` in ``z = point + basis y`` on its last set: an empty one checked
+    over the rows near their bounds
+    (:func:`~dqcontrol.controllers.backends.clear_rows.clear_unconstrained_level`), any
+    other, or one that does not hold,
     (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`):
     ``(solved, point, active, at_upper, held rows in the basis)``."""
     lower, upper = first[3], first[4]
@@ -157,14 +161,21 @@ def _lower_level(
     size = dim + lower.shape[0]
     b = lower_levels[1][k - 1]
     rows = np.empty((b.shape[0], dim + 1))
-    qp_rows, qp_lower, qp_upper = np.empty((size, dim)), np.empty(size), np.empty(size)
     y, duals = np.empty(dim), np.empty(size)
-    status, active, at_upper, count, _h, _g = reduced_on_active_set(
+    active, at_upper, count = last[0][k], last[1][k], 0
+    if active.shape[0] == 0 and clear_unconstrained_level(
         lower_levels[0][k - 1], b, lower_levels[2][k - 1], basis, point, general, lower, upper,
-        last[0][k], last[1][k], settings, rows, qp_rows, qp_lower, qp_upper, y, duals,
-    )  # fmt: skip
-    if status != SOLVED or not _finite(y):
-        return False, point, active, at_upper, np.zeros((0, 0))
+        settings, rows, y,
+    ):  # fmt: skip
+        duals[:] = 0.0
+    else:
+        qp_rows, qp_lower, qp_upper = np.empty((size, dim)), np.empty(size), np.empty(size)
+        status, active, at_upper, count, _h, _g = reduced_on_active_set(
+            lower_levels[0][k - 1], b, lower_levels[2][k - 1], basis, point, general, lower,
+            upper, active, at_upper, settings, rows, qp_rows, qp_lower, qp_upper, y, duals,
+        )  # fmt: skip
+        if status != SOLVED or not _finite(y):
+            return False, point, active, at_upper, np.zeros((0, 0))
     point = point + basis @ y
     _keep(out, k, point, duals[dim:], count)
     held = lower_levels[3][k - 1]
