@@ -41,10 +41,10 @@ from dqcontrol.controllers.backends.daqp_dense import (
     ACTIVE_SET_DUAL_SHARE,
     _factor,
 )
+from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.householder import applied_q, profile_qr
 from dqcontrol.controllers.level_objective import level_objective
 from dqcontrol.controllers.null_space import compiled_null_space
-from dqcontrol.controllers.reduced import nonzero_entries
 
 PRIMAL_TOL = 1e-9
 
@@ -216,7 +216,7 @@ def _solvers(lev: dict) -> tuple:
         factor = _factor(lev["P"])
         z, duals = np.empty(n), np.empty(lev["A"].shape[0])
         status = solve_on_active_set(
-            factor, lev["c"], general, entries, lower, upper, active, at_upper, PRIMAL_TOL,
+            factor, lev["c"], general, entries, True, lower, upper, active, at_upper, PRIMAL_TOL,
             ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES, z, duals,
         )[0]  # fmt: skip
         return status, z, compiled_null_space(lev["held"])[1]
@@ -289,6 +289,7 @@ def _parts(lev: dict) -> dict:
             lev["c"],
             general,
             entries,
+            True,
             lower,
             upper,
             active,

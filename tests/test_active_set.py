@@ -17,8 +17,8 @@ from dqcontrol.controllers.backends.active_set import (
     solve_on_active_set,
 )
 from dqcontrol.controllers.backends.daqp_dense import DaqpBackend, _factor
+from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.problem import DenseQP
-from dqcontrol.controllers.reduced import nonzero_entries
 
 
 def _random_qp(rng: np.random.Generator, n: int = 12, rows: int = 10) -> DenseQP:
@@ -45,8 +45,10 @@ def _on(qp: DenseQP, active, at_upper, changes: int = 0, sparse: bool = False):
     z, duals = np.empty(qp.c.size), np.empty(qp.A.shape[0])
     general = np.ascontiguousarray(qp.A[qp.c.size :])
     entries = nonzero_entries(general) if sparse else np.zeros((0, 3))
+    if sparse:  # the rows from their entries alone
+        general = np.zeros((0, qp.c.size))
     status, _active, _at_upper, _changes = solve_on_active_set(
-        factor, qp.c, general, entries, qp.lower, qp.upper, active, at_upper,
+        factor, qp.c, general, entries, sparse, qp.lower, qp.upper, active, at_upper,
         1e-9, 1e-9, changes, z, duals,
     )  # fmt: skip
     return status, z, duals

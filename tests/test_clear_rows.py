@@ -13,8 +13,8 @@ import pytest
 from dqcontrol.controllers.backends.active_set import SOLVED
 from dqcontrol.controllers.backends.clear_rows import clear_unconstrained_level
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
+from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.null_space import null_space
-from dqcontrol.controllers.reduced import nonzero_entries
 
 NV, NC, TOL = 12, 9, 1e-9
 

@@ -183,7 +183,7 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     best: Solution | None = None
     basis: np.ndarray | None = None  # the null space the next level moves in
     warm = _warm_levels(
-        problem, backend, SplitQP(p_mat, c, problem.C, problem.lower, problem.upper)
+        problem, backend, SplitQP(p_mat, c, problem.general_entries, problem.lower, problem.upper)
     )
     if warm is not None:
         per_level = list(warm.solutions)

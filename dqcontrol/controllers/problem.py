@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from dqcontrol.controllers.entries import stacked_entries
 from dqcontrol.controllers.gram import (
     add_diagonal_blocks,
     add_scaled,
@@ -323,11 +324,13 @@ class DenseQP(NamedTuple):
 
 class SplitQP(NamedTuple):
     """A :class:`DenseQP` with its general rows apart: ``minimize ½ zᵀ P z + cᵀ z  s.t.
-    lower ≤ [I; C] z ≤ upper``."""
+    lower ≤ [I; C] z ≤ upper``, ``C`` given as its non-zero ``entries`` (row, column,
+    value; row by row, columns in order, read-only:
+    :attr:`Problem.general_entries`)."""
 
     P: np.ndarray
     c: np.ndarray
-    C: np.ndarray
+    entries: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
 
@@ -415,6 +418,12 @@ class Problem:
         if not self.inequalities:
             return frozen(np.zeros((0, nv)))
         return kept(tuple(g.C for g in self.inequalities), _stacked)
+
+    @cached_property
+    def general_entries(self) -> np.ndarray:
+        """The non-zero entries of ``C``, from each inequality's rows without stacking them
+        (:func:`~dqcontrol.controllers.entries.stacked_entries`)."""
+        return stacked_entries(tuple(g.C for g in self.inequalities))
 
     @cached_property
     def A(self) -> np.ndarray:  # noqa: N802

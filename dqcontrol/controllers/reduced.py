@@ -18,7 +18,8 @@ from typing import NamedTuple
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.gram import frozen, kept
+from dqcontrol.controllers.entries import _nonzero_entries, nonzero_entries
+from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DenseQP, Residual
 
 __all__ = [
@@ -93,31 +94,6 @@ def _entry_rows(
         _add_row(out[int(entries[e, 0])], entries[e, 2], basis, point, int(entries[e, 1]))
     for row in range(out.shape[0]):
         _finish_row(out, row, b, w2, row_weights, scale)
-
-
-@compiled
-def _nonzero_entries(a: np.ndarray) -> np.ndarray:
-    count = 0
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            count += a[i, j] != 0.0
-    out = np.empty((count, 3))
-    e = 0
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            if a[i, j] != 0.0:
-                out[e, 0] = i
-                out[e, 1] = j
-                out[e, 2] = a[i, j]
-                e += 1
-    return out
-
-
-def nonzero_entries(a: np.ndarray) -> np.ndarray:
-    """The non-zero entries of ``a`` row by row, ``(nnz, 3)``: row, column, value (the
-    indices exact as floats); computed once for a read-only ``a``. Always read-only, so
-    that the kernels reading them are compiled for one form."""
-    return frozen(kept((a,), _nonzero_entries))
 
 
 def sparse_product(a: np.ndarray, right: np.ndarray) -> np.ndarray:

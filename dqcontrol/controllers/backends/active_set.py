@@ -60,6 +60,7 @@ def solve_on_active_set(
     c: np.ndarray,
     general: np.ndarray,
     entries: np.ndarray,
+    sparse: bool,
     lower: np.ndarray,
     upper: np.ndarray,
     active: np.ndarray,
@@ -74,11 +75,11 @@ def solve_on_active_set(
     a backend's rows; ``at_upper[j]``: the row ``active[j]`` is held at its upper bound,
     else its lower one), checked, and mended up to ``max_changes`` times.
 
-    ``factor`` is ``L`` with ``P = L Lᵀ``; ``general`` is ``C`` (row ``n + i`` of ``A`` is
-    its row ``i``), and ``entries`` its non-zero entries
-    (:func:`~dqcontrol.controllers.reduced.nonzero_entries`), over which the check runs,
-    or none (``(0, 3)``): the check then runs over ``C`` dense. The point is the optimum
-    when the KKT conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
+    ``factor`` is ``L`` with ``P = L Lᵀ``. ``C`` (row ``n + i`` of ``A`` is its row ``i``)
+    is ``general``, dense, or where ``sparse`` its non-zero ``entries``
+    (:func:`~dqcontrol.controllers.reduced.nonzero_entries`; ``general`` is then not
+    read): the same sums without their zero terms. The point is the optimum when the KKT
+    conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
     bounds, every multiplier of the right sign to ``dual_tol`` times the largest. Where
     they fail, the most broken row joins the set at the bound it breaks or, with every row
     met, the multiplier of the most wrong sign leaves it, and the check runs again.
@@ -92,10 +93,11 @@ def solve_on_active_set(
     status = SOLVED
     for changes in range(max_changes + 1):
         lam = np.zeros(active.shape[0])
-        if not _equality_optimum(factor, c, general, lower, upper, active, at_upper, z, lam):
+        held = _active_rows(general, entries, sparse, active, c.shape[0])
+        if not _equality_optimum(factor, c, held, lower, upper, active, at_upper, z, lam):
             return DEPENDENT_ROWS, active, at_upper, changes
-        if entries.shape[0]:
-            row, above = _worst_sparse_row(general, entries, lower, upper, z, primal_tol)
+        if sparse:
+            row, above = _worst_sparse_row(entries, lower, upper, z, primal_tol)
         else:
             row, above = _worst_row(general, lower, upper, z, primal_tol)
         if row >= 0:
@@ -146,25 +148,54 @@ def _left(active: np.ndarray, at_upper: np.ndarray, j: int) -> tuple[np.ndarray,
 
 
 @compiled
-def _forward_rows(
-    factor: np.ndarray, general: np.ndarray, active: np.ndarray, n: int, yt: np.ndarray
-) -> None:
-    """``yt[:, j] = L⁻¹ a_j`` for the rows ``a_j`` of ``A = [I; C]`` (``general``: ``C``)
-    numbered ``active[j]``, together: each entry is
-    the sum :func:`_forward` forms, in its order, and the sums of the rows run side by side
+def _entries_start(entries: np.ndarray, row: int) -> int:
+    """The first entry of ``row`` or of a later row (``entries`` row by row)."""
+    low, high = 0, entries.shape[0]
+    while low < high:
+        mid = (low + high) // 2
+        if entries[mid, 0] < row:
+            low = mid + 1
+        else:
+            high = mid
+    return low
+
+
+@compiled
+def _active_rows(
+    general: np.ndarray, entries: np.ndarray, sparse: bool, active: np.ndarray, n: int
+) -> np.ndarray:
+    """The rows ``active`` of ``[I; C]`` dense, ``(k, n)`` (``C`` as in
+    :func:`solve_on_active_set`)."""
+    rows = np.zeros((active.shape[0], n))
+    for j in range(active.shape[0]):
+        row = active[j]
+        if row < n:
+            rows[j, row] = 1.0
+        elif sparse:
+            e = _entries_start(entries, row - n)
+            while e < entries.shape[0] and int(entries[e, 0]) == row - n:
+                rows[j, int(entries[e, 1])] = entries[e, 2]
+                e += 1
+        else:
+            rows[j] = general[row - n]
+    return rows
+
+
+@compiled
+def _forward_rows(factor: np.ndarray, held: np.ndarray, yt: np.ndarray) -> None:
+    """``yt[:, j] = L⁻¹ a_j`` for the rows ``a_j = held[j]``, together: each entry is the
+    sum :func:`_forward` forms, in its order, and the sums of the rows run side by side
     (the inner loop along a row of ``yt``, which the compiler vectorises). Below a row's
     first non-zero entry its column is zero, as there."""
-    k = active.shape[0]
+    k, n = held.shape
     start = n
     for j in range(k):
-        row = active[j]
-        start = min(start, row if row < n else _first_nonzero(general[row - n]))
+        start = min(start, _first_nonzero(held[j]))
     yt[:start] = 0.0
     s = np.empty(k)
     for i in range(start, n):
         for j in range(k):
-            row = active[j]
-            s[j] = general[row - n, i] if row >= n else (1.0 if row == i else 0.0)
+            s[j] = held[j, i]
         for m in range(start, i):
             lim = factor[i, m]
             line = yt[m]
@@ -180,7 +211,7 @@ def _forward_rows(
 def _equality_optimum(
     factor: np.ndarray,
     c: np.ndarray,
-    general: np.ndarray,
+    held: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
     active: np.ndarray,
@@ -188,13 +219,13 @@ def _equality_optimum(
     z: np.ndarray,
     lam: np.ndarray,
 ) -> bool:
-    """``z`` and the multipliers ``lam`` of the optimum with the rows ``active`` held at
-    their bounds; False when those rows are not independent enough."""
+    """``z`` and the multipliers ``lam`` of the optimum with the rows ``active`` (``held``:
+    them, dense) held at their bounds; False when those rows are not independent enough."""
     n, k = c.shape[0], active.shape[0]
     g = np.empty(n)
     _forward(factor, c, g)
     yt = np.empty((n, k))  # columns: L⁻¹ a_j
-    _forward_rows(factor, general, active, n, yt)
+    _forward_rows(factor, held, yt)
     schur = np.zeros((k, k))
     dots = np.zeros(k)
     for m in range(n):
@@ -290,7 +321,6 @@ def _worst_row(
 
 @compiled
 def _worst_sparse_row(
-    general: np.ndarray,
     entries: np.ndarray,
     lower: np.ndarray,
     upper: np.ndarray,
@@ -304,7 +334,7 @@ def _worst_sparse_row(
     if worst < 0.0:
         return row, above
     e, count = 0, entries.shape[0]
-    for i in range(general.shape[0]):
+    for i in range(lower.shape[0] - n):
         r, first = n + i, e
         value = 0.0
         while e < count and int(entries[e, 0]) == i:

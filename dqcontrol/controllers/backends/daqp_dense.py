@@ -33,9 +33,10 @@ from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_se
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.backends.warm_levels import warm_levels
 from dqcontrol.controllers.cholesky import cholesky_into
+from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.problem import DenseQP, Solution, SplitQP, WarmLevels
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
-from dqcontrol.controllers.reduced import LevelRows, ReducedQP, nonzero_entries
+from dqcontrol.controllers.reduced import LevelRows, ReducedQP
 from dqcontrol.errors import ParameterError
 
 __all__ = ["DaqpBackend"]
@@ -138,8 +139,7 @@ class DaqpBackend:
         count = len(lower) + 1
         points, duals = np.empty((count, nv)), np.empty((count, rows))
         changes, has_duals = np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool)
-        general = self._writable_rows("general", first.C)
-        first_level = (factor, np.ascontiguousarray(first.c), general, first.lower, first.upper)
+        first_level = (factor, np.ascontiguousarray(first.c), first.lower, first.upper)
         lower_levels = (
             tuple(r.entries for r in lower), tuple(r.b for r in lower),
             tuple(r.scale for r in lower), np.array([r.held for r in lower]),
@@ -147,7 +147,7 @@ class DaqpBackend:
         settings = self._settings_array()
         done, kept, kept_upper, counts, solved_dims, basis, ready, last_held = warm_levels(
             first_level, np.ascontiguousarray(held), lower_levels, (actives, uppers, dims),
-            nonzero_entries(first.C), settings, (points, duals, has_duals, changes),
+            first.entries, settings, (points, duals, has_duals, changes),
         )  # fmt: skip
         if done == 0:
             return None
@@ -288,7 +288,7 @@ class DaqpBackend:
         a = self._writable_rows(key, np.ascontiguousarray(qp.A))
         z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
         status, active, at_upper, changes = solve_on_active_set(
-            factor, np.ascontiguousarray(qp.c), a[qp.c.size :], _DENSE_CHECK, qp.lower,
+            factor, np.ascontiguousarray(qp.c), a[qp.c.size :], _DENSE_CHECK, False, qp.lower,
             qp.upper, active, at_upper,
             self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES,
             z, duals,

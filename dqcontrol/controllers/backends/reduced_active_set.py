@@ -71,7 +71,7 @@ def reduced_on_active_set(
     if not cholesky_into(hessian, factor, settings[3], 0.0):
         return NOT_DEFINITE, active, at_upper, 0, hessian, gradient
     status, active, at_upper, changes = solve_on_active_set(
-        factor, gradient, qp_rows[hessian.shape[0] :], _DENSE_CHECK, qp_lower, qp_upper,
+        factor, gradient, qp_rows[hessian.shape[0] :], _DENSE_CHECK, False, qp_lower, qp_upper,
         active, at_upper,
         settings[0], settings[1], int(settings[2]), y, duals,
     )  # fmt: skip

@@ -58,7 +58,7 @@ def warm_levels(
 ) -> tuple:
     """The levels from the first on, each on its last active set, until one needs more.
 
-    ``first = (L, c, C, lower, upper)`` is the first level (``P = L Lᵀ``, the rows
+    ``first = (L, c, lower, upper)`` is the first level (``P = L Lᵀ``, the rows
     ``[I; C]``), ``held`` its held rows; ``lower_levels = (entries, b, scale, held counts)`` the
     stacked rows of each lower level, reduced to the null space of the rows held above,
     under the same rows (``general``: the non-zero entries of ``C``); ``last = (actives,
@@ -124,12 +124,13 @@ def _first_level(
 ) -> tuple:
     """The first level on its last set (its check over the non-zero ``entries`` of
     ``C``): ``(solved, active, at_upper, point)``."""
-    factor, c, general, lower, upper = first
+    factor, c, lower, upper = first
     z, duals = np.empty(c.shape[0]), np.empty(lower.shape[0])
+    general = np.zeros((0, c.shape[0]))  # C is read from its entries
     if not _within(lower, upper):
         return False, active, at_upper, z
     status, active, at_upper, count = solve_on_active_set(
-        factor, c, general, entries, lower, upper, active, at_upper,
+        factor, c, general, entries, True, lower, upper, active, at_upper,
         settings[0], settings[1], int(settings[2]), z, duals,
     )  # fmt: skip
     if status != SOLVED or not _finite(z):
@@ -156,7 +157,7 @@ def _lower_level(
     other, or one that does not hold,
     (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`):
     ``(solved, point, active, at_upper, held rows in the basis)``."""
-    lower, upper = first[3], first[4]
+    lower, upper = first[2], first[3]
     dim = basis.shape[1]
     size = dim + lower.shape[0]
     b = lower_levels[1][k - 1]
