@@ -148,6 +148,19 @@ def test_pose_jacobian_across_the_w_sign_switch(lbr4p):
         np.testing.assert_allclose(jac, fd_pose_jacobian(lbr4p, q, 1e-7), rtol=0, atol=1e-7)
 
 
+@pytest.mark.parametrize("robot", ["lbr4p", "panda"])
+def test_the_pose_alone_is_the_pose_of_pose_and_jacobian(robot, request):
+    """The kinematics without the Jacobian (``pose``, the unchecked ``fast.pose``) give
+    the pose ``pose_and_jacobian`` gives, bit for bit, whatever was computed before."""
+    model = request.getfixturevalue(robot)
+    qs = random_q(model, 20, seed=77)
+    for q, other in zip(qs, qs[::-1], strict=True):
+        x = model.pose_and_jacobian(q)[0]
+        model.pose_and_jacobian(other)  # the shared data now hold another configuration
+        assert np.array_equal(model.fast.pose(q), x)
+        assert np.array_equal(model.pose(q), x)
+
+
 # =========================================================================== batched
 @pytest.mark.parametrize("robot", ["lbr4p", "panda"])
 @pytest.mark.parametrize("count", [1, 6, 10, 64])

@@ -432,7 +432,7 @@ class PathFollowingController(Controller):
         path = problem.levels[0].residuals[0]
         q1 = q + self.period_s * z[: self.n]
         sigma1 = self.sigma + self.period_s * min(max(float(z[self.n]), 0.0), self.s_max)
-        x1 = self.robot.fast.pose_and_jacobian(q1)[0]
+        x1 = self.robot.fast.pose(q1)
         xd1 = self.trajectory.target(sigma1)
         self._memo.keep_pose(q1, x1)  # the next measured q, in a simulated loop
         self._memo.keep_target(self.trajectory, sigma1, xd1)

@@ -22,7 +22,9 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["pose_jacobian_batch", "pose_jacobian_from_xyzquat"]
+__all__ = ["pose_from_xyzquat", "pose_jacobian_batch", "pose_jacobian_from_xyzquat"]
+
+_NO_COLUMNS = (np.zeros((6, 0)), np.zeros((8, 0)))
 
 
 @compiled
@@ -69,6 +71,14 @@ def pose_jacobian_from_xyzquat(v: np.ndarray, j6: np.ndarray) -> tuple[np.ndarra
     jac = np.empty((8, j6.shape[1]))
     _fill(v, j6, x, jac)
     return x, jac
+
+
+def pose_from_xyzquat(v: np.ndarray) -> np.ndarray:
+    """``vec8`` (8,) of Pinocchio's ``SE3ToXYZQUAT`` of a frame (7,), as
+    :func:`pose_jacobian_from_xyzquat` gives it; a new array."""
+    x = np.empty(8)
+    _fill(v, _NO_COLUMNS[0], x, _NO_COLUMNS[1])
+    return x
 
 
 @compiled

@@ -29,6 +29,10 @@ class UncheckedModel:
         """Pose ``vec8`` (8,) and pose Jacobian (8, n) at ``q``."""
         return self._robot._pose_and_jacobian(q)
 
+    def pose(self, q: np.ndarray) -> np.ndarray:
+        """Pose ``vec8`` (8,) at ``q`` (the kinematics alone)."""
+        return self._robot._pose(q)
+
     def poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Batched poses ``(N, 8)`` and Jacobians ``(N, 8, n)``."""
         return self._robot._poses_and_jacobians(qs)

@@ -27,7 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from dqcontrol.dq.kernels import pose_jacobian_batch, pose_jacobian_from_xyzquat
+from dqcontrol.dq.kernels import (
+    pose_from_xyzquat,
+    pose_jacobian_batch,
+    pose_jacobian_from_xyzquat,
+)
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
 from dqcontrol.model.fast import UncheckedModel
@@ -228,7 +232,7 @@ class RobotModel:
     # ------------------------------------------------------------------ kinematics
     def pose(self, q: np.ndarray) -> np.ndarray:
         """End-effector pose ``vec8`` in the world frame (rotation with ``r_w ≥ 0``)."""
-        return self._pose_and_jacobian(self.check_q(q))[0].copy()
+        return self._pose(self.check_q(q))
 
     def placement(self, q: np.ndarray, frame: str | None = None) -> pin.SE3:
         """World placement of ``frame`` (default: the end-effector) as a ``pin.SE3``."""
@@ -252,6 +256,13 @@ class RobotModel:
     def pose_jacobian(self, q: np.ndarray) -> np.ndarray:
         """Pose Jacobian ``∂vec8(x)/∂q`` (8×n) of the end-effector (docs/theory.md §2)."""
         return self._pose_and_jacobian(self.check_q(q))[1]
+
+    def _pose(self, q: np.ndarray) -> np.ndarray:
+        """Unchecked :meth:`pose` (the kinematics alone, no Jacobian; the same numbers as
+        :meth:`pose_and_jacobian`'s pose)."""
+        pin.forwardKinematics(self.model, self.data, q)
+        pin.updateFramePlacement(self.model, self.data, self._fid)
+        return pose_from_xyzquat(pin.SE3ToXYZQUAT(self._ee_placement))
 
     def _pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unchecked hot-path version of :meth:`pose_and_jacobian` (``q`` already valid)."""
