@@ -53,24 +53,23 @@ def test_dense_of_frozen_blocks_is_read_only_and_equal():
     assert np.array_equal(dense, ref) and not dense.flags.writeable
 
 
-def test_a_kept_product_is_not_given_for_another_array_at_the_same_address():
+def test_a_kept_product_holds_its_operands_so_no_other_array_takes_their_address():
     import weakref
-
-    from dqcontrol.controllers.gram import _KEPT
 
     def double(*xs):
         return 2.0 * xs[0]
 
-    gone = np.ones(3)
-    dead = weakref.ref(gone)
-    del gone
-    assert dead() is None
-    for operands in ((frozen(np.arange(3.0)),), (frozen(np.arange(3.0)), frozen(np.ones(2)))):
-        # an entry left by an array that lived at this address: its reference is dead
-        key = (double, (), *map(id, operands))
-        _KEPT[key] = ((dead,) * len(operands), frozen(np.full(3, 7.0)))
-        assert np.array_equal(kept(operands, double), [0.0, 2.0, 4.0])
-        assert kept(operands, double) is kept(operands, double)
+    for count in (1, 2):
+        operands = tuple(frozen(np.arange(3.0) + k) for k in range(count))
+        refs = [weakref.ref(a) for a in operands]
+        first = kept(operands, double)
+        del operands
+        # the entry keeps them alive: an array made now cannot take one of their ids
+        assert all(r() is not None for r in refs)
+        again = tuple(frozen(np.arange(3.0) + 10 + k) for k in range(count))
+        assert all(id(a) != id(r()) for a in again for r in refs)
+        assert np.array_equal(kept(again, double), [20.0, 22.0, 24.0])
+        assert kept(tuple(r() for r in refs), double) is first
 
 
 def test_block_rows_on_the_first_blocks_only_give_the_dense_objective():

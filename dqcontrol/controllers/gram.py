@@ -11,7 +11,6 @@ numbers, bit for bit), and kept while its operands live (:func:`kept`).
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Callable
 
 import numpy as np
@@ -33,8 +32,9 @@ __all__ = [
 
 #: How many products are kept at most (a few per controller).
 _CAPACITY = 256
-#: ``(the function, ids of the operands) -> (weak references to them, the product)``.
-_KEPT: dict[tuple, tuple[tuple[weakref.ref, ...], np.ndarray]] = {}
+#: ``(the function, ids of the operands) -> (the operands, the product)``. An entry holds
+#: its operands, so that no other array takes their ids while it is kept.
+_KEPT: dict[tuple, tuple[tuple[np.ndarray, ...], np.ndarray]] = {}
 
 
 def frozen(array: np.ndarray) -> np.ndarray:
@@ -46,30 +46,24 @@ def frozen(array: np.ndarray) -> np.ndarray:
 def kept(
     operands: tuple[np.ndarray, ...], compute: Callable[..., np.ndarray], params: tuple = ()
 ) -> np.ndarray:
-    """``compute(*operands, *params)``, kept while every operand lives when all are
-    read-only (``params``: hashable values the result also depends on, part of the key)."""
+    """``compute(*operands, *params)``, kept when every operand is read-only (``params``:
+    hashable values the result also depends on, part of the key; at most
+    :data:`_CAPACITY` results, the oldest forgotten first)."""
     for a in operands:
         if a.flags.writeable:
             return compute(*operands, *params)
     if len(operands) == 1:  # the common case, without the general loops
         key: tuple = (compute, params, id(operands[0]))
-        entry = _KEPT.get(key)
-        if entry is not None and entry[0][0]() is operands[0]:
-            return entry[1]
     else:
         key = (compute, params, *map(id, operands))
-        entry = _KEPT.get(key)
-        if entry is not None:
-            for ref, a in zip(entry[0], operands, strict=True):
-                if ref() is not a:
-                    break
-            else:
-                return entry[1]
+    entry = _KEPT.get(key)
+    if entry is not None:  # the entry holds its operands: their ids name no other array
+        return entry[1]
     if len(_KEPT) >= _CAPACITY:  # the oldest entries go first
         for old in list(_KEPT)[: _CAPACITY // 2]:
             del _KEPT[old]
     value = frozen(compute(*operands, *params))
-    _KEPT[key] = (tuple(weakref.ref(a) for a in operands), value)
+    _KEPT[key] = (operands, value)
     return value
 
 

@@ -12,7 +12,6 @@ read-only ``C`` gives its non-zero entries once (:func:`~dqcontrol.controllers.g
 
 from __future__ import annotations
 
-import weakref
 from typing import NamedTuple
 
 import numpy as np
@@ -188,9 +187,10 @@ def _static_rows(used: list[Residual]) -> tuple[np.ndarray, np.ndarray]:
     return frozen(entries), frozen(np.concatenate([_row_scale(r) for r in used]))
 
 
-#: ``(rows, weight, row weights) of each residual, by id -> (weak references to them, the
-#: entries, the row scales)``: the parts of :class:`LevelRows` that stay while a level's
-#: rows are read-only and its weights the same.
+#: ``(rows, weight, row weights) of each residual, by id -> (those arrays, the entries,
+#: the row scales)``: the parts of :class:`LevelRows` that stay while a level's rows are
+#: read-only and its weights the same. An entry holds its arrays, so that no other array
+#: takes their ids while it is kept (at most :data:`_STATIC_CAPACITY` entries).
 _STATIC: dict[tuple, tuple[tuple, np.ndarray, np.ndarray]] = {}
 _STATIC_CAPACITY = 64
 
@@ -211,16 +211,12 @@ def _kept_static(used: list[Residual]) -> tuple[np.ndarray, np.ndarray]:
             return _static_rows(used)
     key = (*map(id, arrays), *(r.weight for r in used))
     entry = _STATIC.get(key)
-    if entry is not None and all(
-        (a is None and ref is None) or (ref is not None and ref() is a)
-        for ref, a in zip(entry[0], arrays, strict=True)
-    ):
+    if entry is not None:  # the entry holds its arrays: their ids name no other array
         return entry[1], entry[2]
     if len(_STATIC) >= _STATIC_CAPACITY:
         _STATIC.clear()
     entries, scale = _static_rows(used)
-    refs = tuple(None if a is None else weakref.ref(a) for a in arrays)
-    _STATIC[key] = (refs, entries, scale)
+    _STATIC[key] = (tuple(arrays), entries, scale)
     return entries, scale
 
 

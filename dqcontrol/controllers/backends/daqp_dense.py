@@ -179,9 +179,10 @@ class DaqpBackend:
         if first[0][0] != rows:  # a limit's row count changed: the rows that exist
             keep = active < rows
             active, at_upper = active[keep], at_upper[keep]
-        actives, uppers, dims = [active], [at_upper], np.full(lower, -1)
+        actives, uppers, dims = [active], [at_upper], [-1] * lower
+        stored, recent = self._active, self._recent
         for k in range(1, lower + 1):
-            entry = self._active.get(self._recent.get(k))
+            entry = stored.get(recent.get(k))
             if entry is not None and entry[0][0] - entry[0][1] == rows:
                 actives.append(entry[1])
                 uppers.append(entry[2])
@@ -189,7 +190,7 @@ class DaqpBackend:
             else:
                 actives.append(np.zeros(0, dtype=np.int64))
                 uppers.append(np.zeros(0, dtype=bool))
-        return tuple(actives), tuple(uppers), dims
+        return tuple(actives), tuple(uppers), np.array(dims, dtype=np.int64)
 
     def _settings_array(self) -> np.ndarray:
         """``(primal_tol, dual_tol, max_changes, pivot_share, max_dim)`` of the active-set
