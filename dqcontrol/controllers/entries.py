@@ -44,21 +44,56 @@ def nonzero_entries(a: np.ndarray) -> np.ndarray:
     return frozen(kept((a,), _nonzero_entries))
 
 
-def _stack(*parts: np.ndarray) -> np.ndarray:
-    """The entries of ``parts`` one below the other, each part's rows after the last's."""
-    blocks = [nonzero_entries(part) for part in parts]
-    out = np.concatenate(blocks)
-    start, row = 0, 0
-    for part, block in zip(parts, blocks, strict=True):
-        out[start : start + block.shape[0], 0] += row
-        start += block.shape[0]
-        row += part.shape[0]
+@compiled
+def _stacked(blocks: tuple, rows: np.ndarray) -> np.ndarray:
+    """The entries ``blocks`` one below the other, block ``k``'s rows moved down by the
+    ``rows`` of the blocks before it."""
+    total = 0
+    for k in range(len(blocks)):
+        total += blocks[k].shape[0]
+    out = np.empty((total, 3))
+    e, offset = 0, 0.0
+    for k in range(len(blocks)):
+        block = blocks[k]
+        for i in range(block.shape[0]):
+            out[e, 0] = block[i, 0] + offset
+            out[e, 1] = block[i, 1]
+            out[e, 2] = block[i, 2]
+            e += 1
+        offset += rows[k]
     return out
 
 
+def _each(*parts: np.ndarray) -> np.ndarray:
+    """The entries of ``parts`` one below the other, from each part's own."""
+    blocks = tuple(nonzero_entries(part) for part in parts)
+    return _stacked(blocks, np.array([part.shape[0] for part in parts], dtype=float))
+
+
+def _stack(*parts: np.ndarray) -> np.ndarray:
+    """The entries of ``parts`` one below the other, each part's rows after the last's:
+    each run of read-only parts from its own kept entries (one lookup for the run)."""
+    blocks, rows, run = [], [], []
+    for part in (*parts, None):
+        if part is not None and not part.flags.writeable:
+            run.append(part)
+            continue
+        if run:
+            blocks.append(nonzero_entries(run[0]) if len(run) == 1 else kept(tuple(run), _each))
+            rows.append(sum(r.shape[0] for r in run))
+            run = []
+        if part is not None:
+            blocks.append(nonzero_entries(part))
+            rows.append(part.shape[0])
+    return _stacked(tuple(blocks), np.array(rows, dtype=float))
+
+
 def stacked_entries(parts: tuple[np.ndarray, ...]) -> np.ndarray:
-    """:func:`nonzero_entries` of the rows ``parts`` stacked, from each part's own (kept
-    while every part is read-only; a read-only part's own are kept while it lives)."""
+    """:func:`nonzero_entries` of the rows ``parts`` stacked, from each part's own: kept
+    whole while every part is read-only; otherwise each run of read-only parts kept as
+    one, and only the writable parts' scanned."""
     if not parts:
         return _NO_ENTRIES
-    return frozen(kept(parts, _stack))
+    return frozen(
+        kept(parts, _each) if all(not p.flags.writeable for p in parts) else _stack(*parts)
+    )
