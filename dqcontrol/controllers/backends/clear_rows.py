@@ -1,17 +1,20 @@
-"""A reduced level whose last active set was empty, checked without its rows in the basis
-(docs/theory.md §7.5).
+"""A reduced level solved on its last active set, checked without all its rows in the
+basis (docs/theory.md §7.5).
 
 A lower level in ``z = point + Z y`` is a QP in ``y`` under the rows ``[I; C] Z`` of the
-problem: forming them costs a product with ``Z`` for every row, and checking its
-unconstrained optimum costs another. Most of those rows are far from their bounds. Here the
-optimum ``y`` is checked in ``z`` first, over ``[I; C]`` (sparse) at ``z = point + Z y``:
+problem: forming them costs a product with ``Z`` for every row, and checking the optimum on
+the level's last set costs another. Only the set's rows are needed to find that optimum,
+and most of the others are far from their bounds. Here the set's rows are formed in the
+basis, the optimum found from them, and checked in ``z`` first, over ``[I; C]`` (sparse) at
+``z = point + Z y``:
 a row well inside its bounds there, by more than rounding can move the value the reduced
 check would compute, passes that check too, and is not formed at all. Only the rows near
 or beyond a bound are formed in the basis, each exactly as
 :func:`~dqcontrol.controllers.reduced.rows_in_basis` forms it, and checked as
 :func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set` checks it. The
-answer is therefore the one of the full check bit for bit; where a row breaks its bound
-the caller solves the level in full instead.
+answer is therefore the one of the full check bit for bit; where a row breaks its bound,
+or a multiplier has the wrong sign, the caller solves the level in full instead (which
+mends the set).
 """
 
 from __future__ import annotations
@@ -19,11 +22,15 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.backends.active_set import _breach, _equality_optimum
+from dqcontrol.controllers.backends.active_set import (
+    _breach,
+    _equality_optimum,
+    _worst_multiplier,
+)
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.reduced import _entry_rows, _weighted_gram
 
-__all__ = ["clear_unconstrained_level"]
+__all__ = ["clear_level"]
 
 #: Bound on the relative difference between a row's value computed in ``z`` and in ``y``
 #: (sums of at most a few hundred products of ``float64``: some ``1e-14``), with room.
@@ -97,8 +104,8 @@ def _clear(low: float, up: float, value: float, size: float, tol: float) -> bool
 
 @compiled
 def _all_rows_hold(
-    entries: np.ndarray, basis: np.ndarray, point: np.ndarray, lower: np.ndarray,
-    upper: np.ndarray, y: np.ndarray, tol: float,
+    entries: np.ndarray, starts: np.ndarray, basis: np.ndarray, point: np.ndarray,
+    lower: np.ndarray, upper: np.ndarray, y: np.ndarray, tol: float,
 ) -> bool:  # fmt: skip
     """Whether ``y`` is finite and every row of ``[I; C]`` (``entries``: those of ``C``)
     holds at it in the check of ``solve_on_active_set``: first in ``z``, then, for rows
@@ -115,7 +122,6 @@ def _all_rows_hold(
         for c in range(dim):
             s += basis[j, c] * y[c]
         z[j] = point[j] + s
-    starts = _row_starts(entries, lower.shape[0] - nv)
     line = np.empty(dim)
     for r in range(lower.shape[0]):
         if r < nv:
@@ -134,26 +140,66 @@ def _all_rows_hold(
 
 
 @compiled
-def clear_unconstrained_level(
+def _set_rows(
+    active: np.ndarray, entries: np.ndarray, starts: np.ndarray, basis: np.ndarray,
+    point: np.ndarray, lower: np.ndarray, upper: np.ndarray, qp_lower: np.ndarray,
+    qp_upper: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """The rows ``active`` of the level's QP in ``y`` (``[I; [I; C] Z]``), dense ``(k,
+    dim)``, and their bounds into ``qp_lower``/``qp_upper`` (the other entries are not
+    written), each as :func:`~dqcontrol.controllers.reduced.rows_in_basis` forms it."""
+    dim = basis.shape[1]
+    held = np.zeros((active.shape[0], dim))
+    line = np.empty(dim)
+    for j in range(active.shape[0]):
+        a = active[j]
+        if a < dim:  # a bound of y of its own: none
+            held[j, a] = 1.0
+            qp_lower[a], qp_upper[a] = -np.inf, np.inf
+            continue
+        r = a - dim
+        shift = _row_in_basis(r, entries, starts, basis, point, line)
+        held[j] = line
+        if r < basis.shape[0]:
+            qp_lower[a], qp_upper[a] = lower[r] - point[r], upper[r] - point[r]
+        else:
+            qp_lower[a], qp_upper[a] = lower[r] - shift, upper[r] - shift
+    return held
+
+
+@compiled
+def clear_level(
     entries: np.ndarray, b: np.ndarray, scale: np.ndarray, basis: np.ndarray,
     point: np.ndarray, general: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-    settings: np.ndarray, rows: np.ndarray, y: np.ndarray,
+    active: np.ndarray, at_upper: np.ndarray, settings: np.ndarray, rows: np.ndarray,
+    y: np.ndarray, duals: np.ndarray,
 ) -> bool:  # fmt: skip
     """The level of the stacked rows (``entries``, ``b``, ``scale``) in ``z = point + basis
     y`` under ``[I; C]`` (``general``: the entries of ``C``, bounds ``lower``/``upper``
-    valid), solved on the empty active set: its rows ``[A basis | A point - b]`` into
-    ``rows`` and, where its unconstrained optimum holds every row, that optimum into ``y``
-    and True (what :func:`~dqcontrol.controllers.backends.reduced_active_set.
-    reduced_on_active_set` answers from an empty guess with no change, bit for bit).
-    False where it does not, or the Hessian is not safely positive definite: the caller
-    then solves the level in full."""
+    valid), solved on the set ``active``/``at_upper`` (rows of the QP in ``y``): its rows
+    ``[A basis | A point - b]`` into ``rows`` and, where that optimum holds every row and
+    every multiplier has its sign, the optimum into ``y``, the multipliers into ``duals``
+    and True: what ``reduced_on_active_set`` answers from that set with no change, bit for
+    bit. False where it does not, the set's rows are dependent or the Hessian is not
+    safely positive definite: the caller then solves the level in full."""
     row_scale = np.empty(rows.shape[0])
     _entry_rows(entries, basis, point, b, 1.0, scale, rows, row_scale)
     hessian, gradient = _weighted_gram(rows, row_scale)
     factor = np.zeros(hessian.shape)
     if not cholesky_into(hessian, factor, settings[3], 0.0):
         return False
-    none, sides = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.bool_)
-    no_rows = np.zeros((0, hessian.shape[0]))
-    _equality_optimum(factor, gradient, no_rows, lower, upper, none, sides, y, np.zeros(0))
-    return _all_rows_hold(general, basis, point, lower, upper, y, settings[0])
+    nv = basis.shape[0]
+    starts = _row_starts(general, lower.shape[0] - nv)
+    qp_lower, qp_upper = np.empty(duals.shape[0]), np.empty(duals.shape[0])
+    held = _set_rows(active, general, starts, basis, point, lower, upper, qp_lower, qp_upper)
+    lam = np.zeros(active.shape[0])
+    if not _equality_optimum(factor, gradient, held, qp_lower, qp_upper, active, at_upper, y, lam):
+        return False
+    if not _all_rows_hold(general, starts, basis, point, lower, upper, y, settings[0]):
+        return False
+    if _worst_multiplier(qp_lower, qp_upper, active, at_upper, lam, settings[1]) >= 0:
+        return False
+    duals[:] = 0.0
+    for i in range(active.shape[0]):
+        duals[active[i]] = lam[i]
+    return True

@@ -20,7 +20,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
-from dqcontrol.controllers.backends.clear_rows import clear_unconstrained_level
+from dqcontrol.controllers.backends.clear_rows import clear_level
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.null_space import compiled_null_space
 
@@ -151,10 +151,9 @@ def _lower_level(
     settings: np.ndarray,
     out: tuple,
 ) -> tuple:
-    """Lower level ``k`` in ``z = point + basis y`` on its last set: an empty one checked
-    over the rows near their bounds
-    (:func:`~dqcontrol.controllers.backends.clear_rows.clear_unconstrained_level`), any
-    other, or one that does not hold,
+    """Lower level ``k`` in ``z = point + basis y`` on its last set, checked over the rows
+    near their bounds (:func:`~dqcontrol.controllers.backends.clear_rows.clear_level`);
+    where the set does not hold as it is, solved in full
     (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`):
     ``(solved, point, active, at_upper, held rows in the basis)``."""
     lower, upper = first[2], first[3]
@@ -164,12 +163,10 @@ def _lower_level(
     rows = np.empty((b.shape[0], dim + 1))
     y, duals = np.empty(dim), np.empty(size)
     active, at_upper, count = last[0][k], last[1][k], 0
-    if active.shape[0] == 0 and clear_unconstrained_level(
+    if not clear_level(
         lower_levels[0][k - 1], b, lower_levels[2][k - 1], basis, point, general, lower, upper,
-        settings, rows, y,
+        active, at_upper, settings, rows, y, duals,
     ):  # fmt: skip
-        duals[:] = 0.0
-    else:
         qp_rows, qp_lower, qp_upper = np.empty((size, dim)), np.empty(size), np.empty(size)
         status, active, at_upper, count, _h, _g = reduced_on_active_set(
             lower_levels[0][k - 1], b, lower_levels[2][k - 1], basis, point, general, lower,
