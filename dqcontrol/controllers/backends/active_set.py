@@ -77,7 +77,7 @@ def solve_on_active_set(
 
     ``factor`` is ``L`` with ``P = L Lᵀ``. ``C`` (row ``n + i`` of ``A`` is its row ``i``)
     is ``general``, dense, or where ``sparse`` its non-zero ``entries``
-    (:func:`~dqcontrol.controllers.reduced.nonzero_entries`; ``general`` is then not
+    (:func:`~dqcontrol.controllers.entries.nonzero_entries`; ``general`` is then not
     read): the same sums without their zero terms. The point is the optimum when the KKT
     conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
     bounds, every multiplier of the right sign to ``dual_tol`` times the largest. Where

@@ -6,10 +6,9 @@ problem: forming them costs a product with ``Z`` for every row, and checking the
 the level's last set costs another. Only the set's rows are needed to find that optimum,
 and most of the others are far from their bounds. Here the set's rows are formed in the
 basis, the optimum found from them, and checked in ``z`` first, over ``[I; C]`` (sparse) at
-``z = point + Z y``:
-a row well inside its bounds there, by more than rounding can move the value the reduced
-check would compute, passes that check too, and is not formed at all. Only the rows near
-or beyond a bound are formed in the basis, each exactly as
+``z = point + Z y``: a row well inside its bounds there, by more than rounding can move the
+value the reduced check would compute, passes that check too, and is not formed at all.
+Only the rows near or beyond a bound are formed in the basis, each exactly as
 :func:`~dqcontrol.controllers.reduced.rows_in_basis` forms it, and checked as
 :func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set` checks it. The
 answer is therefore the one of the full check bit for bit; where a row breaks its bound,

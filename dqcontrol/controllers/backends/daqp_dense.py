@@ -45,7 +45,7 @@ __all__ = ["DaqpBackend"]
 #: rows holding a higher level are met to within 1e-9.
 DEFAULT_DAQP_SETTINGS = {"primal_tol": 1e-9}
 
-#: No entries: :func:`solve_on_active_set` checks the rows dense.
+#: No entries: the rows given to :func:`solve_on_active_set` dense (``sparse`` False).
 _DENSE_CHECK = np.zeros((0, 3))
 _DENSE_CHECK.flags.writeable = False
 

@@ -24,7 +24,7 @@ __all__ = ["INVALID_BOUNDS", "NOT_DEFINITE", "reduced_on_active_set"]
 
 #: Returned by :func:`reduced_on_active_set` beyond the statuses of ``solve_on_active_set``.
 INVALID_BOUNDS, NOT_DEFINITE = 4, 5
-#: No entries: the rows in the basis are dense, the check runs over them as they are.
+#: No entries: the rows in the basis are given dense (``sparse`` False).
 _DENSE_CHECK = np.zeros((0, 3))
 
 
