@@ -6,7 +6,7 @@ Hessian at every step. Rows that never change (a damping's identity blocks, a sm
 term's differences, a limit's constant matrix) give the same products at every step: a term
 or limit marks such an array read-only (:func:`frozen`), and a product of read-only arrays
 is then computed once, by the same numpy expression as for changing arrays (the same
-numbers, bit for bit), and kept while its operands live (:func:`kept`).
+numbers, bit for bit), and kept with its operands (:func:`kept`).
 """
 
 from __future__ import annotations
