@@ -25,10 +25,8 @@ come from the path rows a state at a time instead.
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
-from bench_stagewise_factor import bench_step_controller
+from bench_stagewise_factor import bench_step_controller, median_us
 from numba import njit
 
 from dqcontrol.controllers.backends.active_set import (
@@ -195,15 +193,6 @@ def null_space_per_state(rows: np.ndarray, per_state: int, m: int) -> np.ndarray
     return basis
 
 
-def _median_us(call, reps: int = 2000) -> float:
-    times = np.empty(reps)
-    for k in range(reps):
-        start = time.perf_counter()
-        call()
-        times[k] = time.perf_counter() - start
-    return float(np.median(times) * 1e6)
-
-
 def _solvers(lev: dict) -> tuple:
     """``(today, in_states)``: the path level on its last set, each returning the status
     of the check, the point (``z``; ``x`` in the states) and the path rows' null space."""
@@ -316,9 +305,9 @@ def main() -> None:
     _agreement(lev, today, in_states)
     parts = _parts(lev)
     for rnd in range(3):
-        now = _median_us(today)
-        states = _median_us(in_states)
-        times = {name: _median_us(call) for name, call in parts.items()}
+        now = median_us(today, 2000)
+        states = median_us(in_states, 2000)
+        times = {name: median_us(call, 2000) for name, call in parts.items()}
         print(f"round {rnd + 1}: today {now:.1f} µs, in the states {states:.1f} µs, of which "
               f"{times['states: the rows carried into them']:.1f} µs carry the rows there; "
               + ", ".join(f"{k} {v:.1f}" for k, v in times.items()))  # fmt: skip
