@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from dqcontrol.controllers.backends.active_set import SOLVED
-from dqcontrol.controllers.backends.clear_rows import clear_level
+from dqcontrol.controllers.backends.clear_rows import clear_level, row_starts
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.null_space import null_space
@@ -50,8 +50,10 @@ def _fast(level, bounds, active, at_upper):
     dim = basis.shape[1]
     rows, y, duals = np.empty((b.size, dim + 1)), np.empty(dim), np.empty(dim + lower.size)
     settings = np.array([TOL, 1e-9, 0.0, 1e-12, 64.0])
+    general_entries = nonzero_entries(general)
+    starts = row_starts(general_entries, general.shape[0])
     ok = clear_level(
-        entries, b, scale, basis, point, nonzero_entries(general), lower, upper, active,
+        entries, b, scale, basis, point, general_entries, starts, lower, upper, active,
         at_upper, settings, rows, y, duals,
     )  # fmt: skip
     return ok, y, duals, rows

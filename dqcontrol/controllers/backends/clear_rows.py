@@ -29,7 +29,7 @@ from dqcontrol.controllers.backends.active_set import (
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.reduced import _entry_rows, _weighted_gram
 
-__all__ = ["clear_level"]
+__all__ = ["clear_level", "row_starts"]
 
 #: Bound on the relative difference between a row's value computed in ``z`` and in ``y``
 #: (sums of at most a few hundred products of ``float64``: some ``1e-14``), with room.
@@ -82,7 +82,7 @@ def _breaks(
 
 
 @compiled
-def _row_starts(entries: np.ndarray, rows: int) -> np.ndarray:
+def row_starts(entries: np.ndarray, rows: int) -> np.ndarray:
     """Where each row's entries start (``rows + 1`` offsets into ``entries``)."""
     starts = np.zeros(rows + 1, dtype=np.int64)
     for e in range(entries.shape[0]):
@@ -169,26 +169,25 @@ def _set_rows(
 @compiled
 def clear_level(
     entries: np.ndarray, b: np.ndarray, scale: np.ndarray, basis: np.ndarray,
-    point: np.ndarray, general: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-    active: np.ndarray, at_upper: np.ndarray, settings: np.ndarray, rows: np.ndarray,
-    y: np.ndarray, duals: np.ndarray,
+    point: np.ndarray, general: np.ndarray, starts: np.ndarray, lower: np.ndarray,
+    upper: np.ndarray, active: np.ndarray, at_upper: np.ndarray, settings: np.ndarray,
+    rows: np.ndarray, y: np.ndarray, duals: np.ndarray,
 ) -> bool:  # fmt: skip
     """The level of the stacked rows (``entries``, ``b``, ``scale``) in ``z = point + basis
-    y`` under ``[I; C]`` (``general``: the entries of ``C``, bounds ``lower``/``upper``
-    valid), solved on the set ``active``/``at_upper`` (rows of the QP in ``y``): its rows
-    ``[A basis | A point - b]`` into ``rows`` and, where that optimum holds every row and
-    every multiplier has its sign, the optimum into ``y``, the multipliers into ``duals``
-    and True: what ``reduced_on_active_set`` answers from that set with no change, bit for
-    bit. False where it does not, the set's rows are dependent or the Hessian is not
-    safely positive definite: the caller then solves the level in full."""
+    y`` under ``[I; C]`` (``general``: the entries of ``C``, ``starts`` where each of its
+    rows starts there, :func:`row_starts`; bounds ``lower``/``upper`` valid), solved on the
+    set ``active``/``at_upper`` (rows of the QP in ``y``): its rows ``[A basis | A point -
+    b]`` into ``rows`` and, where that optimum holds every row and every multiplier has its
+    sign, the optimum into ``y``, the multipliers into ``duals`` and True: what
+    ``reduced_on_active_set`` answers from that set with no change, bit for bit. False where
+    it does not, the set's rows are dependent or the Hessian is not safely positive
+    definite: the caller then solves the level in full."""
     row_scale = np.empty(rows.shape[0])
     _entry_rows(entries, basis, point, b, 1.0, scale, rows, row_scale)
     hessian, gradient = _weighted_gram(rows, row_scale)
     factor = np.zeros(hessian.shape)
     if not cholesky_into(hessian, factor, settings[3], 0.0):
         return False
-    nv = basis.shape[0]
-    starts = _row_starts(general, lower.shape[0] - nv)
     qp_lower, qp_upper = np.empty(duals.shape[0]), np.empty(duals.shape[0])
     held = _set_rows(active, general, starts, basis, point, lower, upper, qp_lower, qp_upper)
     lam = np.zeros(active.shape[0])

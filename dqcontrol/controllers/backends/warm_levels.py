@@ -20,7 +20,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
-from dqcontrol.controllers.backends.clear_rows import clear_level
+from dqcontrol.controllers.backends.clear_rows import clear_level, row_starts
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.null_space import compiled_null_space
 
@@ -75,6 +75,7 @@ def warm_levels(
     counts = np.zeros(levels, dtype=np.int64)
     dims = np.full(levels, n, dtype=np.int64)
     none = np.zeros((0, 0))
+    starts = row_starts(general, first[2].shape[0] - n)  # for every lower level
     solved, actives, uppers, point = _first_level(
         first, general, last[0][0], last[1][0], settings, out
     )
@@ -94,7 +95,7 @@ def warm_levels(
         if last[2][k - 1] != dim or dim > int(settings[4]):
             return k, actives, uppers, counts, dims, basis, True, none
         solved, point, active, at_upper, rows_held = _lower_level(
-            k, lower_levels, basis, point, general, first, last, settings, out
+            k, lower_levels, basis, point, general, starts, first, last, settings, out
         )
         if not solved:
             return k, actives, uppers, counts, dims, basis, True, none
@@ -146,12 +147,14 @@ def _lower_level(
     basis: np.ndarray,
     point: np.ndarray,
     general: np.ndarray,
+    starts: np.ndarray,
     first: tuple,
     last: tuple,
     settings: np.ndarray,
     out: tuple,
 ) -> tuple:
-    """Lower level ``k`` in ``z = point + basis y`` on its last set, checked over the rows
+    """Lower level ``k`` in ``z = point + basis y`` (``starts``: where each row of ``C``
+    starts in ``general``) on its last set, checked over the rows
     near their bounds (:func:`~dqcontrol.controllers.backends.clear_rows.clear_level`);
     where the set does not hold as it is, solved in full
     (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`):
@@ -164,8 +167,8 @@ def _lower_level(
     y, duals = np.empty(dim), np.empty(size)
     active, at_upper, count = last[0][k], last[1][k], 0
     if not clear_level(
-        lower_levels[0][k - 1], b, lower_levels[2][k - 1], basis, point, general, lower, upper,
-        active, at_upper, settings, rows, y, duals,
+        lower_levels[0][k - 1], b, lower_levels[2][k - 1], basis, point, general, starts,
+        lower, upper, active, at_upper, settings, rows, y, duals,
     ):  # fmt: skip
         qp_rows, qp_lower, qp_upper = np.empty((size, dim)), np.empty(size), np.empty(size)
         status, active, at_upper, count, _h, _g = reduced_on_active_set(
