@@ -48,10 +48,17 @@ def test_path_rows_equal_the_numpy_formation(p, n, seed):
         np.tril(rng.uniform(size=(p, p))), np.tril(rng.uniform(size=(p, p))),
     )  # fmt: skip
     blocks, b = np.empty((p, 6, p, n + 1)), np.empty(6 * p)
-    path_rows_into(*args, PROJECTOR_BASIS, blocks, b)
+    states = np.empty((p, 6, n + 1))
+    path_rows_into(*args, PROJECTOR_BASIS, blocks, b, states)
     a_ref, b_ref = _numpy_rows(*args)
     np.testing.assert_allclose(blocks.reshape(6 * p, -1), a_ref, rtol=1e-13, atol=1e-14)
     np.testing.assert_allclose(b, b_ref, rtol=1e-13, atol=1e-14)
+    # the rows of each state, through the weights, are the dense rows exactly
+    w, w_s = args[8], args[9]
+    for i in range(p):
+        for j in range(p):
+            assert np.array_equal(blocks[i, :, j, :n], w[i, j] * states[i, :, :n])
+            assert np.array_equal(blocks[i, :, j, n], w_s[i, j] * states[i, :, n])
 
 
 def test_path_rows_on_strided_poses_equal_contiguous_ones():
@@ -63,10 +70,11 @@ def test_path_rows_on_strided_poses_equal_contiguous_ones():
     rest = (rng.normal(size=(p, 8)), rng.normal(size=(p, 8)))
     tail = (np.zeros((p, n)), rng.normal(size=(p, n)), np.zeros(p), np.ones(p))
     tail += (np.tril(np.ones((p, p))), np.tril(np.ones((p, p))), PROJECTOR_BASIS)
-    out = [(np.empty((p, 6, p, n + 1)), np.empty(6 * p)) for _ in range(2)]
+    out = [(np.empty((p, 6, p, n + 1)), np.empty(6 * p), np.empty((p, 6, n + 1))) for _ in range(2)]
     path_rows_into(x, *rest, jac, *tail, *out[0])
     path_rows_into(x.copy(), *rest, jac.copy(), *tail, *out[1])
-    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
+    for strided, contiguous in zip(*out, strict=True):
+        assert np.array_equal(strided, contiguous)
 
 
 @pytest.mark.parametrize("length", [0, 1, 2, 5, 7, 8, 9, 15, 16, 21])

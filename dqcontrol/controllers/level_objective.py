@@ -5,9 +5,11 @@
 (a path level's error rows, row-weighted) through several numpy operations: the weighted
 rows, their product, its scaled sum into the Hessian, the linear term. Here one compiled
 call does the same sums in the same order (:func:`level_objective`); block-diagonal
-residuals go through the same kernels as there. A level whose live rows are all read-only
-(``P`` is then kept), or that has other forms, is left to
-:func:`~dqcontrol.controllers.problem.objective`.
+residuals go through the same kernels as there. Rows given through the predicted states
+they read (:class:`~dqcontrol.controllers.problem.StateRows`) are summed from each state's
+small Gram matrix instead: the same products up to rounding, for a fraction of the work. A
+level whose live rows are all read-only (``P`` is then kept), or that has other forms, is
+left to :func:`~dqcontrol.controllers.problem.objective`.
 """
 
 from __future__ import annotations
@@ -48,6 +50,121 @@ def _add_changing_rows(
         c[i] -= w2 * lin[i]
 
 
+@compiled
+def _state_grams(
+    rows: np.ndarray, row_weights: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``Σ_a ρ_a rowsᵢ[a]ᵀ rowsᵢ[a]`` ``(p, m, m)`` and ``Σ_a ρ_a rowsᵢ[a] b_a`` ``(p, m)`` of
+    each state's rows ``(p, r, m)`` (``ρ``: ``row_weights``, empty for ones)."""
+    p, r, m = rows.shape
+    grams, lin = np.zeros((p, m, m)), np.zeros((p, m))
+    for i in range(p):
+        for a in range(r):
+            row = i * r + a
+            rho = row_weights[row] if row_weights.size else 1.0
+            for x in range(m):
+                v = rows[i, a, x] * rho
+                lin[i, x] += v * b[row]
+                for y in range(m):
+                    grams[i, x, y] += v * rows[i, a, y]
+    return grams, lin
+
+
+@compiled
+def _held_from_own_block(weights: np.ndarray) -> bool:
+    """Whether every column ``j`` of ``weights`` ``(p, p)`` is zero above the diagonal and
+    the same from the diagonal down (block ``j`` enters every later state alike)."""
+    p = weights.shape[0]
+    for j in range(p):
+        for i in range(p):
+            if weights[i, j] != (weights[j, j] if i >= j else 0.0):
+                return False
+    return True
+
+
+@compiled
+def _column_scales(weights: np.ndarray, phase_weights: np.ndarray, i: int, m: int) -> np.ndarray:
+    """How each block's variables enter state ``i``: ``(p, m)``, the commands' weight
+    ``n`` times, then the phase's."""
+    p = weights.shape[0]
+    scale = np.empty((p, m))
+    for j in range(p):
+        scale[j, : m - 1] = weights[i, j]
+        scale[j, m - 1] = phase_weights[i, j]
+    return scale
+
+
+@compiled
+def _add_suffix_blocks(p_mat, c, grams, lin, weights, phase_weights, w2) -> None:
+    """Block ``(j, k)``, ``j ≤ k``, is ``D_j S_k D_k`` with ``S_k`` the sum of the Gram
+    matrices of the states from ``k`` on, where every block enters the states from its own
+    on with one weight ``D_j`` (:func:`_held_from_own_block`)."""
+    p, m = lin.shape
+    for i in range(p - 2, -1, -1):
+        for x in range(m):
+            lin[i, x] += lin[i + 1, x]
+            for y in range(m):
+                grams[i, x, y] += grams[i + 1, x, y]
+    scale = _column_scales(weights, phase_weights, p - 1, m)
+    for j in range(p):
+        for k in range(j, p):
+            _add_scaled(p_mat, grams[k], scale[j], scale[k], j * m, k * m, w2)
+        for x in range(m):
+            c[j * m + x] -= w2 * scale[j, x] * lin[j, x]
+
+
+@compiled
+def _add_each_state(p_mat, c, grams, lin, weights, phase_weights, w2) -> None:
+    """Block ``(j, k)`` summed state by state, for any weights."""
+    p, m = lin.shape
+    for i in range(p):
+        scale = _column_scales(weights, phase_weights, i, m)
+        for j in range(p):
+            if not (weights[i, j] != 0.0 or phase_weights[i, j] != 0.0):
+                continue
+            for k in range(j, p):
+                if weights[i, k] != 0.0 or phase_weights[i, k] != 0.0:
+                    _add_scaled(p_mat, grams[i], scale[j], scale[k], j * m, k * m, w2)
+            for x in range(m):
+                c[j * m + x] -= w2 * scale[j, x] * lin[i, x]
+
+
+@compiled
+def _add_scaled(p_mat, gram, left, right, row: int, col: int, w2: float) -> None:
+    """``p_mat[row:, col:] += w2 diag(left) gram diag(right)``, and the same numbers at
+    ``[col:, row:]`` transposed (once on the diagonal)."""
+    m = gram.shape[0]
+    for x in range(m):
+        sx = w2 * left[x]
+        for y in range(m):
+            value = sx * right[y] * gram[x, y]
+            p_mat[row + x, col + y] += value
+            if row != col:
+                p_mat[col + y, row + x] += value
+
+
+@compiled
+def _add_state_rows(
+    p_mat: np.ndarray,
+    c: np.ndarray,
+    rows: np.ndarray,
+    weights: np.ndarray,
+    phase_weights: np.ndarray,
+    row_weights: np.ndarray,
+    b: np.ndarray,
+    w2: float,
+) -> None:
+    """``p_mat += w2 (W A)ᵀ A`` and ``c -= w2 (W A)ᵀ b`` in place for ``A`` given by its
+    :class:`~dqcontrol.controllers.problem.StateRows`: block ``(j, k)`` of ``AᵀA`` is the
+    sum over the states of each one's small Gram matrix, scaled by how blocks ``j`` and
+    ``k`` enter it."""
+    grams, lin = _state_grams(rows, row_weights, b)
+    if _held_from_own_block(weights) and _held_from_own_block(phase_weights):
+        _add_suffix_blocks(p_mat, c, grams, lin, weights, phase_weights, w2)
+    else:
+        _add_each_state(p_mat, c, grams, lin, weights, phase_weights, w2)
+
+
 def _changing_dense(r: Residual) -> bool:
     """Whether ``r`` has dense rows that change (writable)."""
     return r.A is not None and r.A.flags.writeable
@@ -69,6 +186,10 @@ def level_objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> 
         if r.blocks is not None:
             add_diagonal_blocks(p_mat, block_gram(r.blocks), w2)
             subtract_block_lin(c, r.blocks, r.b, w2)
+        elif r.states is not None and r.states.rows.shape[0] * r.states.rows.shape[2] == nv:
+            weights = _NO_WEIGHTS if r.row_weights is None else r.row_weights
+            st = r.states
+            _add_state_rows(p_mat, c, st.rows, st.weights, st.phase_weights, weights, r.b, w2)
         else:
             weights = _NO_WEIGHTS if r.row_weights is None else r.row_weights
             _add_changing_rows(p_mat, c, np.ascontiguousarray(r.A), weights, r.b, w2)

@@ -62,6 +62,7 @@ __all__ = [
     "Residual",
     "Solution",
     "SplitQP",
+    "StateRows",
     "WarmLevels",
     "Term",
     "fixed_variables",
@@ -143,13 +144,35 @@ def _block_diagonal(blocks: np.ndarray, num_vars: int = 0) -> np.ndarray:
     return out
 
 
+class StateRows(NamedTuple):
+    """Dense rows ``A`` given through the predicted states they read (docs/theory.md §7.4).
+
+    Row block ``i`` of ``A`` is a function of state ``i`` only, and the prediction makes
+    state ``i`` a weighted sum of the decision blocks: block ``(i, j)`` of ``A`` is
+    ``rows[i]`` with its first ``n`` columns times ``weights[i, j]`` (the commands
+    ``qd_j``) and its last times ``phase_weights[i, j]`` (the scaling ``s_j``). A backend
+    may form ``Aᵀ A`` from these ``p`` small blocks instead of the dense rows.
+
+    Attributes:
+        rows: ``(p, r, n + 1)``, the rows of each state over one decision block.
+        weights: ``(p, p)``.
+        phase_weights: ``(p, p)``.
+    """
+
+    rows: np.ndarray
+    weights: np.ndarray
+    phase_weights: np.ndarray
+
+
 class Residual(NamedTuple):
     """Residual rows of a term: its cost is ``weight ‖A z - b‖²``.
 
     ``A`` is dense ``(r, len(z))``; a term whose rows each touch one block may give
     ``blocks`` ``(p, r_i, block_size)`` instead (``A`` block diagonal, rows ordered block by
-    block), which the backends exploit. ``held`` says whether lower levels hold these rows
-    at their optimum (a regularisation is not held).
+    block), which the backends exploit. A term with dense rows that read the predicted
+    states may also give them as ``states`` (:class:`StateRows`, the same rows).
+    ``held`` says whether lower levels hold these rows at their optimum (a regularisation
+    is not held).
     """
 
     name: str
@@ -159,6 +182,7 @@ class Residual(NamedTuple):
     blocks: np.ndarray | None = None
     held: bool = True
     row_weights: np.ndarray | None = None
+    states: StateRows | None = None
 
     def dense(self, layout: DecisionLayout) -> np.ndarray:
         """``A`` as a dense ``(r, len(z))`` array (read-only and kept for read-only

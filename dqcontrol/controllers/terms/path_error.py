@@ -18,7 +18,7 @@ import numpy as np
 
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+from dqcontrol.controllers.problem import DecisionLayout, Residual, StateRows, Term
 from dqcontrol.controllers.terms.path_error_kernels import path_rows_into, projectors_into
 from dqcontrol.dq.algebra import hamiplus8
 
@@ -83,10 +83,14 @@ class PathErrorTerm(Term):
         # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -sigma_weights[i, j] E_i x_d' on s_j
         blocks = np.empty((p, 6, p, m))
         b = np.empty(6 * p)
+        states = np.empty((p, 6, m))
         path_rows_into(
             ctx.poses, ctx.targets, ctx.target_derivatives, ctx.jacobians,
             pred.q_base, pred.q_lin, pred.sigma_base, pred.sigma_lin,
-            pred.weights, pred.phase_weights, PROJECTOR_BASIS, blocks, b,
+            pred.weights, pred.phase_weights, PROJECTOR_BASIS, blocks, b, states,
         )  # fmt: skip
         a = blocks.reshape(6 * p, p * m)
-        return Residual(self.name, self.weight, b, A=a, row_weights=self._row_weights(layout))
+        return Residual(
+            self.name, self.weight, b, A=a, row_weights=self._row_weights(layout),
+            states=StateRows(states, pred.weights, pred.phase_weights),
+        )  # fmt: skip

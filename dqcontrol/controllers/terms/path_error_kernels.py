@@ -65,8 +65,10 @@ def path_rows_into(
     basis: np.ndarray,
     rows: np.ndarray,
     b: np.ndarray,
+    states: np.ndarray,
 ) -> None:
-    """The rows ``(p, 6, p, n + 1)`` and ``b`` ``(6 p,)`` of the linearised path error.
+    """The rows ``(p, 6, p, n + 1)`` and ``b`` ``(6 p,)`` of the linearised path error, and
+    the rows of each state ``states`` ``(p, 6, n + 1)``: ``[E_i J_i | -E_i x_d'_i]``.
 
     With ``E_i = Σ_k poses[i, k] basis[k]`` ``(6, 8)``: block ``(i, j)`` of the rows holds
     ``weights[i, j] E_i J_i`` on ``qd_j`` and ``-phase_weights[i, j] E_i x_d'_i`` on ``s_j``,
@@ -100,6 +102,9 @@ def path_rows_into(
             pd = lane_dot(proj[a], target_derivatives[i])
             value = lane_dot(proj[a], gap) + lane_dot(pj[a], dq)
             b[i * r + a] = -(value - pd * ds)
+            for c in range(n):
+                states[i, a, c] = pj[a, c]
+            states[i, a, n] = -pd
             for j in range(p):
                 w = weights[i, j]
                 for c in range(n):
