@@ -21,6 +21,7 @@ from contextlib import AbstractContextManager
 __all__ = ["single_blas_thread"]
 
 _lock = threading.Lock()
+_local = threading.local()  # depth: this thread's nested uses
 _state: dict = {"switches": None, "depth": 0, "saved": []}
 
 #: The affixes of OpenBLAS's symbols across its builds (plain, SciPy's, 64-bit integers).
@@ -62,11 +63,16 @@ def _switches() -> list[tuple[Callable[[], int], Callable[[int], None]]]:
 
 class _SingleThread:
     """The context of :func:`single_blas_thread` (a class: entering and leaving cost less
-    than a generator's)."""
+    than a generator's). A use nested in the same thread only counts, in the thread's own
+    count, without the lock."""
 
     __slots__ = ()
 
     def __enter__(self) -> None:
+        nested = getattr(_local, "depth", 0)
+        _local.depth = nested + 1
+        if nested:
+            return
         with _lock:
             if _state["depth"] == 0:
                 switches = _switches()
@@ -77,6 +83,9 @@ class _SingleThread:
             _state["depth"] += 1
 
     def __exit__(self, *exc: object) -> None:
+        _local.depth -= 1
+        if _local.depth:
+            return
         with _lock:
             _state["depth"] -= 1
             if _state["depth"] == 0:

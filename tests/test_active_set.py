@@ -14,6 +14,7 @@ from dqcontrol.controllers.backends.active_set import (
     INFEASIBLE,
     SOLVED,
     WRONG_SIGN,
+    dense_factor,
     solve_on_active_set,
 )
 from dqcontrol.controllers.backends.daqp_dense import DaqpBackend, _factor
@@ -48,7 +49,8 @@ def _on(qp: DenseQP, active, at_upper, changes: int = 0, sparse: bool = False):
     if sparse:  # the rows from their entries alone
         general = np.zeros((0, qp.c.size))
     status, _active, _at_upper, _changes = solve_on_active_set(
-        factor, qp.c, general, entries, sparse, qp.lower, qp.upper, active, at_upper,
+        dense_factor(factor), qp.c, general, entries, sparse, qp.lower, qp.upper, active,
+        at_upper,
         1e-9, 1e-9, changes, z, duals,
     )  # fmt: skip
     return status, z, duals

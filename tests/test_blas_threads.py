@@ -55,3 +55,30 @@ def test_a_path_following_step_runs_with_one_thread(lbr4p):
     assert seen and all(counts == [1] * len(before) for counts in seen)
     assert _blas_threads() == before
     assert np.all(np.isfinite(ctrl.qd_prev))
+
+
+def test_another_thread_inside_keeps_one_thread_until_it_leaves():
+    """A thread's nested uses count in its own count: the main thread leaving its block
+    does not restore the counts while another thread is still inside its own."""
+    import threading
+
+    before = _blas_threads()
+    inside, leave = threading.Event(), threading.Event()
+
+    def other() -> None:
+        with single_blas_thread():
+            inside.set()
+            leave.wait(10.0)
+
+    worker = threading.Thread(target=other)
+    worker.start()
+    try:
+        assert inside.wait(10.0)
+        with single_blas_thread():
+            with single_blas_thread():
+                assert _blas_threads() == [1] * len(before)
+        assert _blas_threads() == [1] * len(before)  # the other thread is still inside
+    finally:
+        leave.set()
+        worker.join(10.0)
+    assert _blas_threads() == before

@@ -9,7 +9,10 @@ residuals go through the same kernels as there. Rows given through the predicted
 they read (:class:`~dqcontrol.controllers.problem.StateRows`) are summed from each state's
 small Gram matrix instead: the same products up to rounding, for a fraction of the work. A
 level whose live rows are all read-only (``P`` is then kept), or that has other forms, is
-left to :func:`~dqcontrol.controllers.problem.objective`.
+left to :func:`~dqcontrol.controllers.problem.objective`. A level whose dense part is such
+rows, and whose other terms are block-diagonal, is also given without forming ``P``
+(:func:`state_objective`): ``c`` and the parts a backend factorises in the predicted states
+(docs/theory.md §7.5).
 """
 
 from __future__ import annotations
@@ -18,9 +21,9 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.gram import add_diagonal_blocks, block_gram, frozen, subtract_block_lin
-from dqcontrol.controllers.problem import DecisionLayout, Residual, objective
+from dqcontrol.controllers.problem import DecisionLayout, Residual, StateHessian, objective
 
-__all__ = ["level_objective"]
+__all__ = ["dense_hessian", "held_from_own_block", "level_objective", "state_objective"]
 
 _NO_WEIGHTS = frozen(np.zeros(0))  # read-only as row weights are: one compiled form
 
@@ -51,6 +54,20 @@ def _add_changing_rows(
 
 
 @compiled
+def held_from_own_block(weights: np.ndarray) -> bool:
+    """Whether every column ``j`` of ``weights`` ``(p, p)`` is zero above the diagonal and
+    the same, and not zero, from the diagonal down."""
+    p = weights.shape[0]
+    for j in range(p):
+        if weights[j, j] == 0.0:
+            return False
+        for i in range(p):
+            if weights[i, j] != (weights[j, j] if i >= j else 0.0):
+                return False
+    return True
+
+
+@compiled
 def _state_grams(
     rows: np.ndarray, row_weights: np.ndarray, b: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -68,18 +85,6 @@ def _state_grams(
                 for y in range(m):
                     grams[i, x, y] += v * rows[i, a, y]
     return grams, lin
-
-
-@compiled
-def _held_from_own_block(weights: np.ndarray) -> bool:
-    """Whether every column ``j`` of ``weights`` ``(p, p)`` is zero above the diagonal and
-    the same from the diagonal down (block ``j`` enters every later state alike)."""
-    p = weights.shape[0]
-    for j in range(p):
-        for i in range(p):
-            if weights[i, j] != (weights[j, j] if i >= j else 0.0):
-                return False
-    return True
 
 
 @compiled
@@ -147,22 +152,36 @@ def _add_scaled(p_mat, gram, left, right, row: int, col: int, w2: float) -> None
 def _add_state_rows(
     p_mat: np.ndarray,
     c: np.ndarray,
-    rows: np.ndarray,
+    grams: np.ndarray,
+    lin: np.ndarray,
     weights: np.ndarray,
     phase_weights: np.ndarray,
-    row_weights: np.ndarray,
-    b: np.ndarray,
     w2: float,
 ) -> None:
     """``p_mat += w2 (W A)ᵀ A`` and ``c -= w2 (W A)ᵀ b`` in place for ``A`` given by its
-    :class:`~dqcontrol.controllers.problem.StateRows`: block ``(j, k)`` of ``AᵀA`` is the
-    sum over the states of each one's small Gram matrix, scaled by how blocks ``j`` and
-    ``k`` enter it."""
-    grams, lin = _state_grams(rows, row_weights, b)
-    if _held_from_own_block(weights) and _held_from_own_block(phase_weights):
+    :class:`~dqcontrol.controllers.problem.StateRows`, from each state's ``grams`` and
+    ``lin`` (:func:`_state_grams`, overwritten): block ``(j, k)`` of ``AᵀA`` is the sum over
+    the states of each one's small Gram matrix, scaled by how blocks ``j`` and ``k`` enter
+    it."""
+    if held_from_own_block(weights) and held_from_own_block(phase_weights):
         _add_suffix_blocks(p_mat, c, grams, lin, weights, phase_weights, w2)
     else:
         _add_each_state(p_mat, c, grams, lin, weights, phase_weights, w2)
+
+
+@compiled
+def _subtract_state_lin(
+    c: np.ndarray, lin: np.ndarray, weights: np.ndarray, phase_weights: np.ndarray, w2: float
+) -> None:
+    """``c -= w2 (W A)ᵀ b`` in place from each state's ``lin`` (:func:`_state_grams`)."""
+    p, m = lin.shape
+    for j in range(p):
+        for i in range(p):
+            if weights[i, j] != 0.0 or phase_weights[i, j] != 0.0:
+                scale = w2 * weights[i, j]
+                for x in range(m - 1):
+                    c[j * m + x] -= scale * lin[i, x]
+                c[j * m + m - 1] -= w2 * phase_weights[i, j] * lin[i, m - 1]
 
 
 def _changing_dense(r: Residual) -> bool:
@@ -186,11 +205,71 @@ def level_objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> 
         if r.blocks is not None:
             add_diagonal_blocks(p_mat, block_gram(r.blocks), w2)
             subtract_block_lin(c, r.blocks, r.b, w2)
-        elif r.states is not None and r.states.rows.shape[0] * r.states.rows.shape[2] == nv:
-            weights = _NO_WEIGHTS if r.row_weights is None else r.row_weights
+        elif r.states is not None and _full_states(r, nv):
             st = r.states
-            _add_state_rows(p_mat, c, st.rows, st.weights, st.phase_weights, weights, r.b, w2)
+            grams, lin = _state_grams(st.rows, _row_weights(r), r.b)
+            _add_state_rows(p_mat, c, grams, lin, st.weights, st.phase_weights, w2)
         else:
-            weights = _NO_WEIGHTS if r.row_weights is None else r.row_weights
-            _add_changing_rows(p_mat, c, np.ascontiguousarray(r.A), weights, r.b, w2)
+            _add_changing_rows(p_mat, c, np.ascontiguousarray(r.A), _row_weights(r), r.b, w2)
     return p_mat, c
+
+
+def state_objective(
+    layout: DecisionLayout, residuals: tuple[Residual, ...]
+) -> tuple[np.ndarray, StateHessian] | None:
+    """``(c, states)``: the linear term of :func:`level_objective` and its ``P`` as a
+    :class:`~dqcontrol.controllers.problem.StateHessian`, without forming ``P``
+    (:func:`dense_hessian` forms it), for a level with one residual with state rows whose
+    blocks each enter the states from their own on alike (:func:`held_from_own_block`)
+    and every other one block-diagonal over every variable; ``None`` for any other
+    level."""
+    nv = layout.num_vars
+    live = tuple(r for r in residuals if 2.0 * r.weight != 0.0)
+    if sum(_full_states(r, nv) for r in live) != 1 or not all(
+        _full_states(r, nv) or _full_blocks(r, nv) for r in live
+    ):
+        return None
+    found = next(r.states for r in live if r.states is not None)
+    if not (held_from_own_block(found.weights) and held_from_own_block(found.phase_weights)):
+        return None
+    p, _, m = found.rows.shape
+    c, grams, own = np.zeros(nv), None, np.zeros((p, m, m))
+    for r in live:
+        w2 = 2.0 * r.weight
+        if r.blocks is not None:
+            subtract_block_lin(c, r.blocks, r.b, w2)
+            own += w2 * block_gram(r.blocks)
+        else:
+            grams, lin = _state_grams(found.rows, _row_weights(r), r.b)
+            _subtract_state_lin(c, lin, found.weights, found.phase_weights, w2)
+            grams *= w2
+    assert grams is not None, "one residual has state rows"
+    return c, StateHessian(grams, found.weights, found.phase_weights, own)
+
+
+def _row_weights(r: Residual) -> np.ndarray:
+    return _NO_WEIGHTS if r.row_weights is None else r.row_weights
+
+
+def _full_states(r: Residual, nv: int) -> bool:
+    """Whether ``r`` gives its rows through states that cover every variable."""
+    return r.states is not None and r.states.rows.shape[0] * r.states.rows.shape[2] == nv
+
+
+def _full_blocks(r: Residual, nv: int) -> bool:
+    """Whether ``r`` gives its rows as blocks that cover every variable, unweighted."""
+    return (
+        r.blocks is not None
+        and r.blocks.shape[0] * r.blocks.shape[2] == nv
+        and r.row_weights is None
+    )
+
+
+def dense_hessian(states: StateHessian) -> np.ndarray:
+    """``P`` of a :class:`~dqcontrol.controllers.problem.StateHessian`, dense."""
+    p, m, _ = states.grams.shape
+    p_mat = np.zeros((p * m, p * m))
+    grams, lin = states.grams.copy(), np.zeros((p, m))
+    _add_state_rows(p_mat, np.zeros(p * m), grams, lin, states.weights, states.phase_weights, 1.0)
+    add_diagonal_blocks(p_mat, states.damping, 1.0)
+    return p_mat

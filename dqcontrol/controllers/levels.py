@@ -26,7 +26,11 @@ import numpy as np
 from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.level_objective import level_objective
+from dqcontrol.controllers.level_objective import (
+    dense_hessian,
+    level_objective,
+    state_objective,
+)
 from dqcontrol.controllers.null_space import null_space
 from dqcontrol.controllers.problem import (
     Bounds,
@@ -177,13 +181,20 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
 
 
 def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
-    p_mat, c = level_objective(problem.layout, problem.levels[0].residuals)
+    residuals = problem.levels[0].residuals
+    split = state_objective(problem.layout, residuals)
+    if split is None:
+        (p_mat, c), states = level_objective(problem.layout, residuals), None
+    else:
+        (c, states), p_mat = split, None
     points: list[np.ndarray] = []
     per_level: list[Solution] = []
     best: Solution | None = None
     basis: np.ndarray | None = None  # the null space the next level moves in
     warm = _warm_levels(
-        problem, backend, SplitQP(p_mat, c, problem.general_entries, problem.lower, problem.upper)
+        problem,
+        backend,
+        SplitQP(p_mat, c, problem.general_entries, problem.lower, problem.upper, states),
     )
     if warm is not None:
         per_level = list(warm.solutions)
@@ -195,6 +206,9 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     for k in range(len(points), len(problem.levels)):
         held = None  # level k's held rows in the basis, where the reduced level gave them
         if k == 0:
+            if p_mat is None:
+                assert states is not None, "P not formed comes with its state form"
+                p_mat = dense_hessian(states)
             sol = backend.solve(0, DenseQP(p_mat, c, problem.A, problem.lower, problem.upper))
         else:
             assert basis is not None, "a lower level has the basis of the held rows"

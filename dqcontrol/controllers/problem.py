@@ -62,6 +62,7 @@ __all__ = [
     "Residual",
     "Solution",
     "SplitQP",
+    "StateHessian",
     "StateRows",
     "WarmLevels",
     "Term",
@@ -346,17 +347,38 @@ class DenseQP(NamedTuple):
     upper: np.ndarray
 
 
+class StateHessian(NamedTuple):
+    """``P = Tᵀ blockdiag(grams) T + blockdiag(damping)``: a Hessian whose dense part comes
+    from rows that read the predicted states (:class:`StateRows`; ``T`` the map from the
+    decision to the states, from ``weights`` and ``phase_weights``) and whose other terms
+    each touch one block (docs/theory.md §7.5).
+
+    Attributes:
+        grams: ``(p, m, m)``, each state's ``2 w Rᵢᵀ Wᵢ Rᵢ``.
+        weights, phase_weights: ``(p, p)``, as in :class:`StateRows`.
+        damping: ``(p, m, m)``, each block's own part.
+    """
+
+    grams: np.ndarray
+    weights: np.ndarray
+    phase_weights: np.ndarray
+    damping: np.ndarray
+
+
 class SplitQP(NamedTuple):
     """A :class:`DenseQP` with its general rows apart: ``minimize ½ zᵀ P z + cᵀ z  s.t.
     lower ≤ [I; C] z ≤ upper``, ``C`` given as its non-zero ``entries`` (row, column,
     value; row by row, columns in order, read-only:
-    :attr:`Problem.general_entries`)."""
+    :attr:`Problem.general_entries`); ``states``: ``P`` in the predicted states, where it
+    has that form (a backend may factorise it so; ``P`` is then ``None`` where it was not
+    formed)."""
 
-    P: np.ndarray
+    P: np.ndarray | None
     c: np.ndarray
     entries: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    states: StateHessian | None = None
 
 
 class BlockQP(NamedTuple):

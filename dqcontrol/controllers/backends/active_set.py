@@ -6,8 +6,12 @@ For ``min ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with ``P`` posit
 
     z = -P⁻¹ (c + A_Wᵀ λ),   (A_W P⁻¹ A_Wᵀ) λ = -(b_W + A_W P⁻¹ c),
 
-computed with the Cholesky factor ``P = L Lᵀ`` (``Y = L⁻¹ A_Wᵀ``, ``g = L⁻¹ c``: the
-system is ``YᵀY λ = -(b_W + Yᵀ g)`` and ``z = -L⁻ᵀ (g + Y λ)``). It is *the* optimum of
+computed with a factor ``P = F Fᵀ`` (``Y = F⁻¹ A_Wᵀ``, ``g = F⁻¹ c``: the system is
+``YᵀY λ = -(b_W + Yᵀ g)`` and ``z = -F⁻ᵀ (g + Y λ)``): the dense Cholesky factor ``L``, or
+the first level's factor in the predicted states
+(:mod:`~dqcontrol.controllers.backends.state_factor`). A factor is the tuple ``(L,
+diagonal, below, inverse_scales)``, the last three empty for a dense one
+(:func:`dense_factor`). It is *the* optimum of
 the QP exactly when the KKT conditions hold: every row within its bounds and every
 multiplier of the right sign (``λ ≥ 0`` at an upper bound, ``≤ 0`` at a lower one, free
 where both bounds are equal). From one control step to the next the active set rarely
@@ -23,9 +27,14 @@ import math
 import numpy as np
 
 from dqcontrol._compiled import compiled
+from dqcontrol.controllers.backends.state_factor import (
+    state_backward,
+    state_forward,
+    state_forward_rows,
+)
 from dqcontrol.controllers.cholesky import cholesky_into
 
-__all__ = ["solve_on_active_set"]
+__all__ = ["dense_factor", "solve_on_active_set"]
 
 #: Returned by :func:`solve_on_active_set`.
 SOLVED, DEPENDENT_ROWS, INFEASIBLE, WRONG_SIGN = 0, 1, 2, 3
@@ -55,8 +64,41 @@ def _backward(factor: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 @compiled
+def dense_factor(lower: np.ndarray) -> tuple:
+    """The factor tuple of the dense lower Cholesky factor ``lower``."""
+    return lower, np.zeros((0, 0, 0)), np.zeros((0, 0, 0)), np.zeros((0, 0))
+
+
+@compiled
+def _factor_forward(factor: tuple, b: np.ndarray, out: np.ndarray) -> None:
+    """``out = F⁻¹ b``."""
+    if factor[1].shape[0]:
+        state_forward((factor[1], factor[2], factor[3]), b, out)
+    else:
+        _forward(factor[0], b, out)
+
+
+@compiled
+def _factor_backward(factor: tuple, b: np.ndarray, out: np.ndarray) -> None:
+    """``out = F⁻ᵀ b``."""
+    if factor[1].shape[0]:
+        state_backward((factor[1], factor[2], factor[3]), b, out)
+    else:
+        _backward(factor[0], b, out)
+
+
+@compiled
+def _factor_forward_rows(factor: tuple, held: np.ndarray, yt: np.ndarray) -> None:
+    """``yt[:, j] = F⁻¹ held[j]`` for every row of ``held``."""
+    if factor[1].shape[0]:
+        state_forward_rows((factor[1], factor[2], factor[3]), held, yt)
+    else:
+        _forward_rows(factor[0], held, yt)
+
+
+@compiled
 def solve_on_active_set(
-    factor: np.ndarray,
+    factor: tuple,
     c: np.ndarray,
     general: np.ndarray,
     entries: np.ndarray,
@@ -75,8 +117,8 @@ def solve_on_active_set(
     a backend's rows; ``at_upper[j]``: the row ``active[j]`` is held at its upper bound,
     else its lower one), checked, and mended up to ``max_changes`` times.
 
-    ``factor`` is ``L`` with ``P = L Lᵀ``. ``C`` (row ``n + i`` of ``A`` is its row ``i``)
-    is ``general``, dense, or where ``sparse`` its non-zero ``entries``
+    ``factor`` is a factor of ``P`` (the module docstring). ``C`` (row ``n + i`` of ``A``
+    is its row ``i``) is ``general``, dense, or where ``sparse`` its non-zero ``entries``
     (:func:`~dqcontrol.controllers.entries.nonzero_entries`; ``general`` is then not
     read): the same sums without their zero terms. The point is the optimum when the KKT
     conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
@@ -209,7 +251,7 @@ def _forward_rows(factor: np.ndarray, held: np.ndarray, yt: np.ndarray) -> None:
 
 @compiled
 def _equality_optimum(
-    factor: np.ndarray,
+    factor: tuple,
     c: np.ndarray,
     held: np.ndarray,
     lower: np.ndarray,
@@ -223,9 +265,9 @@ def _equality_optimum(
     them, dense) held at their bounds; False when those rows are not independent enough."""
     n, k = c.shape[0], active.shape[0]
     g = np.empty(n)
-    _forward(factor, c, g)
-    yt = np.empty((n, k))  # columns: L⁻¹ a_j
-    _forward_rows(factor, held, yt)
+    _factor_forward(factor, c, g)
+    yt = np.empty((n, k))  # columns: F⁻¹ a_j
+    _factor_forward_rows(factor, held, yt)
     schur = np.zeros((k, k))
     dots = np.zeros(k)
     for m in range(n):
@@ -254,7 +296,7 @@ def _equality_optimum(
         line = yt[m]
         for j in range(k):
             v[m] += line[j] * lam[j]
-    _backward(factor, v, z)
+    _factor_backward(factor, v, z)
     for m in range(n):
         z[m] = -z[m]
     return True

@@ -25,6 +25,7 @@ from dqcontrol.controllers.backends.active_set import (
     _breach,
     _equality_optimum,
     _worst_multiplier,
+    dense_factor,
 )
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.reduced import _entry_rows, _weighted_gram
@@ -191,7 +192,8 @@ def clear_level(
     qp_lower, qp_upper = np.empty(duals.shape[0]), np.empty(duals.shape[0])
     held = _set_rows(active, general, starts, basis, point, lower, upper, qp_lower, qp_upper)
     lam = np.zeros(active.shape[0])
-    if not _equality_optimum(factor, gradient, held, qp_lower, qp_upper, active, at_upper, y, lam):
+    factors = dense_factor(factor)
+    if not _equality_optimum(factors, gradient, held, qp_lower, qp_upper, active, at_upper, y, lam):
         return False
     if not _all_rows_hold(general, starts, basis, point, lower, upper, y, settings[0]):
         return False

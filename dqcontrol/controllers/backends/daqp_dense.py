@@ -31,9 +31,11 @@ from scipy.linalg import lapack
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
+from dqcontrol.controllers.backends.state_factor import state_factor
 from dqcontrol.controllers.backends.warm_levels import warm_levels
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.entries import nonzero_entries
+from dqcontrol.controllers.level_objective import dense_hessian
 from dqcontrol.controllers.problem import DenseQP, Solution, SplitQP, WarmLevels
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
 from dqcontrol.controllers.reduced import LevelRows, ReducedQP
@@ -132,7 +134,7 @@ class DaqpBackend:
         nv, rows = first.c.size, first.lower.size
         if last is None or last[0][1] != nv:
             return None
-        factor = _factor(first.P)
+        factor = _first_factor(first)
         if factor is None:
             return None
         actives, uppers, dims = self._last_sets(last, len(lower), rows)
@@ -140,10 +142,8 @@ class DaqpBackend:
         points, duals = np.empty((count, nv)), np.empty((count, rows))
         changes, has_duals = np.zeros(count, dtype=np.int64), np.zeros(count, dtype=bool)
         first_level = (factor, np.ascontiguousarray(first.c), first.lower, first.upper)
-        lower_levels = (
-            tuple(r.entries for r in lower), tuple(r.b for r in lower),
-            tuple(r.scale for r in lower), np.array([r.held for r in lower]),
-        )  # fmt: skip
+        entries, bs, scales, held_counts = zip(*lower, strict=True)
+        lower_levels = (entries, bs, scales, np.array(held_counts))
         settings = self._settings_array()
         done, kept, kept_upper, counts, solved_dims, basis, ready, last_held = warm_levels(
             first_level, np.ascontiguousarray(held), lower_levels, (actives, uppers, dims),
@@ -153,17 +153,20 @@ class DaqpBackend:
             return None
         share = _since(start) / done
         solutions, offset = [], 0
-        for k in range(done):
-            dim, size = int(solved_dims[k]), int(counts[k])
-            if has_duals[k]:
+        for k, dim, size, dual, change in zip(
+            range(done), solved_dims[:done].tolist(), counts[:done].tolist(),
+            has_duals[:done].tolist(), changes[:done].tolist(), strict=True,
+        ):  # fmt: skip
+            if dual:
                 key = 0 if k == 0 else (k, dim)
                 shape = (rows, nv) if k == 0 else (dim + rows, dim)
-                self._active[key] = (shape, kept[offset : offset + size],
-                                     kept_upper[offset : offset + size])  # fmt: skip
+                end = offset + size
+                self._active[key] = (shape, kept[offset:end], kept_upper[offset:end])
                 self._recent[k] = key
             offset += size
-            sol_duals = duals[k] if has_duals[k] else None
-            solutions.append(Solution(True, "solved", int(changes[k]), share, points[k], sol_duals))
+            solutions.append(
+                Solution(True, "solved", change, share, points[k], duals[k] if dual else None)
+            )
         if done == count or ready:
             return WarmLevels(tuple(solutions), basis if done < count else None, None, None)
         if done == 1:  # the first level's held rows go to LAPACK: narrowed from scratch
@@ -289,8 +292,8 @@ class DaqpBackend:
         a = self._writable_rows(key, np.ascontiguousarray(qp.A))
         z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
         status, active, at_upper, changes = solve_on_active_set(
-            factor, np.ascontiguousarray(qp.c), a[qp.c.size :], _DENSE_CHECK, False, qp.lower,
-            qp.upper, active, at_upper,
+            (factor, _NO_BLOCKS, _NO_BLOCKS, _NO_SCALES), np.ascontiguousarray(qp.c),
+            a[qp.c.size :], _DENSE_CHECK, False, qp.lower, qp.upper, active, at_upper,
             self.settings.get("primal_tol", 1e-6), ACTIVE_SET_DUAL_SHARE, ACTIVE_SET_CHANGES,
             z, duals,
         )  # fmt: skip
@@ -407,6 +410,29 @@ class DaqpBackend:
             return Solution(False, status, iterations, _since(start))
         duals = np.asarray(info.get("lam")) if isinstance(info, dict) and "lam" in info else None
         return Solution(True, "solved", iterations, _since(start), np.array(x), duals)
+
+
+_NO_BLOCKS = np.zeros((0, 0, 0))
+_NO_SCALES = np.zeros((0, 0))
+
+
+def _first_factor(first: SplitQP) -> tuple | None:
+    """The first level's factor tuple (:mod:`.active_set`): in the predicted states where
+    ``P`` has that form and its factor is safely positive definite
+    (:func:`~dqcontrol.controllers.backends.state_factor.state_factor`), else the dense
+    Cholesky factor; ``None`` when neither is."""
+    states, p_mat = first.states, first.P
+    if states is not None:
+        ok, factor = state_factor(
+            states.grams, states.weights, states.phase_weights, states.damping, PIVOT_SHARE
+        )
+        if ok:
+            return factor
+        if p_mat is None:
+            p_mat = dense_hessian(states)
+    assert p_mat is not None, "P not formed comes with its state form"
+    dense = _factor(p_mat)
+    return None if dense is None else (dense, _NO_BLOCKS, _NO_BLOCKS, _NO_SCALES)
 
 
 def _factor(p_mat: np.ndarray) -> np.ndarray | None:

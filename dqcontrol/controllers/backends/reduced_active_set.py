@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.backends.active_set import solve_on_active_set
+from dqcontrol.controllers.backends.active_set import dense_factor, solve_on_active_set
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.reduced import _entry_rows, _rows_in_basis, _weighted_gram
 
@@ -71,8 +71,8 @@ def reduced_on_active_set(
     if not cholesky_into(hessian, factor, settings[3], 0.0):
         return NOT_DEFINITE, active, at_upper, 0, hessian, gradient
     status, active, at_upper, changes = solve_on_active_set(
-        factor, gradient, qp_rows[hessian.shape[0] :], _DENSE_CHECK, False, qp_lower, qp_upper,
-        active, at_upper,
+        dense_factor(factor), gradient, qp_rows[hessian.shape[0] :], _DENSE_CHECK, False,
+        qp_lower, qp_upper, active, at_upper,
         settings[0], settings[1], int(settings[2]), y, duals,
     )  # fmt: skip
     return status, active, at_upper, changes, hessian, gradient
