@@ -20,7 +20,13 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.gram import add_diagonal_blocks, block_gram, frozen, subtract_block_lin
+from dqcontrol.controllers.gram import (
+    add_diagonal_blocks,
+    block_gram,
+    frozen,
+    kept,
+    subtract_block_lin,
+)
 from dqcontrol.controllers.problem import DecisionLayout, Residual, StateHessian, objective
 
 __all__ = ["dense_hessian", "held_from_own_block", "level_objective", "state_objective"]
@@ -224,27 +230,57 @@ def state_objective(
     and every other one block-diagonal over every variable; ``None`` for any other
     level."""
     nv = layout.num_vars
-    live = tuple(r for r in residuals if 2.0 * r.weight != 0.0)
-    if sum(_full_states(r, nv) for r in live) != 1 or not all(
-        _full_states(r, nv) or _full_blocks(r, nv) for r in live
-    ):
-        return None
-    found = next(r.states for r in live if r.states is not None)
-    if not (held_from_own_block(found.weights) and held_from_own_block(found.phase_weights)):
-        return None
-    p, _, m = found.rows.shape
-    c, grams, own = np.zeros(nv), None, np.zeros((p, m, m))
-    for r in live:
-        w2 = 2.0 * r.weight
-        if r.blocks is not None:
-            subtract_block_lin(c, r.blocks, r.b, w2)
-            own += w2 * block_gram(r.blocks)
+    found, blocks = None, []
+    for r in residuals:
+        if 2.0 * r.weight == 0.0:
+            continue
+        if r.states is not None and found is None and _full_states(r, nv):
+            found = r
+        elif r.blocks is not None and _full_blocks(r, nv):
+            blocks.append((r.blocks, r.b, 2.0 * r.weight))
         else:
-            grams, lin = _state_grams(found.rows, _row_weights(r), r.b)
-            _subtract_state_lin(c, lin, found.weights, found.phase_weights, w2)
-            grams *= w2
-    assert grams is not None, "one residual has state rows"
-    return c, StateHessian(grams, found.weights, found.phase_weights, own)
+            return None
+    if found is None or found.states is None:
+        return None
+    st = found.states
+    if not (held_from_own_block(st.weights) and held_from_own_block(st.phase_weights)):
+        return None
+    c = np.zeros(nv)
+    grams = _state_parts(
+        st.rows, _row_weights(found), found.b, st.weights, st.phase_weights,
+        2.0 * found.weight, c,
+    )  # fmt: skip
+    own = [kept((rows,), _scaled_gram, (w2,)) for rows, _, w2 in blocks]
+    for rows, b, w2 in blocks:
+        subtract_block_lin(c, rows, b, w2)
+    damping = own[0] if len(own) == 1 else sum(own, np.zeros(grams.shape))
+    return c, StateHessian(grams, st.weights, st.phase_weights, damping)
+
+
+def _scaled_gram(blocks: np.ndarray, w2: float) -> np.ndarray:
+    """``w2 A_iᵀ A_i`` of every block."""
+    return w2 * block_gram(blocks)
+
+
+@compiled
+def _state_parts(
+    rows: np.ndarray,
+    row_weights: np.ndarray,
+    b: np.ndarray,
+    weights: np.ndarray,
+    phase_weights: np.ndarray,
+    w2: float,
+    c: np.ndarray,
+) -> np.ndarray:
+    """Each state's Gram matrix times ``w2`` ``(p, m, m)``, with ``c -= w2 (W A)ᵀ b`` in
+    place (:func:`_state_grams`, :func:`_subtract_state_lin`)."""
+    grams, lin = _state_grams(rows, row_weights, b)
+    _subtract_state_lin(c, lin, weights, phase_weights, w2)
+    for i in range(grams.shape[0]):
+        for x in range(grams.shape[1]):
+            for y in range(grams.shape[2]):
+                grams[i, x, y] *= w2
+    return grams
 
 
 def _row_weights(r: Residual) -> np.ndarray:
