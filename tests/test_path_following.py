@@ -109,11 +109,12 @@ def test_linearised_path_error_matches_finite_differences(lbr4p):
     _advance(lbr4p, c2, q0, 8)
     ctx = c2._context(q, c2.prediction_model.at(q, sigma, pred.warm_qd, pred.warm_s))
     lin = PathErrorLinear(ctx)
+    lin_a = lin.dense(ctx.layout)
     h = 1e-6
     fd = (true_error(z_bar + h * direction) - true_error(z_bar - h * direction)) / (2 * h)
-    np.testing.assert_allclose(lin.A @ direction, fd, rtol=0, atol=5e-8)
-    np.testing.assert_allclose(lin.A @ z_bar - lin.b, true_error(z_bar), rtol=0, atol=1e-12)
-    assert path.A.shape == lin.A.shape
+    np.testing.assert_allclose(lin_a @ direction, fd, rtol=0, atol=5e-8)
+    np.testing.assert_allclose(lin_a @ z_bar - lin.b, true_error(z_bar), rtol=0, atol=1e-12)
+    assert path.dense(problem.layout).shape == lin_a.shape
 
 
 def PathErrorLinear(ctx):  # noqa: N802 - reads like the term it evaluates
@@ -160,9 +161,10 @@ def test_levels_match_a_level_by_level_reference_and_hold_higher_levels(lbr4p):
     # every lower level keeps the path rows of level 1 within the level's tolerance
     path = problem.levels[0].residuals[0]
     tol = problem.levels[0].tolerance
-    first = path.A @ result.per_level[0].x
+    path_rows = path.dense(problem.layout)
+    first = path_rows @ result.per_level[0].x
     for sol in result.per_level[1:]:
-        assert np.max(np.abs(path.A @ sol.x - first)) <= tol * (1 + 1e-6) + 1e-9
+        assert np.max(np.abs(path_rows @ sol.x - first)) <= tol * (1 + 1e-6) + 1e-9
 
 
 # ----------------------------------------------------------------------------- closed loop

@@ -165,6 +165,9 @@ def test_the_path_level_in_the_states_is_the_dense_objective(lbr4p):
     assert np.abs(p_mat - p_ref).max() <= 1e-13 * np.abs(p_ref).max()
     assert np.abs(c - c_ref).max() <= 1e-13 * np.abs(c_ref).max()
     assert np.abs(_dense(states) - p_ref).max() <= 1e-12 * np.abs(p_ref).max()
+    # the mismatch check's rows of the first state: the dense rows' first six
+    path = residuals[0]
+    assert np.array_equal(ctrl._first_rows(path), path.dense(problem.layout)[:6])
     # a level without state rows has no state form
     assert state_objective(problem.layout, problem.levels[2].residuals) is None
 

@@ -190,20 +190,20 @@ def _subtract_state_lin(
                 c[j * m + m - 1] -= w2 * phase_weights[i, j] * lin[i, m - 1]
 
 
-def _changing_dense(r: Residual) -> bool:
-    """Whether ``r`` has dense rows that change (writable)."""
-    return r.A is not None and r.A.flags.writeable
+def _changing_dense(r: Residual, nv: int) -> bool:
+    """Whether ``r`` has dense rows that change (writable), or gives them by state."""
+    return (r.A is not None and r.A.flags.writeable) or _full_states(r, nv)
 
 
 def level_objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
     """``(P, c)`` of :func:`~dqcontrol.controllers.problem.objective`: the same sums in the
     same order, each changing dense residual in one compiled call."""
     live = tuple(r for r in residuals if 2.0 * r.weight != 0.0)
-    if not any(_changing_dense(r) for r in live) or not all(
-        r.blocks is not None or _changing_dense(r) for r in live
+    nv = layout.num_vars
+    if not any(_changing_dense(r, nv) for r in live) or not all(
+        r.blocks is not None or _changing_dense(r, nv) for r in live
     ):
         return objective(layout, residuals)
-    nv = layout.num_vars
     p_mat = np.zeros((nv, nv))
     c = np.zeros(nv)
     for r in live:

@@ -61,7 +61,8 @@ from dqcontrol.controllers.prediction.consistent import (
     interval_breakpoints,
 )
 from dqcontrol.controllers.prediction.distance import max_abs_difference
-from dqcontrol.controllers.problem import Level, Limit, Problem, Term
+from dqcontrol.controllers.problem import Level, Limit, Problem, Residual, Term
+from dqcontrol.controllers.state_rows import state_rows_into
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, PathErrorTerm
 from dqcontrol.controllers.terms.posture import PostureTerm
@@ -436,7 +437,17 @@ class PathFollowingController(Controller):
         xd1 = self.trajectory.target(sigma1)
         self._memo.keep_pose(q1, x1)  # the next measured q, in a simulated loop
         self._memo.keep_target(self.trajectory, sigma1, xd1)
-        return tangent_mismatch(x1, xd1, PROJECTOR_BASIS, path.dense(self.layout), path.b, z)
+        return tangent_mismatch(x1, xd1, PROJECTOR_BASIS, self._first_rows(path), path.b, z)
+
+    def _first_rows(self, path: Residual) -> np.ndarray:
+        """The path rows of the first predicted state, dense ``(6, len(z))``."""
+        if path.states is None:
+            return path.dense(self.layout)
+        st = path.states
+        p, r, m = st.rows.shape
+        rows = np.empty((1, r, p, m))
+        state_rows_into(st.rows[:1], st.weights[:1], st.phase_weights[:1], rows)
+        return rows.reshape(r, p * m)
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         with single_blas_thread():  # the dense levels' products and factorisations

@@ -44,6 +44,7 @@ from dqcontrol.controllers.gram import (
     subtract_scaled,
 )
 from dqcontrol.controllers.joint_box import hard_into, intersect_into
+from dqcontrol.controllers.state_rows import state_rows_into
 from dqcontrol.errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -171,7 +172,8 @@ class Residual(NamedTuple):
     ``A`` is dense ``(r, len(z))``; a term whose rows each touch one block may give
     ``blocks`` ``(p, r_i, block_size)`` instead (``A`` block diagonal, rows ordered block by
     block), which the backends exploit. A term with dense rows that read the predicted
-    states may also give them as ``states`` (:class:`StateRows`, the same rows).
+    states may give them as ``states`` instead (:class:`StateRows`; :meth:`dense` forms
+    ``A`` from them).
     ``held`` says whether lower levels hold these rows at their optimum (a regularisation
     is not held).
     """
@@ -187,9 +189,15 @@ class Residual(NamedTuple):
 
     def dense(self, layout: DecisionLayout) -> np.ndarray:
         """``A`` as a dense ``(r, len(z))`` array (read-only and kept for read-only
-        ``blocks``)."""
+        ``blocks``; formed at each call from ``states`` where ``A`` is not given)."""
         if self.A is not None:
             return self.A
+        if self.blocks is None and self.states is not None:
+            rows = self.states.rows
+            p, r, m = rows.shape
+            out = np.empty((p, r, p, m))
+            state_rows_into(rows, self.states.weights, self.states.phase_weights, out)
+            return out.reshape(p * r, p * m)
         blocks = self.blocks
         assert blocks is not None, "a residual has A or blocks"
         if blocks.shape[0] * blocks.shape[2] == layout.num_vars:

@@ -19,7 +19,7 @@ import numpy as np
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.problem import DecisionLayout, Residual, StateRows, Term
-from dqcontrol.controllers.terms.path_error_kernels import path_rows_into, projectors_into
+from dqcontrol.controllers.terms.path_error_kernels import path_states_into, projectors_into
 from dqcontrol.dq.algebra import hamiplus8
 
 __all__ = ["PROJECTOR_BASIS", "PathErrorTerm", "tangent_projectors"]
@@ -80,17 +80,15 @@ class PathErrorTerm(Term):
         pred = ctx.prediction
         layout = ctx.layout
         p, m = layout.num_blocks, layout.block_size
-        # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -sigma_weights[i, j] E_i x_d' on s_j
-        blocks = np.empty((p, 6, p, m))
+        # block (i, j) of A: weights[i, j] E_i J_i on qd_j, -phase_weights[i, j] E_i x_d' on s_j,
+        # given as each state's rows [E_i J_i | -E_i x_d']
         b = np.empty(6 * p)
         states = np.empty((p, 6, m))
-        path_rows_into(
+        path_states_into(
             ctx.poses, ctx.targets, ctx.target_derivatives, ctx.jacobians,
-            pred.q_base, pred.q_lin, pred.sigma_base, pred.sigma_lin,
-            pred.weights, pred.phase_weights, PROJECTOR_BASIS, blocks, b, states,
+            pred.q_base, pred.q_lin, pred.sigma_base, pred.sigma_lin, PROJECTOR_BASIS, b, states,
         )  # fmt: skip
-        a = blocks.reshape(6 * p, p * m)
         return Residual(
-            self.name, self.weight, b, A=a, row_weights=self._row_weights(layout),
+            self.name, self.weight, b, row_weights=self._row_weights(layout),
             states=StateRows(states, pred.weights, pred.phase_weights),
         )  # fmt: skip

@@ -12,8 +12,14 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
+from dqcontrol.controllers.state_rows import state_rows_into
 
-__all__ = ["lane_dot", "path_rows_into", "projectors_into"]
+__all__ = [
+    "lane_dot",
+    "path_rows_into",
+    "path_states_into",
+    "projectors_into",
+]
 
 
 @compiled
@@ -51,6 +57,57 @@ def lane_dot(x: np.ndarray, y: np.ndarray) -> float:
 
 
 @compiled
+def path_states_into(
+    poses: np.ndarray,
+    targets: np.ndarray,
+    target_derivatives: np.ndarray,
+    jacobians: np.ndarray,
+    q_base: np.ndarray,
+    q_lin: np.ndarray,
+    sigma_base: np.ndarray,
+    sigma_lin: np.ndarray,
+    basis: np.ndarray,
+    b: np.ndarray,
+    states: np.ndarray,
+) -> None:
+    """The rows of each state ``states`` ``(p, 6, n + 1)``, ``[E_i J_i | -E_i x_d'_i]``, and
+    ``b`` ``(6 p,)`` of the linearised path error.
+
+    With ``E_i = Σ_k poses[i, k] basis[k]`` ``(6, 8)``,
+    ``b_i = -(E_i (x̄_i - x_d,i) + E_i J_i (q_base_i - q̄_i) - E_i x_d'_i (σ_base,i - σ̄_i))``
+    (``q_base``, ``σ_base``: the states of the zero decision; ``q̄``, ``σ̄``: the
+    linearisation point ``q_lin``, ``sigma_lin``)."""
+    p, n = jacobians.shape[0], jacobians.shape[2]
+    r, k = basis.shape[1], basis.shape[2]
+    proj = np.empty((r, k))
+    gap = np.empty(k)
+    dq = np.empty(n)
+    for i in range(p):
+        for a in range(r):
+            for c in range(k):
+                s = 0.0
+                for e in range(basis.shape[0]):
+                    s += poses[i, e] * basis[e, a, c]
+                proj[a, c] = s
+        for c in range(k):
+            gap[c] = poses[i, c] - targets[i, c]
+        for c in range(n):
+            dq[c] = q_base[i, c] - q_lin[i, c]
+        ds = sigma_base[i] - sigma_lin[i]
+        for a in range(r):
+            pj = states[i, a]
+            for c in range(n):
+                s = 0.0
+                for e in range(k):
+                    s += proj[a, e] * jacobians[i, e, c]
+                pj[c] = s
+            pd = lane_dot(proj[a], target_derivatives[i])
+            value = lane_dot(proj[a], gap) + lane_dot(pj[:n], dq)
+            b[i * r + a] = -(value - pd * ds)
+            pj[n] = -pd
+
+
+@compiled
 def path_rows_into(
     poses: np.ndarray,
     targets: np.ndarray,
@@ -67,46 +124,11 @@ def path_rows_into(
     b: np.ndarray,
     states: np.ndarray,
 ) -> None:
-    """The rows ``(p, 6, p, n + 1)`` and ``b`` ``(6 p,)`` of the linearised path error, and
-    the rows of each state ``states`` ``(p, 6, n + 1)``: ``[E_i J_i | -E_i x_d'_i]``.
-
-    With ``E_i = Σ_k poses[i, k] basis[k]`` ``(6, 8)``: block ``(i, j)`` of the rows holds
-    ``weights[i, j] E_i J_i`` on ``qd_j`` and ``-phase_weights[i, j] E_i x_d'_i`` on ``s_j``,
-    and ``b_i = -(E_i (x̄_i - x_d,i) + E_i J_i (q_base_i - q̄_i) - E_i x_d'_i (σ_base,i - σ̄_i))``
-    (``q_base``, ``σ_base``: the states of the zero decision; ``q̄``, ``σ̄``: the
-    linearisation point ``q_lin``, ``sigma_lin``)."""
-    p, n = jacobians.shape[0], jacobians.shape[2]
-    r, k = basis.shape[1], basis.shape[2]
-    proj = np.empty((r, k))
-    pj = np.empty((r, n))
-    gap = np.empty(k)
-    dq = np.empty(n)
-    for i in range(p):
-        for a in range(r):
-            for c in range(k):
-                s = 0.0
-                for e in range(basis.shape[0]):
-                    s += poses[i, e] * basis[e, a, c]
-                proj[a, c] = s
-        for c in range(k):
-            gap[c] = poses[i, c] - targets[i, c]
-        for c in range(n):
-            dq[c] = q_base[i, c] - q_lin[i, c]
-        ds = sigma_base[i] - sigma_lin[i]
-        for a in range(r):
-            for c in range(n):
-                s = 0.0
-                for e in range(k):
-                    s += proj[a, e] * jacobians[i, e, c]
-                pj[a, c] = s
-            pd = lane_dot(proj[a], target_derivatives[i])
-            value = lane_dot(proj[a], gap) + lane_dot(pj[a], dq)
-            b[i * r + a] = -(value - pd * ds)
-            for c in range(n):
-                states[i, a, c] = pj[a, c]
-            states[i, a, n] = -pd
-            for j in range(p):
-                w = weights[i, j]
-                for c in range(n):
-                    rows[i, a, j, c] = w * pj[a, c]
-                rows[i, a, j, n] = -phase_weights[i, j] * pd
+    """:func:`path_states_into`, and the dense rows ``(p, 6, p, n + 1)``
+    (:func:`state_rows_into`): block ``(i, j)`` holds ``weights[i, j] E_i J_i`` on ``qd_j``
+    and ``-phase_weights[i, j] E_i x_d'_i`` on ``s_j``."""
+    path_states_into(
+        poses, targets, target_derivatives, jacobians, q_base, q_lin, sigma_base, sigma_lin,
+        basis, b, states,
+    )  # fmt: skip
+    state_rows_into(states, weights, phase_weights, rows)
