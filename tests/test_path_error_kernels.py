@@ -8,15 +8,27 @@ import math
 import numpy as np
 import pytest
 
+from dqcontrol.controllers.state_rows import state_rows_into
 from dqcontrol.controllers.terms.path_error import (
     PROJECTOR_BASIS,
     PathErrorTerm,
     tangent_projectors,
 )
-from dqcontrol.controllers.terms.path_error_kernels import lane_dot, path_rows_into
+from dqcontrol.controllers.terms.path_error_kernels import lane_dot, path_states_into
 from dqcontrol.dq.algebra import hamiplus8
 
 _PURE = [1, 2, 3, 5, 6, 7]
+
+
+def path_rows_into(*args) -> None:
+    """The state rows and ``b`` (:func:`path_states_into`), and the dense rows formed from
+    them (:func:`state_rows_into`): ``args`` the states' inputs, the weights, the basis,
+    then ``rows``, ``b``, ``states``."""
+    *inputs, weights, phase_weights, basis, rows, b, states = args
+    path_states_into(*inputs, basis, b, states)
+    state_rows_into(states, weights, phase_weights, rows)
+
+
 _CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
 
 

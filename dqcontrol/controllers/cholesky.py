@@ -10,7 +10,7 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["cholesky_into"]
+__all__ = ["cholesky_above", "cholesky_into"]
 
 
 @compiled
@@ -18,15 +18,21 @@ def cholesky_into(a: np.ndarray, out: np.ndarray, share: float, shift: float = 0
     """``out`` = the lower Cholesky factor of ``a - shift I`` (``a`` symmetric; only its
     lower triangle is read, and ``out`` may be ``a`` itself); False when a squared pivot
     is not above ``share`` times the largest diagonal entry of ``a`` (or is NaN)."""
-    n = a.shape[0]
     scale = 0.0
-    for i in range(n):
+    for i in range(a.shape[0]):
         scale = max(scale, a[i, i])
+    return cholesky_above(a, out, share * scale, shift)
+
+
+@compiled
+def cholesky_above(a: np.ndarray, out: np.ndarray, threshold: float, shift: float) -> bool:
+    """:func:`cholesky_into` with every squared pivot above ``threshold`` (not NaN)."""
+    n = a.shape[0]
     for j in range(n):
         s = a[j, j] - shift
         for k in range(j):
             s -= out[j, k] * out[j, k]
-        if not s > share * scale:
+        if not s > threshold:
             return False
         d = math.sqrt(s)
         out[j, j] = d

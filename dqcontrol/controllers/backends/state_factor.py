@@ -21,11 +21,10 @@ empty dense factor.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from dqcontrol._compiled import compiled
+from dqcontrol.controllers.cholesky import cholesky_above
 from dqcontrol.controllers.level_objective import held_from_own_block
 
 __all__ = [
@@ -46,27 +45,6 @@ def _inverse_scales(weights: np.ndarray, phase_weights: np.ndarray, m: int) -> n
         inverse[j, : m - 1] = 1.0 / weights[j, j]
         inverse[j, m - 1] = 1.0 / phase_weights[j, j]
     return inverse
-
-
-@compiled
-def _block_cholesky(block: np.ndarray, out: np.ndarray, threshold: float) -> bool:
-    """``out`` = the lower Cholesky factor of ``block`` (its lower triangle); False when a
-    squared pivot is not above ``threshold`` (or is NaN)."""
-    m = block.shape[0]
-    for c in range(m):
-        s = block[c, c]
-        for t in range(c):
-            s -= out[c, t] * out[c, t]
-        if not s > threshold:
-            return False
-        pivot = math.sqrt(s)
-        out[c, c] = pivot
-        for r in range(c + 1, m):
-            t_sum = block[r, c]
-            for t in range(c):
-                t_sum -= out[r, t] * out[c, t]
-            out[r, c] = t_sum / pivot
-    return True
 
 
 @compiled
@@ -109,7 +87,7 @@ def state_factor(
                 for t in range(m):
                     s -= below[j, x, t] * below[j, y, t]
                 work[x, y] = s
-        if not _block_cholesky(work, diagonal[j], share * largest):
+        if not cholesky_above(work, diagonal[j], share * largest, 0.0):
             return False, (none, diagonal, below, inverse)
         if j + 1 < p:  # below[j + 1] = -Λ'_{j+1} L_jj⁻ᵀ, row by row
             for r in range(m):

@@ -12,11 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.state_rows import state_rows_into
 
 __all__ = [
     "lane_dot",
-    "path_rows_into",
     "path_states_into",
     "projectors_into",
 ]
@@ -105,30 +103,3 @@ def path_states_into(
             value = lane_dot(proj[a], gap) + lane_dot(pj[:n], dq)
             b[i * r + a] = -(value - pd * ds)
             pj[n] = -pd
-
-
-@compiled
-def path_rows_into(
-    poses: np.ndarray,
-    targets: np.ndarray,
-    target_derivatives: np.ndarray,
-    jacobians: np.ndarray,
-    q_base: np.ndarray,
-    q_lin: np.ndarray,
-    sigma_base: np.ndarray,
-    sigma_lin: np.ndarray,
-    weights: np.ndarray,
-    phase_weights: np.ndarray,
-    basis: np.ndarray,
-    rows: np.ndarray,
-    b: np.ndarray,
-    states: np.ndarray,
-) -> None:
-    """:func:`path_states_into`, and the dense rows ``(p, 6, p, n + 1)``
-    (:func:`state_rows_into`): block ``(i, j)`` holds ``weights[i, j] E_i J_i`` on ``qd_j``
-    and ``-phase_weights[i, j] E_i x_d'_i`` on ``s_j``."""
-    path_states_into(
-        poses, targets, target_derivatives, jacobians, q_base, q_lin, sigma_base, sigma_lin,
-        basis, b, states,
-    )  # fmt: skip
-    state_rows_into(states, weights, phase_weights, rows)
