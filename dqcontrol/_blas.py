@@ -70,8 +70,8 @@ class _SingleThread:
 
     def __enter__(self) -> None:
         nested = getattr(_local, "depth", 0)
-        _local.depth = nested + 1
         if nested:
+            _local.depth = nested + 1
             return
         with _lock:
             if _state["depth"] == 0:
@@ -81,6 +81,7 @@ class _SingleThread:
                     if count != 1:
                         put(1)
             _state["depth"] += 1
+        _local.depth = 1
 
     def __exit__(self, *exc: object) -> None:
         _local.depth -= 1
