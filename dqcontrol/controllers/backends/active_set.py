@@ -11,13 +11,12 @@ computed with a factor ``P = F Fᵀ`` (``Y = F⁻¹ A_Wᵀ``, ``g = F⁻¹ c``: 
 the first level's factor in the predicted states
 (:mod:`~dqcontrol.controllers.backends.state_factor`). A factor is the tuple ``(L,
 diagonal, below, inverse_scales)``, the last three empty for a dense one
-(:func:`dense_factor`). It is *the* optimum of
-the QP exactly when the KKT conditions hold: every row within its bounds and every
-multiplier of the right sign (``λ ≥ 0`` at an upper bound, ``≤ 0`` at a lower one, free
-where both bounds are equal). From one control step to the next the active set rarely
-changes, so the last step's set is a good guess, and checking it costs a factorisation
-and one pass over the rows, where an active-set solver given new data would start by
-transforming every row.
+(:func:`dense_factor`). The point is *the* optimum of the QP exactly when the KKT
+conditions hold: every row within its bounds and every multiplier of the right sign (``λ ≥
+0`` at an upper bound, ``≤ 0`` at a lower one, free where both bounds are equal). From one
+control step to the next the active set rarely changes, so the last step's set is a good
+guess, and checking it costs a factorisation and one pass over the rows, where an
+active-set solver given new data would start by transforming every row.
 """
 
 from __future__ import annotations

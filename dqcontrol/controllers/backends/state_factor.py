@@ -110,9 +110,9 @@ def state_forward(factor: tuple, b: np.ndarray, out: np.ndarray) -> None:
             s = inverse[j, x] * b[k]
             if j + 1 < p:
                 s -= inverse[j + 1, x] * b[k + m]
-            for t in range(m):  # minus (block below) (the last block's values)
-                if j > 0:
-                    s -= below[j, x, t] * out[k - x - m + t]
+            if j > 0:  # minus (block below) (the last block's values)
+                for t in range(m):
+                    s -= below[j, x, t] * out[(j - 1) * m + t]
             for t in range(x):
                 s -= diagonal[j, x, t] * out[j * m + t]
             out[k] = s / diagonal[j, x, x]
