@@ -193,11 +193,11 @@ class Residual(NamedTuple):
         if self.A is not None:
             return self.A
         if self.blocks is None and self.states is not None:
-            rows = self.states.rows
+            rows, weights = self.states.rows, self.states.weights
             p, r, m = rows.shape
-            out = np.empty((p, r, p, m))
-            state_rows_into(rows, self.states.weights, self.states.phase_weights, out)
-            return out.reshape(p * r, p * m)
+            out = np.empty((p, r, weights.shape[1], m))
+            state_rows_into(rows, weights, self.states.phase_weights, out)
+            return out.reshape(p * r, weights.shape[1] * m)
         blocks = self.blocks
         assert blocks is not None, "a residual has A or blocks"
         if blocks.shape[0] * blocks.shape[2] == layout.num_vars:
