@@ -109,7 +109,7 @@ def _column_scales(weights: np.ndarray, phase_weights: np.ndarray, i: int, m: in
 def _add_suffix_blocks(p_mat, c, grams, lin, weights, phase_weights, w2) -> None:
     """Block ``(j, k)``, ``j ≤ k``, is ``D_j S_k D_k`` with ``S_k`` the sum of the Gram
     matrices of the states from ``k`` on, where every block enters the states from its own
-    on with one weight ``D_j`` (:func:`_held_from_own_block`)."""
+    on with one weight ``D_j`` (:func:`held_from_own_block`)."""
     p, m = lin.shape
     for i in range(p - 2, -1, -1):
         for x in range(m):

@@ -58,18 +58,17 @@ def warm_levels(
 ) -> tuple:
     """The levels from the first on, each on its last active set, until one needs more.
 
-    ``first = (L, c, lower, upper)`` is the first level (``P = L Lᵀ``, the rows ``[I; C]``),
-    ``held`` its held rows; ``lower_levels = (entries, b, scale, held counts)`` the stacked
-    rows of each lower level, reduced to the null space of the rows held above, under the
-    same rows (``general``: the non-zero entries of ``C``); ``last = (actives, at_upper,
-    dims)`` each level's last set (a lower level's dimension, ``-1`` for none); ``settings =
-    (primal_tol, dual_tol, max_changes, pivot_share, max_dim)``. Writes each solved level
-    into ``out = (points, duals, has_duals, changes)`` and returns ``(done, actives,
-    at_upper, counts, dims, basis, ready, held_rows)``: the levels solved, their sets
-    (``counts`` rows each) and the dimension each was solved in; with ``ready`` the basis
-    the next level moves in, otherwise the last level's basis and its held rows in it (empty
-    after the first), from which the caller narrows it with LAPACK.
-    """
+    ``first = (factor, c, lower, upper)``: the first level (a factor tuple of ``P``,
+    :mod:`.active_set`; the rows ``[I; C]``), ``held`` its held rows; ``lower_levels =
+    (entries, b, scale, held counts)``: each lower level's stacked rows, reduced to the null
+    space of the rows held above, under the same rows (``general``: the non-zero entries of
+    ``C``); ``last = (actives, at_upper, dims)``: each level's last set (a lower level's
+    dimension, ``-1`` for none); ``settings = (primal_tol, dual_tol, max_changes,
+    pivot_share, max_dim)``. Writes each solved level into ``out = (points, duals,
+    has_duals, changes)``; returns ``(done, actives, at_upper, counts, dims, basis, ready,
+    held_rows)``: the levels solved, their sets (``counts`` rows each) and dimensions; with
+    ``ready`` the basis the next level moves in, else the last level's basis and its held
+    rows in it (empty after the first), which the caller narrows with LAPACK."""
     n = first[1].shape[0]
     levels = 1 + len(lower_levels[0])
     counts = np.zeros(levels, dtype=np.int64)
