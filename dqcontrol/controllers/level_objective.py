@@ -250,16 +250,25 @@ def state_objective(
         st.rows, _row_weights(found), found.b, st.weights, st.phase_weights,
         2.0 * found.weight, c,
     )  # fmt: skip
-    own = [kept((rows,), _scaled_gram, (w2,)) for rows, _, w2 in blocks]
     for rows, b, w2 in blocks:
-        subtract_block_lin(c, rows, b, w2)
-    damping = own[0] if len(own) == 1 else sum(own, np.zeros(grams.shape))
+        if b.flags.writeable or kept((b,), _any_nonzero):  # else ``c -= 0``: c as it is
+            subtract_block_lin(c, rows, b, w2)
+    operands = tuple(rows for rows, _, _ in blocks)
+    damping = kept(operands, _scaled_grams, (tuple(w2 for *_, w2 in blocks), grams.shape))
     return c, StateHessian(grams, st.weights, st.phase_weights, damping)
 
 
-def _scaled_gram(blocks: np.ndarray, w2: float) -> np.ndarray:
-    """``w2 A_iᵀ A_i`` of every block."""
-    return w2 * block_gram(blocks)
+def _any_nonzero(values: np.ndarray) -> np.ndarray:
+    """Whether some entry of ``values`` is not zero, as a 0-d array (for :func:`kept`)."""
+    return np.array(values.any())
+
+
+def _scaled_grams(*args) -> np.ndarray:
+    """``Σ_k w2_k A_kᵀ A_k`` block by block from the blocks ``A_k`` followed by ``(w2s,
+    shape)`` (zeros of ``shape`` for none)."""
+    *operands, w2s, shape = args
+    own = [w2 * block_gram(blocks) for blocks, w2 in zip(operands, w2s, strict=True)]
+    return own[0] if len(own) == 1 else sum(own, np.zeros(shape))
 
 
 @compiled

@@ -61,16 +61,18 @@ __all__ = [
 ]
 
 
-def _limit_rows(limits: tuple[Limit, ...], ctx: StepContext) -> tuple[list, list]:
+def _limit_rows(limits: tuple[Limit, ...], ctx: StepContext) -> tuple[tuple, tuple]:
     bounds: list[Bounds] = []
     general: list[Inequality] = []
     for limit in limits:
         out = limit.rows(ctx)
         if out is None:
             continue
-        for item in (out,) if isinstance(out, Bounds | Inequality) else out:
+        if type(out) is not tuple:  # one item (a NamedTuple), or another iterable
+            out = (out,) if isinstance(out, Bounds | Inequality) else tuple(out)
+        for item in out:
             (bounds if isinstance(item, Bounds) else general).append(item)
-    return bounds, general
+    return tuple(bounds), tuple(general)
 
 
 def build_problem(
@@ -97,14 +99,12 @@ def build_problem(
             residuals.append(res)
         built.append(BuiltLevel(lev.name, lev.tolerance, tuple(residuals)))
     bounds, general = _limit_rows(limits, ctx)
-    lower, upper, conflict = merge_bounds(ctx.layout, tuple(bounds))
-    fixed = fixed_variables(ctx.layout, tuple(bounds))
+    lower, upper, conflict = merge_bounds(ctx.layout, bounds)
+    fixed = fixed_variables(ctx.layout, bounds)
     if general:
-        lower = np.concatenate([lower] + [g.lower for g in general])
-        upper = np.concatenate([upper] + [g.upper for g in general])
-    return Problem(
-        ctx.layout, tuple(built), tuple(bounds), tuple(general), lower, upper, conflict, fixed
-    )
+        lower = np.concatenate((lower, *[g.lower for g in general]))
+        upper = np.concatenate((upper, *[g.upper for g in general]))
+    return Problem(ctx.layout, tuple(built), bounds, general, lower, upper, conflict, fixed)
 
 
 @dataclass(frozen=True)

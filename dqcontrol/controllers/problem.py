@@ -663,12 +663,21 @@ def merge_bounds(
 
 
 def fixed_variables(layout: DecisionLayout, bounds: tuple[Bounds, ...]) -> np.ndarray:
-    """Mask of the variables some ``fixed`` :class:`Bounds` fixes."""
-    out = np.zeros(layout.num_vars, dtype=bool)
+    """Mask of the variables some ``fixed`` :class:`Bounds` fixes (read-only when none
+    is)."""
+    out = None
     for b in bounds:
         if b.fixed:
+            if out is None:
+                out = np.zeros(layout.num_vars, dtype=bool)
             out[b.index] = True
-    return out
+    return _none_fixed(layout.num_vars) if out is None else out
+
+
+@cache
+def _none_fixed(nv: int) -> np.ndarray:
+    """The mask of no fixed variable (read-only, shared)."""
+    return frozen(np.zeros(nv, dtype=bool))
 
 
 class Solution(NamedTuple):
