@@ -336,3 +336,26 @@ def test_last_problem_names_terms_and_limits(lbr4p):
                  "predicted_position", "terminal_braking", "trust_region_q"):  # fmt: skip
         assert name in text
     assert c.step(LBR4P_Q0).diagnostics.linearisations >= 1
+
+
+def test_behind_a_modelled_servo_steady_tracking_takes_one_round(lbr4p):
+    """The linearisation check compares the linear and the true error at the prediction's
+    own first state: behind a servo lag that state is not ``q + T qd_0``, and comparing at
+    the latter would call every linearisation poor (every step running all its rounds)."""
+    period, tau = 0.01, 0.004
+    c = PathFollowingController(
+        lbr4p, Circle(2.0), period, velocity_limits=THESIS_QD_MAX, acceleration_limit=10.0,
+        servo_time_constant_s=tau,
+    )  # fmt: skip
+    q, qd = LBR4P_Q0.copy(), np.zeros(lbr4p.nq)
+    c.reset(q)
+    decay = np.exp(-period / tau)
+    gain = tau * (1.0 - decay)
+    rounds = []
+    for _ in range(60):  # the servo the prediction models, exactly
+        result = c.step(q, qd)
+        rounds.append(result.diagnostics.linearisations)
+        cmd = result.qd_command
+        q, qd = q + (period - gain) * cmd + gain * qd, cmd + (qd - cmd) * decay
+    assert np.mean(rounds[5:]) <= 1.1, rounds
+    assert c.tuning.max_linearisations > 1  # the check could have added rounds

@@ -431,23 +431,26 @@ class PathFollowingController(Controller):
         """How far the linearised path error of the first predicted state is from the
         true one (tangent units: half-radians and half-metres)."""
         path = problem.levels[0].residuals[0]
-        q1 = q + self.period_s * z[: self.n]
+        q1 = self.prediction_model.state_after_first(q, z[: self.n])
         sigma1 = self.sigma + self.period_s * min(max(float(z[self.n]), 0.0), self.s_max)
         x1 = self.robot.fast.pose(q1)
         xd1 = self.trajectory.target(sigma1)
         self._memo.keep_pose(q1, x1)  # the next measured q, in a simulated loop
         self._memo.keep_target(self.trajectory, sigma1, xd1)
-        return tangent_mismatch(x1, xd1, PROJECTOR_BASIS, self._first_rows(path), path.b, z)
+        rows = self._first_rows(path)
+        return tangent_mismatch(x1, xd1, PROJECTOR_BASIS, rows, path.b, z[: rows.shape[1]])
 
     def _first_rows(self, path: Residual) -> np.ndarray:
-        """The path rows of the first predicted state, dense ``(6, len(z))``."""
+        """The path rows of the first predicted state over the first decision block
+        ``(6, n + 1)`` (the state after the first interval reads no later block), or over
+        every variable where the rows are given dense."""
         if path.states is None:
             return path.dense(self.layout)
         st = path.states
-        p, r, m = st.rows.shape
-        rows = np.empty((1, r, p, m))
-        state_rows_into(st.rows[:1], st.weights[:1], st.phase_weights[:1], rows)
-        return rows.reshape(r, p * m)
+        r, m = st.rows.shape[1:]
+        rows = np.empty((1, r, 1, m))
+        state_rows_into(st.rows[:1], st.weights[:1, :1], st.phase_weights[:1, :1], rows)
+        return rows.reshape(r, m)
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         with single_blas_thread():  # the dense levels' products and factorisations
