@@ -12,7 +12,9 @@ Every performance figure in one run, on the machine it runs on:
   and solve included: medians and 99th percentiles of per-step wall times measured inside
   a real closed loop (kinematic, LBR4p, the 2 s circle), so every step sees a changing
   state, a changing active set and the warm start a real loop gives it; both QP backends,
-  with the solver's own time beside;
+  with the solver's own time beside. The loops hold one BLAS thread for their length, as
+  :func:`~dqcontrol.sim.run_loop` does (the path-following step at p = 10 is also timed
+  without, each step switching the libraries itself);
 - the peers, measured in the same run and reported as ratios: DQ Robotics's
   ``DQ_ClassicQPController`` step (a local QP without scaling, its QP solved by quadprog
   through DQ Robotics's Python solver interface) against our local step, and ten of its
@@ -28,6 +30,7 @@ medians over repeated runs; the machine is shared, so they move by ±10–20 % b
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -39,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dqcontrol.controllers import single_blas_thread
 from dqcontrol.controllers.tracking import DEFAULT_SOLVER
 from dqcontrol.experiments.thesis import THESIS_ACCELERATION_LIMIT, THESIS_VELOCITY_LIMITS
 from dqcontrol.model import LBR4P_Q0, RobotModel, load_lbr4p
@@ -166,9 +170,16 @@ def _reference_count(target_s: float) -> int:
 
 
 def step_times(
-    controller, q0: np.ndarray, steps: int, repeats: int = 1, reference: bool = True
+    controller,
+    q0: np.ndarray,
+    steps: int,
+    repeats: int = 1,
+    reference: bool = True,
+    held: bool = True,
 ) -> dict:
-    """Per-step wall time [µs] over ``repeats`` kinematic closed loops of ``steps`` steps.
+    """Per-step wall time [µs] over ``repeats`` kinematic closed loops of ``steps`` steps,
+    each loop holding one BLAS thread as :func:`~dqcontrol.sim.run_loop` does (``held``;
+    else every step switches the libraries itself).
 
     Median, 99th percentile and their ratio over all steps pooled; the solver's median
     time; and the spread of the runs' medians. With ``reference``, every step is followed
@@ -186,30 +197,13 @@ def step_times(
     """
     count = 0
     if reference:
-        warm = step_times(controller, q0, min(steps, 100), 1, reference=False)
+        warm = step_times(controller, q0, min(steps, 100), 1, reference=False, held=held)
         count = _reference_count(warm["median_us"] * 1e-6)
-    times, solves, iters, run_medians, ref_times, rounds = [], [], [], [], [], []
-    levels = []
-    runs, finals = [], []
+    times, run_medians, ref_times, runs, finals = [], [], [], [], []
+    diag: dict[str, list] = {"solve": [], "levels": [], "iters": [], "rounds": []}
     for _ in range(repeats):
-        q = np.array(q0, dtype=float)
-        controller.reset(q)
-        run = []
-        for _ in range(steps):
-            t0 = time.perf_counter()
-            res = controller.step(q)
-            run.append(time.perf_counter() - t0)
-            if count:
-                t0 = time.perf_counter()
-                _reference_work(count)
-                ref_times.append(time.perf_counter() - t0)
-            solves.append(res.diagnostics.solve_time_s)
-            levels.append(res.diagnostics.levels_time_s)
-            iters.append(res.diagnostics.iterations)
-            rounds.append(res.diagnostics.linearisations)
-            q = q + controller.period_s * res.qd_command
-            if controller.done:
-                controller.reset(q)
+        with single_blas_thread() if held else contextlib.nullcontext():
+            run, q = _closed_loop(controller, q0, steps, count, ref_times, diag)
         times += run
         runs.append(run)
         finals.append(q)
@@ -219,11 +213,11 @@ def step_times(
         "median_us": float(np.median(t)),
         "p99_us": float(np.percentile(t, 99)),
         "p99_over_median": float(np.percentile(t, 99) / np.median(t)),
-        "solver_median_us": float(np.median(solves) * 1e6),
-        "levels_median_us": float(np.median(levels) * 1e6),
-        "iterations_median": float(np.median(iters)),
-        "linearisations_mean": float(np.mean(rounds)),
-        "linearisations_max": int(np.max(rounds)),
+        "solver_median_us": float(np.median(diag["solve"]) * 1e6),
+        "levels_median_us": float(np.median(diag["levels"]) * 1e6),
+        "iterations_median": float(np.median(diag["iters"])),
+        "linearisations_mean": float(np.mean(diag["rounds"])),
+        "linearisations_max": int(np.max(diag["rounds"])),
         "run_medians_us": run_medians,
         "steps": steps * repeats,
     }
@@ -235,6 +229,34 @@ def step_times(
         out["reference_median_us"] = float(np.median(r))
         out["reference_p99_over_median"] = float(np.percentile(r, 99) / np.median(r))
     return out
+
+
+def _closed_loop(
+    controller, q0: np.ndarray, steps: int, count: int, ref_times: list, diag: dict
+) -> tuple[list[float], np.ndarray]:
+    """One kinematic closed loop of ``steps`` steps from ``q0`` (the controller reset): each
+    step's wall time [s] and the last state; the reference workload of ``count`` products
+    after each step (its times to ``ref_times``), each step's diagnostics to ``diag``."""
+    q = np.array(q0, dtype=float)
+    controller.reset(q)
+    run = []
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        res = controller.step(q)
+        run.append(time.perf_counter() - t0)
+        if count:
+            t0 = time.perf_counter()
+            _reference_work(count)
+            ref_times.append(time.perf_counter() - t0)
+        d = res.diagnostics
+        diag["solve"].append(d.solve_time_s)
+        diag["levels"].append(d.levels_time_s)
+        diag["iters"].append(d.iterations)
+        diag["rounds"].append(d.linearisations)
+        q = q + controller.period_s * res.qd_command
+        if controller.done:
+            controller.reset(q)
+    return run, q
 
 
 def bench_controllers(
@@ -328,19 +350,22 @@ def bench_path_following(
     iterations and linearise-and-solve rounds per step, against p on the LBR4p and at
     p = 10 against the joint count (:func:`long_chain_urdf` chains). At p = 10 (the
     target) the ``repeats`` closed loops of ``steps`` steps also give the host's floor
-    and the code's own p99/median (:func:`step_times`); the other figures take one
-    loop."""
+    and the code's own p99/median (:func:`step_times`), and one more loop the median
+    without one BLAS thread held over the loop; the other figures take one loop."""
     robot = load_lbr4p()
     keys = (
         "median_us", "p99_us", "p99_over_median", "solver_median_us", "levels_median_us",
         "iterations_median", "linearisations_mean", "linearisations_max",
     )  # fmt: skip
-    extra = ("reference_p99_over_median", "own_p99_over_median")
+    extra = ("reference_p99_over_median", "own_p99_over_median", "unheld_median_us")
     by_p = {}
     for p in ps:
         ctrl = _make(f"pf{p}", robot, Circle(2.0), period_s, None)
         target = p == 10
         res = step_times(ctrl, LBR4P_Q0, steps, repeats if target else 1, reference=target)
+        if target:  # each step switching the BLAS libraries itself, as a bare step() call does
+            unheld = step_times(ctrl, LBR4P_Q0, steps, 1, reference=False, held=False)
+            res["unheld_median_us"] = unheld["median_us"]
         by_p[p] = {k: res[k] for k in keys + extra if k in res}
     by_n = {}
     for n in joints:
@@ -395,17 +420,18 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
         )
         q = LBR4P_Q0.copy()
         ctrl.reset(q)
-        for _ in range(steps):
-            before, before_closed = model.query_count, model.closed_form_count
-            res = ctrl.step(q)
-            queries.append(model.query_count - before)
-            closed.append(model.closed_form_count - before_closed)
-            step_times_s.append(res.diagnostics.step_time_s)
-            rows.append(limit.last_rows)
-            influence.append(limit.pairs_in_influence)
-            q = q + period_s * res.qd_command
-            if ctrl.done:
-                ctrl.reset(q)
+        with single_blas_thread():  # as the control loop holds it
+            for _ in range(steps):
+                before, before_closed = model.query_count, model.closed_form_count
+                res = ctrl.step(q)
+                queries.append(model.query_count - before)
+                closed.append(model.closed_form_count - before_closed)
+                step_times_s.append(res.diagnostics.step_time_s)
+                rows.append(limit.last_rows)
+                influence.append(limit.pairs_in_influence)
+                q = q + period_s * res.qd_command
+                if ctrl.done:
+                    ctrl.reset(q)
         plain = build_controller(name, robot, Circle(2.0), period_s, shared=shared)
         without = step_times(plain, LBR4P_Q0, steps, 1, reference=False)["median_us"]
         out[name] = {
@@ -547,14 +573,15 @@ def _local_loop_step_times(controller, q0: np.ndarray):
     def run(k: int) -> list[float]:
         times = []
         q = state["q"]
-        for _ in range(k):
-            t0 = time.perf_counter()
-            res = controller.step(q)
-            times.append(time.perf_counter() - t0)
-            q = q + controller.period_s * res.qd_command
-            if controller.done:
-                q = np.array(q0, dtype=float)
-                controller.reset(q)
+        with single_blas_thread():  # as the control loop holds it
+            for _ in range(k):
+                t0 = time.perf_counter()
+                res = controller.step(q)
+                times.append(time.perf_counter() - t0)
+                q = q + controller.period_s * res.qd_command
+                if controller.done:
+                    q = np.array(q0, dtype=float)
+                    controller.reset(q)
         state["q"] = q
         return times
 
@@ -899,6 +926,11 @@ def _path_following_lines(pf: dict | None) -> list[str]:
                 f"    p99/median {v['p99_over_median']:.2f} (host floor "
                 f"{v['reference_p99_over_median']:.2f}"
                 + (f", the code's own {own:.2f})" if own is not None else ")")
+            )
+        if "unheld_median_us" in v:
+            lines.append(
+                f"    median {v['unheld_median_us']:.0f} with each step switching the BLAS "
+                "libraries to one thread and back (no loop holding it)"
             )
     lines.append("path-following p = 10 against the number of joints [µs]: median (solver)")
     lines.append(

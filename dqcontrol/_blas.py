@@ -9,6 +9,15 @@ an OpenBLAS without OpenMP is then switched through its own ``openblas_get/set_n
 (under a microsecond, where ``threadpoolctl``'s generic calls take a few), any other library
 through ``threadpoolctl``. The setting is the process's: BLAS calls from other threads during a
 step run on one thread too.
+
+Switching the libraries and back is a few foreign calls, cheap alone but a measurable share
+of a 1 kHz step once its caches are cold (docs/performance.md). A loop of steps therefore
+holds the context for its whole length (:func:`~dqcontrol.sim.run_loop` does): every step's
+own use is then nested and only counts. A caller with its own loop can do the same::
+
+    with single_blas_thread():
+        for q in measurements:
+            controller.step(q)
 """
 
 from __future__ import annotations
@@ -99,5 +108,8 @@ _SINGLE = _SingleThread()
 
 
 def single_blas_thread() -> AbstractContextManager[None]:
-    """Run the ``with`` block with one BLAS thread."""
+    """Run the ``with`` block with one BLAS thread in every BLAS library loaded (NumPy's,
+    SciPy's), the previous counts restored on leaving; a nested use only counts. Every
+    controller step runs in it; hold it over a loop of steps so that the steps do not switch
+    the libraries one by one (the module's docstring)."""
     return _SINGLE

@@ -82,3 +82,25 @@ def test_another_thread_inside_keeps_one_thread_until_it_leaves():
         leave.set()
         worker.join(10.0)
     assert _blas_threads() == before
+
+
+def test_the_control_loop_holds_one_thread_between_its_steps(lbr4p):
+    """Between two steps of :func:`run_loop` the libraries stay at one thread (a step does
+    not switch them itself), and the loop restores the counts it found."""
+    from threadpoolctl import threadpool_limits
+
+    from dqcontrol.controllers import LocalController
+    from dqcontrol.model import LBR4P_Q0
+    from dqcontrol.sim import KinematicDriver, run_loop
+    from dqcontrol.trajectories import Circle
+
+    seen = []
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        assert before == [2] * len(before)
+        ctrl = LocalController(lbr4p, Circle(0.1), 0.01)
+        run_loop(ctrl, KinematicDriver(lbr4p, 0.01), q0=LBR4P_Q0,
+                 on_sample=lambda k, driver, result: seen.append(_blas_threads()))  # fmt: skip
+        after = _blas_threads()
+    assert len(seen) >= 10 and all(counts == [1] * len(before) for counts in seen)
+    assert after == before

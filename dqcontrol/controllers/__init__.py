@@ -3,6 +3,7 @@ composable QP core they are built on (docs/theory.md §7): the contracts of a te
 a priority level and the problem built at each step, and :class:`QPController`, which runs
 any composition of them."""
 
+from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult
 from dqcontrol.controllers.bounds import Box, command_box, safe_command, velocity_position_box
 from dqcontrol.controllers.context import StepContext
@@ -56,5 +57,6 @@ __all__ = [
     "integration_matrix",
     "prediction_instants",
     "safe_command",
+    "single_blas_thread",
     "velocity_position_box",
 ]

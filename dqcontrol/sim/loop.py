@@ -12,11 +12,13 @@ that the compiled kernels are loaded before the clock starts.
 
 In wall-clock mode each sample starts on the grid ``start + k T`` (a sleep, then a short
 poll of the clock) and its deadline is the end of its period; the garbage collector sees
-only the run's own objects. A watchdog ends the run on a stale measurement (no newer sample
-for ``stale_periods`` periods), a missed deadline (wall-clock mode), the end of the task or
-the time limit, or Ctrl-C; with ``brake=True`` it then brings the command to zero within
-the controller's acceleration limit (``|Δu| ≤ a_max T`` per period) and holds. Braking
-happens after the last logged sample: the log and the metrics are those of the task.
+only the run's own objects. The loop holds one BLAS thread for its whole length
+(:func:`~dqcontrol.controllers.single_blas_thread`), so that no step switches the libraries
+itself. A watchdog ends the run on a stale measurement (no newer sample for
+``stale_periods`` periods), a missed deadline (wall-clock mode), the end of the task or the
+time limit, or Ctrl-C; with ``brake=True`` it then brings the command to zero within the
+controller's acceleration limit (``|Δu| ≤ a_max T`` per period) and holds. Braking happens
+after the last logged sample: the log and the metrics are those of the task.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.base import Controller, StepResult, check_positive
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
@@ -223,7 +226,7 @@ def run_loop(
     rec = LogRecorder(robot.nq, _run_info(driver, controller, order.names, q, warm_up, meta))
     clock = _Clock(period, bool(realtime))
     run = _Samples(controller, driver, order, rec, clock, meas)
-    with _young_gc_only(clock.realtime):
+    with _young_gc_only(clock.realtime), single_blas_thread():
         clock.restart()
         run.loop(num, stale_periods, on_sample, on_progress)
     stop = _stop_and_brake(run, brake)
