@@ -350,22 +350,21 @@ def bench_path_following(
     iterations and linearise-and-solve rounds per step, against p on the LBR4p and at
     p = 10 against the joint count (:func:`long_chain_urdf` chains). At p = 10 (the
     target) the ``repeats`` closed loops of ``steps`` steps also give the host's floor
-    and the code's own p99/median (:func:`step_times`), and one more loop the median
-    without one BLAS thread held over the loop; the other figures take one loop."""
+    and the code's own p99/median (:func:`step_times`), and :func:`held_against_unheld`
+    the gain of holding one BLAS thread over the loop; the other figures take one loop."""
     robot = load_lbr4p()
     keys = (
         "median_us", "p99_us", "p99_over_median", "solver_median_us", "levels_median_us",
         "iterations_median", "linearisations_mean", "linearisations_max",
     )  # fmt: skip
-    extra = ("reference_p99_over_median", "own_p99_over_median", "unheld_median_us")
+    extra = ("reference_p99_over_median", "own_p99_over_median", "held_over_unheld")
     by_p = {}
     for p in ps:
         ctrl = _make(f"pf{p}", robot, Circle(2.0), period_s, None)
         target = p == 10
         res = step_times(ctrl, LBR4P_Q0, steps, repeats if target else 1, reference=target)
-        if target:  # each step switching the BLAS libraries itself, as a bare step() call does
-            unheld = step_times(ctrl, LBR4P_Q0, steps, 1, reference=False, held=False)
-            res["unheld_median_us"] = unheld["median_us"]
+        if target:
+            res.update(held_against_unheld(robot, period_s, 3 * steps))
         by_p[p] = {k: res[k] for k in keys + extra if k in res}
     by_n = {}
     for n in joints:
@@ -375,6 +374,25 @@ def bench_path_following(
         res = step_times(ctrl, q0, max(steps // 10, 20), 1, reference=False)
         by_n[n] = {k: res[k] for k in keys}
     return {"by_p": by_p, "by_joints_p10": by_n, "fit_p": _power_fit(by_p)}
+
+
+def held_against_unheld(robot: RobotModel, period_s: float, steps: int, block: int = 100) -> dict:
+    """The path-following step (p = 10) with one BLAS thread held over the loop against the
+    same step switching the libraries itself, interleaved: two identical controllers run
+    the same closed loop in alternating blocks of ``block`` steps (``steps`` each, after a
+    block of warm-up); the median over the block pairs of the ratio of their medians."""
+    loops = [
+        _local_loop_step_times(_make("pf10", robot, Circle(2.0), period_s, None), LBR4P_Q0, held)
+        for held in (True, False)
+    ]
+    for run in loops:
+        run(block)
+    ratios = []
+    for k in range(max(steps // block, 2)):
+        order = (0, 1) if k % 2 == 0 else (1, 0)
+        medians = {i: float(np.median(loops[i](block))) for i in order}
+        ratios.append(medians[0] / medians[1])
+    return {"held_over_unheld": float(np.median(ratios))}
 
 
 def _cell_obstacles(robot: RobotModel) -> tuple:
@@ -565,15 +583,16 @@ def _dqr_peers() -> dict | None:
     }
 
 
-def _local_loop_step_times(controller, q0: np.ndarray):
-    """A function timing the next ``k`` steps of a closed kinematic loop [s each]."""
+def _local_loop_step_times(controller, q0: np.ndarray, held: bool = True):
+    """A function timing the next ``k`` steps of a closed kinematic loop [s each], holding one
+    BLAS thread over them as the control loop does (``held``)."""
     state = {"q": np.array(q0, dtype=float)}
     controller.reset(state["q"])
 
     def run(k: int) -> list[float]:
         times = []
         q = state["q"]
-        with single_blas_thread():  # as the control loop holds it
+        with single_blas_thread() if held else contextlib.nullcontext():
             for _ in range(k):
                 t0 = time.perf_counter()
                 res = controller.step(q)
@@ -927,10 +946,10 @@ def _path_following_lines(pf: dict | None) -> list[str]:
                 f"{v['reference_p99_over_median']:.2f}"
                 + (f", the code's own {own:.2f})" if own is not None else ")")
             )
-        if "unheld_median_us" in v:
+        if "held_over_unheld" in v:
             lines.append(
-                f"    median {v['unheld_median_us']:.0f} with each step switching the BLAS "
-                "libraries to one thread and back (no loop holding it)"
+                f"    one BLAS thread held over the loop / each step switching it itself: "
+                f"{v['held_over_unheld']:.3f} (interleaved)"
             )
     lines.append("path-following p = 10 against the number of joints [µs]: median (solver)")
     lines.append(
