@@ -173,6 +173,9 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     """Solve the levels in order, each holding the ones above (see the module docstring),
     with one BLAS thread (:func:`~dqcontrol._blas.single_blas_thread`)."""
     start = time.perf_counter()
+    name_rows = getattr(backend, "set_general_rows", None)
+    if name_rows is not None:  # a warm start kept for other rows is carried to these by name
+        name_rows(problem.layout.num_vars, problem.inequalities)
     with single_blas_thread():
         result = _solve_levels(problem, backend)
     return LevelsResult(

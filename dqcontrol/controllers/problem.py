@@ -228,12 +228,19 @@ class Bounds(NamedTuple):
 
 
 class Inequality(NamedTuple):
-    """General rows ``lower ≤ C z ≤ upper`` from one limit (``C`` dense)."""
+    """General rows ``lower ≤ C z ≤ upper`` from one limit (``C`` dense).
+
+    ``keys`` names each row within the limit (integers, the same for the same row at every
+    step: a collision pair at a predicted state, say) where the limit's rows come and go;
+    a backend then carries its warm start to the rows that stay (docs/theory.md §7.5).
+    ``None``: the rows are named by their order, for a limit whose rows keep their places.
+    """
 
     name: str
     C: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    keys: np.ndarray | None = None
 
 
 class Term(ABC):

@@ -31,12 +31,13 @@ from scipy.linalg import lapack
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
+from dqcontrol.controllers.backends.row_identity import carried_set
 from dqcontrol.controllers.backends.state_factor import state_factor
 from dqcontrol.controllers.backends.warm_levels import warm_levels
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.level_objective import dense_hessian
-from dqcontrol.controllers.problem import DenseQP, Solution, SplitQP, WarmLevels
+from dqcontrol.controllers.problem import DenseQP, Inequality, Solution, SplitQP, WarmLevels
 from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
 from dqcontrol.controllers.reduced import LevelRows, ReducedQP
 from dqcontrol.errors import ParameterError
@@ -110,6 +111,8 @@ class DaqpBackend:
         self._copies: dict = {}
         self._recent: dict = {}  # level -> the key ``(level, dim)`` it was last solved with
         self._kernel_settings: tuple = (None, np.zeros(0))
+        self._rows: tuple[Inequality, ...] | None = None  # the present problem's general rows
+        self._num_vars = 0  # and its number of variables
 
     def reset(self) -> None:
         """Forget every level's workspace and active set."""
@@ -119,6 +122,29 @@ class DaqpBackend:
         self._reduced.clear()
         self._copies.clear()
         self._recent.clear()
+        self._rows = None
+
+    def set_general_rows(self, num_vars: int, inequalities: tuple[Inequality, ...]) -> None:
+        """Name the rows of the problem whose levels are solved next: its ``num_vars``
+        variables and its limits' inequalities, in order. An active set kept for other
+        general rows is then carried to these by name
+        (:func:`~dqcontrol.controllers.backends.row_identity.carried_set`) instead of
+        by index."""
+        self._num_vars, self._rows = int(num_vars), inequalities
+
+    def _on_rows(self, entry: tuple, extra: int, total: int) -> tuple | None:
+        """``entry`` (a kept set with its QP's shape) for a QP of ``total`` rows: as it is
+        where the count is the same, else carried by name to the present problem's rows
+        (``extra``: rows before its ``[I; C]``, a reduced level's own variables); ``None``
+        where it cannot be."""
+        if entry[0][0] == total:
+            return entry
+        before, now = entry[3], self._rows
+        first_general = extra + self._num_vars
+        if before is None or now is None or first_general + _count(now) != total:
+            return None  # rows not named, or named for another QP
+        active, at_upper = carried_set(entry[1], entry[2], first_general, before, now)
+        return ((total, entry[0][1]), active, at_upper, now)
 
     def solve_warm_levels(
         self, first: SplitQP, held: np.ndarray, lower: tuple[LevelRows, ...]
@@ -161,7 +187,7 @@ class DaqpBackend:
                 key = 0 if k == 0 else (k, dim)
                 shape = (rows, nv) if k == 0 else (dim + rows, dim)
                 end = offset + size
-                self._active[key] = (shape, kept[offset:end], kept_upper[offset:end])
+                self._active[key] = (shape, kept[offset:end], kept_upper[offset:end], self._rows)
                 self._recent[k] = key
             offset += size
             solutions.append(
@@ -177,15 +203,15 @@ class DaqpBackend:
         """The last active sets of the first level (entry ``first``) and of the ``lower``
         levels below it (the key each was last solved with), their ``at_upper`` flags,
         and the number of variables each lower set was for (``-1``: none for ``rows``
-        rows)."""
-        active, at_upper = first[1], first[2]
-        if first[0][0] != rows:  # a limit's row count changed: the rows that exist
-            keep = active < rows
-            active, at_upper = active[keep], at_upper[keep]
+        rows). Sets kept for other rows are carried to these (:meth:`_on_rows`); the first
+        level's, where that cannot be, keeps the rows that still exist."""
+        active, at_upper = _on_existing_rows(self._on_rows(first, 0, rows) or first, rows)
         actives, uppers, dims = [active], [at_upper], [-1] * lower
         stored, recent = self._active, self._recent
         for k in range(1, lower + 1):
             entry = stored.get(recent.get(k))
+            if entry is not None and entry[0][0] - entry[0][1] != rows:  # a limit's rows changed
+                entry = self._on_rows(entry, entry[0][1], entry[0][1] + rows)
             if entry is not None and entry[0][0] - entry[0][1] == rows:
                 actives.append(entry[1])
                 uppers.append(entry[2])
@@ -218,6 +244,8 @@ class DaqpBackend:
         if isinstance(key, tuple):
             self._recent[key[0]] = key
         entry = self._active.get(key) if self.reuse_active_set else None
+        if entry is not None and entry[0][1] == dim and entry[0][0] != size:
+            entry = self._on_rows(entry, dim, size)  # a limit's rows changed
         if entry is None or entry[0] != (size, dim) or dim > SMALL_FACTOR:
             objective = qp.objective()
             return self.solve(key, qp.dense(objective)), objective.held
@@ -232,7 +260,7 @@ class DaqpBackend:
         )  # fmt: skip
         held = rows[: qp.rows.held, :-1].copy()
         if status == SOLVED and np.isfinite(y).all():
-            self._active[key] = ((size, dim), active, at_upper)
+            self._active[key] = ((size, dim), active, at_upper, self._rows)
             return Solution(True, "solved", changes, _since(start), y, duals), held
         # the same guess on the same numbers would fail again: straight to DAQP
         dense = DenseQP(hessian, gradient, qp_rows.copy(), qp_lower.copy(), qp_upper.copy())
@@ -281,14 +309,14 @@ class DaqpBackend:
         """The optimum from the key's last active set (mended up to
         :data:`ACTIVE_SET_CHANGES` times), or ``None`` when it fails the KKT check (or there
         is none for this number of variables). Where a limit's row count has changed since,
-        the rows of the last set that still exist are the guess: the check decides."""
+        the last set carried to the present rows by name (:meth:`_on_rows`) is the guess,
+        else the rows of the last set that still exist: the check decides."""
         entry = self._active.get(key)
         if entry is None or entry[0][1] != qp.A.shape[1]:
             return None
-        active, at_upper = entry[1], entry[2]
-        if entry[0][0] != qp.A.shape[0]:  # a limit's row count changed: the rows that exist
-            keep = active < qp.A.shape[0]
-            active, at_upper = active[keep], at_upper[keep]
+        extra = 0 if key == 0 else qp.c.size  # a reduced level's own variables come first
+        moved = self._on_rows(entry, extra, qp.A.shape[0]) if _carries(key) else None
+        active, at_upper = _on_existing_rows(moved or entry, qp.A.shape[0])
         a = self._writable_rows(key, np.ascontiguousarray(qp.A))
         z, duals = np.empty(qp.c.size), np.empty(a.shape[0])
         status, active, at_upper, changes = solve_on_active_set(
@@ -299,7 +327,7 @@ class DaqpBackend:
         )  # fmt: skip
         if status != SOLVED or not np.isfinite(z).all():
             return None
-        self._active[key] = (qp.A.shape, active, at_upper)
+        self._active[key] = (qp.A.shape, active, at_upper, self._rows)
         return Solution(True, "solved", changes, _since(start), z, duals)
 
     def _writable_rows(self, key: object, a: np.ndarray) -> np.ndarray:
@@ -321,7 +349,7 @@ class DaqpBackend:
             self._active.pop(key, None)
             return
         active = np.flatnonzero(sol.duals)
-        self._active[key] = (qp.A.shape, active, sol.duals[active] > 0.0)
+        self._active[key] = (qp.A.shape, active, sol.duals[active] > 0.0, self._rows)
 
     def _solve_as_is(self, key: object, qp: DenseQP, start: float) -> Solution:
         nv = qp.c.size
@@ -414,6 +442,27 @@ class DaqpBackend:
 
 _NO_BLOCKS = np.zeros((0, 0, 0))
 _NO_SCALES = np.zeros((0, 0))
+
+
+def _count(inequalities: tuple[Inequality, ...]) -> int:
+    """The number of general rows of ``inequalities``."""
+    return sum(g.lower.size for g in inequalities)
+
+
+def _carries(key: object) -> bool:
+    """Whether the rows of a key's QP are the problem's ``[I; C]`` (the first level, ``0``)
+    or a reduced level's own variables and then those (``(level, dim)``); a banded level's
+    held rows come after them."""
+    return key == 0 or (isinstance(key, tuple) and isinstance(key[1], int))
+
+
+def _on_existing_rows(entry: tuple, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """The kept set of ``entry`` without the rows beyond the ``rows`` that exist."""
+    active, at_upper = entry[1], entry[2]
+    if entry[0][0] == rows:
+        return active, at_upper
+    keep = active < rows
+    return active[keep], at_upper[keep]
 
 
 def _first_factor(first: SplitQP) -> tuple | None:

@@ -24,7 +24,8 @@ point Jacobians, §10.1):
 
 The limit is inactive (no rows) while every pair is further than ``d_i``. Its rows change
 with the pairs and the configuration, so a controller's backend sets up again at every step
-with rows.
+with rows. Each row is named by its pair (and predicted state): where pairs come and go, a
+backend carries its last active set to the rows that stay (docs/theory.md §7.5).
 """
 
 from __future__ import annotations
@@ -137,7 +138,8 @@ class CollisionLimit(Limit):
         batch = self.collision.query_batch(ctx.q[None, :], self.influence_m)
         layout = ctx.layout
         rate = min(self.gain_m_per_s / (self.influence_m - self.safety_m), 1.0 / ctx.period_s)
-        c, lower, closest = damper_rows(
+        c, lower, keys, closest = damper_rows(
+            batch.pair,
             batch.distance_m,
             batch.gradient,
             self.safety_m,
@@ -145,7 +147,7 @@ class CollisionLimit(Limit):
             layout.qd_index()[0],
             layout.num_vars,
         )
-        return self._inequality(c, lower, closest)
+        return self._inequality(c, lower, keys, closest)
 
     def _predicted(self, ctx: StepContext) -> Inequality | None:
         """``∇d(q̄_i)ᵀ Σ_j W_ij q̇_j ≥ min(d_s, d(q)) - d(q̄_i) + ∇d(q̄_i)ᵀ (q̄_i - q_base,i)``
@@ -154,7 +156,7 @@ class CollisionLimit(Limit):
         pred, layout = ctx.prediction, ctx.layout
         qs = np.concatenate((ctx.q[None, :], pred.q_lin))
         batch = self.collision.query_batch(qs, self.influence_m)
-        c, lower, closest = predicted_rows(
+        c, lower, keys, closest = predicted_rows(
             batch.state,
             batch.pair,
             batch.distance_m,
@@ -167,13 +169,15 @@ class CollisionLimit(Limit):
             layout.block_size,
             layout.num_vars,
         )
-        return self._inequality(c, lower, closest)
+        return self._inequality(c, lower, keys, closest)
 
-    def _inequality(self, c: np.ndarray, lower: np.ndarray, closest_m: float) -> Inequality | None:
-        """The rows ``c z ≥ lower`` (``None`` without any), remembering the closest
-        distance [m] and the number of pairs within the influence distance."""
+    def _inequality(
+        self, c: np.ndarray, lower: np.ndarray, keys: np.ndarray, closest_m: float
+    ) -> Inequality | None:
+        """The rows ``c z ≥ lower`` named by ``keys`` (``None`` without any), remembering the
+        closest distance [m] and the number of pairs within the influence distance."""
         self.last_min_distance_m = closest_m
         self.pairs_in_influence = int(lower.size)
         if not lower.size:
             return None
-        return Inequality(self.name, c, lower, np.full(lower.size, np.inf))
+        return Inequality(self.name, c, lower, np.full(lower.size, np.inf), keys)

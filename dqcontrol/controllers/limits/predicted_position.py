@@ -65,7 +65,7 @@ class PredictedPositionLimit(Limit):
         self._c: np.ndarray | None = None
         self._terminal_key: tuple = (None, None)
         self._terminal_rows: tuple[np.ndarray, np.ndarray, np.ndarray] = (np.zeros(0),) * 3
-        self._selections: dict[str, tuple[np.ndarray, bytes, np.ndarray]] = {}
+        self._selections: dict[str, tuple[np.ndarray, bytes, tuple[np.ndarray, np.ndarray]]] = {}
         self._no_extra = np.zeros(layout.num_joints)  # the states' rows: the reach alone
 
     def widened(self, slack_rad: float) -> PredictedPositionLimit:
@@ -109,13 +109,16 @@ class PredictedPositionLimit(Limit):
             self._terminal_rows = (coeff, frozen(last), coeff * self.qd_max)
         return self._terminal_rows
 
-    def _selected(self, kind: str, c: np.ndarray, keep: np.ndarray) -> np.ndarray:
-        """``c[keep]`` (read-only), the same array while ``c`` and ``keep`` are the same."""
+    def _selected(
+        self, kind: str, c: np.ndarray, keep: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``c[keep]`` and the rows' keys (their indices in ``c``: state and joint), read-only,
+        the same arrays while ``c`` and ``keep`` are the same."""
         mask = keep.tobytes()
         last = self._selections.get(kind)
         if last is not None and last[0] is c and last[1] == mask:
             return last[2]
-        rows = frozen(c[keep])
+        rows = (frozen(c[keep]), frozen(np.flatnonzero(keep)))
         self._selections[kind] = (c, mask, rows)
         return rows
 
@@ -149,10 +152,12 @@ class PredictedPositionLimit(Limit):
         )  # fmt: skip
         out = []
         if count:
-            rows = self._selected("q", c, keep[:p].ravel())
-            out.append(Inequality(self.name, rows, lower[:count], upper[:count]))
+            rows, keys = self._selected("q", c, keep[:p].ravel())
+            out.append(Inequality(self.name, rows, lower[:count], upper[:count], keys))
         if last:
-            rows = self._selected("terminal", self._terminal(c, ctx.a_max)[1], keep[p])
+            rows, keys = self._selected("terminal", self._terminal(c, ctx.a_max)[1], keep[p])
             end = p * n + last
-            out.append(Inequality("terminal_braking", rows, lower[p * n : end], upper[p * n : end]))
+            out.append(
+                Inequality("terminal_braking", rows, lower[p * n : end], upper[p * n : end], keys)
+            )
         return tuple(out) or None
