@@ -165,7 +165,7 @@ def test_pairs_that_come_and_go_keep_the_warm_start(robot):
     """At 1 kHz, as collision pairs enter and leave the influence distance, the levels'
     last active sets are carried to the rows that stay (by the rows' names): the steps
     where the collision rows change are solved on the carried sets, without a solver's
-    iteration, where carrying them by index left DAQP 4–12 iterations a step."""
+    iteration, where carrying them by index left DAQP 4–12 iterations on most of them."""
     from dqcontrol.model.collision import Box, HalfSpace
 
     tool = robot.placement(LBR4P_Q0).translation
