@@ -22,6 +22,7 @@ from dqcontrol.controllers import (
     PredictiveNoScalingController,
 )
 from dqcontrol.controllers.limits.collision import CollisionLimit
+from dqcontrol.controllers.limits.collision_rows import predicted_rows
 from dqcontrol.controllers.path_following import PathFollowingController
 from dqcontrol.dq.algebra import dq_to_se3
 from dqcontrol.errors import ParameterError
@@ -159,6 +160,74 @@ def test_predicted_rows_linearise_the_distance(robot):
     num_states = problem.layout.num_blocks
     assert rows.keys is not None and np.unique(rows.keys).size == rows.lower.size
     assert rows.keys.min() >= cm.num_pairs and rows.keys.max() < (num_states + 1) * cm.num_pairs
+
+
+def _braked_distance(now_m, approach, braking, t_s, steps=20000):
+    """The distance at ``t_s`` of a pair closing at ``approach`` [m/s] whose closing rate is
+    braked at ``braking`` [m/s²] until it stops, integrated in small steps."""
+    dt = t_s / steps
+    d, v = now_m, approach
+    for _ in range(steps):
+        v_next = max(v - braking * dt, 0.0)
+        d -= 0.5 * (v + v_next) * dt
+        v = v_next
+    return d
+
+
+@pytest.mark.parametrize("now_m", [0.05, 0.021, 0.015])
+def test_predicted_floors_allow_only_the_approach_braking_cannot_avoid(now_m):
+    """A pair at ``d(q)`` closing at 0.4 m/s: each state's floor is the safety distance, or
+    where braking at the full bound (``Σ |∇d_k| a_k``) cannot keep the pair out, the
+    distance braking reaches by that state's time; a pair not closing keeps
+    ``min(d_s, d(q))``."""
+    n, p, num_pairs = 3, 4, 2
+    gradient_now = np.array([0.2, -0.1, 0.3])
+    qd = np.array([-1.0, 0.5, -0.5])  # closing rate -∇dᵀ q̇ = 0.2 + 0.05 + 0.15 = 0.4 m/s
+    a_max = np.array([2.0, 4.0, 1.0])  # braking Σ |∇d_k| a_k = 0.4 + 0.4 + 0.3 = 1.1 m/s²
+    times = np.array([0.001, 0.1, 0.3, 1.0])
+    state = np.array([0, 1, 2, 3, 4, 0, 4])
+    pair = np.array([0, 0, 0, 0, 0, 1, 1])
+    distance = np.array([now_m, 0.04, 0.04, 0.04, 0.04, 0.015, 0.03])
+    gradient = np.vstack([gradient_now] + [gradient_now] * 4 + [-gradient_now] * 2)
+    weights = np.tril(np.ones((p, p))) * 0.1
+    q_lin = np.zeros((p, n))
+    c, lower, keys, closest = predicted_rows(
+        state, pair, distance, gradient, (weights, q_lin, q_lin.copy(), times),
+        (qd, a_max, 1.0), SAFETY_M, num_pairs, n + 1, p * (n + 1),
+    )  # fmt: skip
+    floors = lower[:4] + 0.04  # the offset is zero: q̄ = q_base
+    expected = [min(SAFETY_M, _braked_distance(now_m, 0.4, 1.1, t)) for t in times]
+    np.testing.assert_allclose(floors, expected, rtol=0, atol=1e-9)
+    if now_m - 0.4**2 / 2.2 >= SAFETY_M:  # braking stops the pair before d_s: d_s itself
+        assert np.all(floors == SAFETY_M)
+    else:
+        assert floors[-1] < SAFETY_M
+    # the second pair moves away (rate -0.4 m/s): it may not come closer than it is
+    assert lower[4] + 0.03 == pytest.approx(min(SAFETY_M, 0.015))
+    assert closest == min(now_m, 0.015) and keys.tolist()[:4] == [2, 4, 6, 8]
+
+
+def test_closing_faster_than_braking_allows_keeps_the_qp_feasible(robot):
+    """At 1 kHz under the thesis's 10 rad/s² the elbow closes on a ball faster than it can
+    brake before the safety distance: the floors give way by the approach braking cannot
+    avoid, so no step's QP fails (asking for ``d_s`` made 107 of 2500 steps fall back to
+    braking blind, and the elbow came to 18.2 mm) and the pair stays within tolerance."""
+    ball = Sphere(name="ball", position_m=(0.2245, -0.2559, 0.9519), radius_m=0.05)
+    cm = CollisionModel(robot, (ball,))
+    ctrl = PathFollowingController(
+        robot, Circle(2.0), 0.001, velocity_limits=THESIS_VEL, acceleration_limit=10.0,
+        extra_limits=(CollisionLimit(cm),),
+    )  # fmt: skip
+    q = LBR4P_Q0.copy()
+    ctrl.reset(q)
+    fallbacks, d_min = 0, np.inf
+    for _ in range(1100):  # the first fall-back asking for d_s came at step 970
+        res = ctrl.step(q)
+        fallbacks += int(res.diagnostics.fallback)
+        q = q + 0.001 * res.qd_command
+        d_min = min(d_min, cm.min_distance(q))
+    assert fallbacks == 0
+    assert SAFETY_M - TOLERANCE_M <= d_min < SAFETY_M + 0.005  # the pair did come close
 
 
 def test_pairs_that_come_and_go_keep_the_warm_start(robot):

@@ -1,5 +1,4 @@
-"""Collision avoidance as a limit: self-collision and obstacles (docs/theory.md §10,
-docs/theory.md §10).
+"""Collision avoidance as a limit: self-collision and obstacles (docs/theory.md §10).
 
 For every pair of a :class:`~dqcontrol.model.collision.CollisionModel` closer than the
 influence distance ``d_i``, with distance ``d`` and gradient ``∇d`` (witness points, normal and
@@ -17,10 +16,13 @@ point Jacobians, §10.1):
   controller, ``q_i(z) = q_base,i + Σ_j W_ij q̇_j``): the distance linearised at each predicted
   state's linearisation point ``q̄_i`` (§10.3),
 
-      d(q̄_i) + ∇d(q̄_i)ᵀ (q_i(z) - q̄_i) ≥ min(d_s, d(q)),
+      d(q̄_i) + ∇d(q̄_i)ᵀ (q_i(z) - q̄_i) ≥ min(d_s, d(q) - u_i),
 
-  where ``d(q)`` is the pair's distance at the measured state (a pair already inside the
-  safety distance may not come closer, rather than being asked to jump out).
+  where ``d(q)`` is the pair's distance at the measured state and ``u_i`` the approach the
+  pair cannot avoid by state ``i``'s time when it is closing now, braking at a share of the
+  acceleration bound (a pair already inside the safety distance, or closing on it faster
+  than the bound can stop, may not come closer than braking brings it, rather than being
+  asked for what no command reaches).
 
 The limit is inactive (no rows) while every pair is further than ``d_i``. Its rows change
 with the pairs and the configuration, so a controller's backend sets up again at every step
@@ -46,6 +48,10 @@ __all__ = ["CollisionLimit"]
 INFLUENCE_RANGE_M = (1e-3, 1.0)
 SAFETY_RANGE_M = (0.0, 0.5)
 GAIN_RANGE_M_PER_S = (1e-3, 10.0)
+#: Share of the acceleration bound the predicted rows count on to brake a pair's approach
+#: (docs/theory.md §10.3): all of it, so that a floor drops below the safety distance only
+#: where no command within the bound could have kept the pair out.
+BRAKING_SHARE = 1.0
 
 
 def _in_range(name: str, value, bounds: tuple[float, float], unit: str) -> float:
@@ -156,14 +162,14 @@ class CollisionLimit(Limit):
         pred, layout = ctx.prediction, ctx.layout
         qs = np.concatenate((ctx.q[None, :], pred.q_lin))
         batch = self.collision.query_batch(qs, self.influence_m)
+        times_s = layout.instants_s + layout.durations_s  # each predicted state's time
         c, lower, keys, closest = predicted_rows(
             batch.state,
             batch.pair,
             batch.distance_m,
             batch.gradient,
-            pred.weights,
-            pred.q_lin,
-            pred.q_base,
+            (pred.weights, pred.q_lin, pred.q_base, times_s),
+            (ctx.qd_prev, np.ascontiguousarray(ctx.a_max[0]), BRAKING_SHARE),
             self.safety_m,
             self.collision.num_pairs,
             layout.block_size,
