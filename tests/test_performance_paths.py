@@ -149,6 +149,10 @@ def test_quick_bench_writes_every_figure(tmp_path):
     for key in ("path_following_p10", "path_following_step_over_solve"):
         assert data["targets"][key]["value"] > 0.0
     assert data["scaling"]["by_p"] and data["scaling"]["by_joints_p10"]
+    whole = data["collision"]["pf10_whole_circle"]  # the quick run: its first 20 steps
+    assert whole["steps"] == 20 and not whole["completed"] and whole["fallbacks"] == 0
+    assert whole["step_median_us"] <= whole["step_p99_us"] and 0.0 <= whole["over_period_share"]
+    assert whole["closest_mm"] is None or whole["closest_mm"] > 20.0  # still far from the ball
     for v in data["agreement"].values():
         assert v["max_abs_qd_diff"] < 1e-8  # accuracy, not time: the backends agree
     assert res["targets"].keys() == data["targets"].keys()
