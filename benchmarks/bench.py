@@ -560,6 +560,33 @@ def bench_kinematics(number: int = 2000, repeat: int = 9) -> dict:
     }
 
 
+def _dqr_classic(arm, quadprog, solver_base, controller_class, objective) -> tuple:
+    """``(solver, controller)``: DQ Robotics's ``DQ_ClassicQPController`` on ``arm`` with
+    quadprog as its solver (gain 10, damping 1e-3, the pose, the thesis's velocity
+    bounds)."""
+
+    class QuadprogSolver(solver_base):
+        def __init__(self) -> None:
+            solver_base.__init__(self)
+
+        def solve_quadratic_program(self, h, f, a, b, aeq, beq):
+            h = 0.5 * (h + h.T) + 1e-12 * np.eye(h.shape[0])
+            f, b = np.ravel(f), np.ravel(b)
+            if a.size:
+                return quadprog.solve_qp(h, -f, -a.T, -b)[0]
+            return quadprog.solve_qp(h, -f)[0]
+
+    solver = QuadprogSolver()
+    ctrl = controller_class(arm, solver)
+    ctrl.set_gain(10.0)
+    ctrl.set_damping(1e-3)
+    ctrl.set_control_objective(objective.Pose)
+    ctrl.set_inequality_constraint(
+        np.vstack([np.eye(7), -np.eye(7)]), np.concatenate([THESIS_VEL, THESIS_VEL])
+    )
+    return solver, ctrl
+
+
 def _dqr_peers() -> dict | None:
     """DQ Robotics's calls on the LBR4p (the thesis's DH table), or ``None`` if missing.
 
@@ -579,24 +606,8 @@ def _dqr_peers() -> dict | None:
     arm.set_base_frame(base)
     arm.set_reference_frame(base)
 
-    class QuadprogSolver(DQ_QuadraticProgrammingSolver):
-        def __init__(self) -> None:
-            DQ_QuadraticProgrammingSolver.__init__(self)
-
-        def solve_quadratic_program(self, h, f, a, b, aeq, beq):
-            h = 0.5 * (h + h.T) + 1e-12 * np.eye(h.shape[0])
-            f, b = np.ravel(f), np.ravel(b)
-            if a.size:
-                return quadprog.solve_qp(h, -f, -a.T, -b)[0]
-            return quadprog.solve_qp(h, -f)[0]
-
-    solver = QuadprogSolver()
-    ctrl = DQ_ClassicQPController(arm, solver)
-    ctrl.set_gain(10.0)
-    ctrl.set_damping(1e-3)
-    ctrl.set_control_objective(ControlObjective.Pose)
-    ctrl.set_inequality_constraint(
-        np.vstack([np.eye(7), -np.eye(7)]), np.concatenate([THESIS_VEL, THESIS_VEL])
+    solver, ctrl = _dqr_classic(
+        arm, quadprog, DQ_QuadraticProgrammingSolver, DQ_ClassicQPController, ControlObjective
     )
     q, qs = _kinematics_inputs()
     target = (arm.fkm(q) * (1 + E_ * 0.5 * 0.01 * k_)).vec8()
@@ -827,6 +838,17 @@ def _fmt(value, unit: str) -> str:
 
 def format_report(res: dict) -> str:
     """Human-readable report of :func:`run_all`'s figures."""
+    lines = _header_lines(res) + _target_lines(res["targets"])
+    lines += _controller_lines(res) + _agreement_lines(res["agreement"])
+    lines += _kinematics_lines(res) + _mujoco_lines(res["mujoco"])
+    lines += _scaling_lines(res["scaling"])
+    lines += _path_following_lines(res.get("path_following"))
+    lines += _collision_lines(res.get("collision"))
+    return "\n".join(lines)
+
+
+def _header_lines(res: dict) -> list[str]:
+    """The machine and the packages."""
     m = res["machine"]
     pk = ", ".join(f"{k} {v}" for k, v in m["packages"].items() if v)
     lines = [
@@ -835,8 +857,14 @@ def format_report(res: dict) -> str:
     ]
     if res.get("quick"):
         lines.append("QUICK MODE: few steps, indicative figures only")
-    lines += ["", "targets"]
-    for t in res["targets"].values():
+    return lines
+
+
+def _target_lines(targets: dict) -> list[str]:
+    """Each target, its figure and whether it is met, with the host's floor and the
+    code's own variation where measured."""
+    lines = ["", "targets"]
+    for t in targets.values():
         unit = t["target"].split()[-1]
         state = {True: "met", False: "NOT MET", None: "not measured"}[t["met"]]
         lines.append(
@@ -852,8 +880,13 @@ def format_report(res: dict) -> str:
                 f"    (each step's fastest of the identical runs, the code's own variation: "
                 f"{t['own_work']:.2f} ×)"
             )
+    return lines
+
+
+def _controller_lines(res: dict) -> list[str]:
+    """The step-time table of the controllers on both backends."""
     period_ms = res["period_s"] * 1e3
-    lines += [
+    lines = [
         "",
         f"control step, LBR4p, circle T_tot = 2 s, T = {period_ms:g} ms (default backend: "
         f"{res['default_solver']})",
@@ -875,45 +908,62 @@ def format_report(res: dict) -> str:
     lines.append(
         "  own: p99/median of each step's fastest time over the identical runs (same work)"
     )
-    lines += ["", "backends agree (max over a run, DAQP vs OSQP + refinement)"]
-    for k, v in res["agreement"].items():
+    return lines
+
+
+def _agreement_lines(agreement: dict) -> list[str]:
+    """The largest differences between the DAQP and the OSQP backend."""
+    lines = ["", "backends agree (max over a run, DAQP vs OSQP + refinement)"]
+    for k, v in agreement.items():
         lines.append(
             f"  {k:16s} |Δqd| {v['max_abs_qd_diff']:.1e} rad/s   |Δs| {v['max_abs_s_diff']:.1e}"
         )
+    return lines
+
+
+def _kinematics_lines(res: dict) -> list[str]:
+    """The kinematics' times and the ratios against DQ Robotics, where installed."""
     kin = res["kinematics"]
-    lines += ["", "kinematics (pose + pose Jacobian, LBR4p) [µs, median]"]
+    lines = ["", "kinematics (pose + pose Jacobian, LBR4p) [µs, median]"]
     lines.append(f"  ours single {kin['single_us']:.1f}, batch of 10 {kin['batch10_us']:.1f}")
     peers = res.get("dqrobotics")
-    if peers:
-        lines.append(
-            f"  DQ Robotics {peers['version']}: "
-            f"fkm + pose_jacobian {peers['fkm_pose_jacobian_us']:.1f}, "
-            f"ten of them {peers['ten_fkm_pose_jacobian_us']:.1f}; "
-            f"DQ_ClassicQPController step {peers['classic_qp_step_us']:.1f}"
-        )
-        r = res["ratios"]
-        lines.append(
-            f"  ours in the same rounds: single {peers['ours_single_us']:.1f}, batch of 10 "
-            f"{peers['ours_batch10_us']:.1f}, local step {peers['ours_local_step_us']:.1f}"
-        )
-        lines.append(
-            f"  ratios (median of {peers['rounds']} interleaved rounds): single kinematics "
-            f"{r['single_kinematics_vs_dqr']:.2f}×, batch of 10 vs ten DQR calls "
-            f"{r['batch10_vs_10x_dqr']:.2f}×, local step vs ClassicQP step "
-            f"{r['local_step_vs_dqr_classic_qp']:.2f}×"
-        )
-    else:
-        lines.append("  DQ Robotics not installed: no peer ratios (pip install dqrobotics)")
-    mj = res["mujoco"]
-    lines += [
+    if not peers:
+        return lines + ["  DQ Robotics not installed: no peer ratios (pip install dqrobotics)"]
+    lines.append(
+        f"  DQ Robotics {peers['version']}: "
+        f"fkm + pose_jacobian {peers['fkm_pose_jacobian_us']:.1f}, "
+        f"ten of them {peers['ten_fkm_pose_jacobian_us']:.1f}; "
+        f"DQ_ClassicQPController step {peers['classic_qp_step_us']:.1f}"
+    )
+    r = res["ratios"]
+    lines.append(
+        f"  ours in the same rounds: single {peers['ours_single_us']:.1f}, batch of 10 "
+        f"{peers['ours_batch10_us']:.1f}, local step {peers['ours_local_step_us']:.1f}"
+    )
+    lines.append(
+        f"  ratios (median of {peers['rounds']} interleaved rounds): single kinematics "
+        f"{r['single_kinematics_vs_dqr']:.2f}×, batch of 10 vs ten DQR calls "
+        f"{r['batch10_vs_10x_dqr']:.2f}×, local step vs ClassicQP step "
+        f"{r['local_step_vs_dqr_classic_qp']:.2f}×"
+    )
+    return lines
+
+
+def _mujoco_lines(mj: dict) -> list[str]:
+    """The MuJoCo closed loop's real-time factor."""
+    return [
         "",
         f"MuJoCo closed loop, predictive p = 10, T = {mj['period_s'] * 1e3:g} ms, "
         f"{mj['circle_s']:g} s circle: {mj['simulated_s']:.2f} s simulated in "
         f"{mj['wall_s']:.2f} s wall (real-time factor {mj['realtime_factor']:.2f}"
         f"{'' if mj['completed'] else ', circle NOT completed'})",
     ]
-    sc = res["scaling"]
-    lines += ["", f"predictive step against p (LBR4p, {sc['solver']}) [µs]: median (solver)"]
+
+
+def _scaling_lines(sc: dict) -> list[str]:
+    """The predictive step against p and against the joint count, with the fitted
+    exponents."""
+    lines = ["", f"predictive step against p (LBR4p, {sc['solver']}) [µs]: median (solver)"]
     lines.append(
         "  "
         + ", ".join(
@@ -937,9 +987,7 @@ def format_report(res: dict) -> str:
         f"  fit t ∝ n^k: step k = {sc['fit_joints']['median_us']:.2f}, "
         f"solver k = {sc['fit_joints']['solver_median_us']:.2f}"
     )
-    lines += _path_following_lines(res.get("path_following"))
-    lines += _collision_lines(res.get("collision"))
-    return "\n".join(lines)
+    return lines
 
 
 def _collision_lines(col: dict | None) -> list[str]:

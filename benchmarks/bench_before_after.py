@@ -371,7 +371,8 @@ def format_table(summary: dict, meta: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
+    """The command line (the module docstring is its help)."""
     parser = argparse.ArgumentParser(
         description=(__doc__ or "").split("\n\n", 1)[0],
         epilog="\n\n".join((__doc__ or "").split("\n\n")[1:]),
@@ -418,7 +419,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--nice", type=int, default=10, help="niceness of the timing (default 10; 0: none)"
     )
-    args = parser.parse_args(argv)
+    return parser
+
+
+def _checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> list[str]:
+    """The controllers to time, by their names (aliases resolved, each once); an unknown
+    one, a clashing ``--extra-new`` name or a count out of range is a usage error."""
     names = []
     for n in (x.strip() for x in args.controllers.split(",") if x.strip()):
         n = ALIASES.get(n, n)
@@ -432,86 +438,101 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--extra-new names must be new and distinct: {clash}")
     if args.rounds < 1 or args.steps < 1 or args.block < 1 or args.warmup < 0:
         parser.error("--rounds, --steps and --block must be ≥ 1, --warmup ≥ 0")
+    return names
+
+
+def _tree_state(src: Path) -> tuple[str, bool]:
+    """The tree's commit and whether its tracked files are modified."""
+    try:
+        head = _git(src, "rev-parse", "--short", "HEAD")
+        dirty = bool(_git(src, "status", "--porcelain", "--untracked-files=no"))
+    except (subprocess.CalledProcessError, OSError):
+        return "not a git tree", False
+    return head, dirty
+
+
+def _old_tree(args: argparse.Namespace, repo: Path, tmp: Path) -> tuple[Path, str, str | None]:
+    """The old code's tree (``--old-src``, or ``--baseline-rev`` checked out as a worktree
+    in ``tmp``), its label and its commit."""
+    if args.old_src:
+        old_src = Path(args.old_src).resolve()
+        return old_src, f"{old_src} (given tree)", None
+    old_commit = _git(repo, "rev-parse", "--verify", f"{args.baseline_rev}^{{commit}}")
+    worktree = tmp / "old"
+    _git(repo, "worktree", "add", "--detach", str(worktree), old_commit)
+    return worktree, f"{args.baseline_rev} = {old_commit[:10]} (worktree {worktree})", old_commit
+
+
+def _timed_rounds(args, names, srcs: dict, tmp: Path, env: dict) -> list[dict]:
+    """Prime both trees' Numba caches, then time ``args.rounds`` interleaved rounds (which
+    version starts and the controllers' order rotate)."""
+    python = sys.executable
+    child = tmp / "bench_child.py"
+    child.write_text(CHILD)
+    base, extras = _specs(names), args.extra_new
+    # prime each tree's Numba cache (compilation is never timed, but would load the
+    # machine while the other version is timed)
+    prime = argparse.Namespace(warmup=5, steps=5, block=5)
+    t0 = time.perf_counter()
+    _run_round(python, child, srcs, base, extras, prime, env, ("old", "new"))
+    print(f"primed both trees in {time.perf_counter() - t0:.1f} s", flush=True)
+    rounds = []
+    for r in range(args.rounds):
+        order = ("old", "new") if r % 2 == 0 else ("new", "old")
+        k = r % len(base)  # rotate the controllers' order: none always runs first
+        res = _run_round(python, child, srcs, base[k:] + base[:k], extras, args, env, order)
+        rounds.append(res)
+        line = ", ".join(
+            f"{n} {1e6 * statistics.median(res['old']['controllers'][n]['wall_s']):.0f}/"
+            f"{1e6 * statistics.median(res['new']['controllers'][n]['wall_s']):.0f}"
+            for n in names
+        )
+        print(f"round {r + 1}/{args.rounds}, median µs old/new: {line}", flush=True)
+    return rounds
+
+
+def _removed(repo: Path, tmp: Path) -> None:
+    """The old code's worktree (if one was made) and the temporary folder, removed."""
+    worktree = tmp / "old"
+    if worktree.exists():
+        subprocess.run(
+            ["git", "-C", str(repo), "worktree", "remove", "--force", str(worktree)],
+            capture_output=True,
+        )
+        subprocess.run(["git", "-C", str(repo), "worktree", "prune"], capture_output=True)
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    names = _checked(parser, args)
     if args.nice:
         os.nice(args.nice)
-
     repo = Path(_git(Path(__file__).resolve().parent, "rev-parse", "--show-toplevel"))
     new_src = Path(args.new_src).resolve() if args.new_src else repo
-    try:  # the new tree's commit and whether its tracked files are modified
-        head = _git(new_src, "rev-parse", "--short", "HEAD")
-        dirty = bool(_git(new_src, "status", "--porcelain", "--untracked-files=no"))
-    except (subprocess.CalledProcessError, OSError):
-        head, dirty = "not a git tree", False
+    head, dirty = _tree_state(new_src)
     load_start = os.getloadavg()
     tmp = Path(tempfile.mkdtemp(prefix="bench_before_after_"))
-    worktree = None
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
     env.pop("PYTHONPATH", None)
-    python = sys.executable
     try:
-        if args.old_src:
-            old_src = Path(args.old_src).resolve()
-            old_label = f"{old_src} (given tree)"
-            old_commit = None
-        else:
-            old_commit = _git(repo, "rev-parse", "--verify", f"{args.baseline_rev}^{{commit}}")
-            worktree = tmp / "old"
-            _git(repo, "worktree", "add", "--detach", str(worktree), old_commit)
-            old_src = worktree
-            old_label = f"{args.baseline_rev} = {old_commit[:10]} (worktree {worktree})"
+        old_src, old_label, old_commit = _old_tree(args, repo, tmp)
         new_label = f"{new_src} (HEAD {head}{', modified' if dirty else ''})"
         print(f"old: {old_label}\nnew: {new_label}", flush=True)
-        srcs = {"old": old_src, "new": new_src}
-        child = tmp / "bench_child.py"
-        child.write_text(CHILD)
-        base = _specs(names)
-        # prime each tree's Numba cache (compilation is never timed, but would load the
-        # machine while the other version is timed)
-        prime = argparse.Namespace(warmup=5, steps=5, block=5)
-        t0 = time.perf_counter()
-        _run_round(python, child, srcs, base, extras, prime, env, ("old", "new"))
-        print(f"primed both trees in {time.perf_counter() - t0:.1f} s", flush=True)
-        rounds = []
-        for r in range(args.rounds):
-            order = ("old", "new") if r % 2 == 0 else ("new", "old")
-            k = r % len(base)  # rotate the controllers' order: none always runs first
-            res = _run_round(python, child, srcs, base[k:] + base[:k], extras, args, env, order)
-            rounds.append(res)
-            line = ", ".join(
-                f"{n} {1e6 * statistics.median(res['old']['controllers'][n]['wall_s']):.0f}/"
-                f"{1e6 * statistics.median(res['new']['controllers'][n]['wall_s']):.0f}"
-                for n in names
-            )
-            print(f"round {r + 1}/{args.rounds}, median µs old/new: {line}", flush=True)
+        rounds = _timed_rounds(args, names, {"old": old_src, "new": new_src}, tmp, env)
     finally:
-        if worktree is not None:
-            subprocess.run(
-                ["git", "-C", str(repo), "worktree", "remove", "--force", str(worktree)],
-                capture_output=True,
-            )
-            subprocess.run(["git", "-C", str(repo), "worktree", "prune"], capture_output=True)
-        shutil.rmtree(tmp, ignore_errors=True)
-
-    extra_names = [e["name"] for e in extras]
+        _removed(repo, tmp)
+    extra_names = [e["name"] for e in args.extra_new]
     summary = _summarize(rounds, names + extra_names, set(extra_names), args.block)
     meta = {
-        "old_label": old_label,
-        "new_label": new_label,
-        "old_commit": old_commit,
-        "new_head": head,
-        "new_modified": dirty,
-        "rounds": args.rounds,
-        "steps": args.steps,
-        "warmup": args.warmup,
-        "block": args.block,
-        "period_s": PERIOD_S,
-        "circle_s": CIRCLE_S,
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "cpus": os.cpu_count(),
-        "load_avg_start": load_start,
-        "load_avg_end": os.getloadavg(),
-    }
+        "old_label": old_label, "new_label": new_label, "old_commit": old_commit,
+        "new_head": head, "new_modified": dirty, "rounds": args.rounds, "steps": args.steps,
+        "warmup": args.warmup, "block": args.block, "period_s": PERIOD_S,
+        "circle_s": CIRCLE_S, "python": platform.python_version(),
+        "platform": platform.platform(), "cpus": os.cpu_count(),
+        "load_avg_start": load_start, "load_avg_end": os.getloadavg(),
+    }  # fmt: skip
     print()
     print(format_table(summary, meta))
     if args.json:

@@ -220,6 +220,65 @@ def _compare_cell(a: str, b: str, rtol: float, atol: float, quantum: float) -> t
     return rel, "differs"
 
 
+def _columns(
+    header_old: list[str],
+    h_old: list[str],
+    header_new: list[str],
+    h_new: list[str],
+    keys: list[str],
+    skip: set[str],
+    include: set[str],
+) -> tuple[list[str], list[str], list[str], list[str]]:
+    """``(excluded, compared, only_old, only_new)`` columns: timing columns and ``skip``
+    are excluded unless in ``include``; the key columns are neither."""
+    excluded = [c for c in header_old if c not in keys and (c in skip or is_timing_column(c))]
+    excluded = [c for c in excluded if c not in include]
+    compared = [c for c in header_old if c not in keys and c not in excluded and c in h_new]
+    only_old = [c for c in header_old if c not in h_new and c not in excluded]
+    only_new = [
+        c for c in header_new if c not in h_old and c not in skip and not is_timing_column(c)
+    ]
+    return excluded, compared, only_old, only_new
+
+
+def _matched_rows(order_old: list, order_new: list) -> tuple[list, list, list]:
+    """``(matched, only_old, only_new)``: the old rows paired with the new ones of the same
+    canonical key, in the old order, and the rows of either without a partner."""
+    canon_new = {tuple(_canonical_key(k) for k in key): key for key in order_new}
+    matched: list[tuple[tuple[str, ...], tuple[str, ...]]] = []
+    only_old = []
+    for key in order_old:
+        other = canon_new.pop(tuple(_canonical_key(k) for k in key), None)
+        if other is None:
+            only_old.append(key)
+        else:
+            matched.append((key, other))
+    only_new = [k for k in order_new if k in canon_new.values()]
+    return matched, only_old, only_new
+
+
+def _compared_cells(t_old, t_new, matched, compared, rtol: float, atol: float) -> tuple:
+    """``(differing cells, largest relative difference, where, cells compared)`` over the
+    matched rows' ``compared`` columns."""
+    differing: list[Cell] = []
+    max_rel, max_at, cells = 0.0, None, 0
+    for key_old, key_new in matched:
+        ro, rn = t_old.rows[key_old], t_new.rows[key_new]
+        for c in compared:
+            a, b = ro[c], rn[c]
+            xa, xb = _number(a), _number(b)
+            quantum = 0.0
+            if xa is not None and xb is not None:
+                quantum = max(_quantum(xa, t_old.digits), _quantum(xb, t_new.digits))
+            rel, status = _compare_cell(a, b, rtol, atol, quantum)
+            cells += 1
+            if rel > max_rel or (max_at is None and rel > 0):
+                max_rel, max_at = rel, (key_old, c)
+            if status:
+                differing.append(Cell(key_old, c, a, b, rel, status))
+    return differing, max_rel, max_at, cells
+
+
 def compare_files(
     old: str | Path,
     new: str | Path,
@@ -242,43 +301,11 @@ def compare_files(
         h_new = next(csv.reader(fh), [])
     keys = list(keys) if keys else pick_keys(h_old, h_new)
     t_old, t_new = _read(old, keys), _read(new, keys)
-    include = set(include or [])
-    skip = set(exclude or [])
-    excluded = [c for c in t_old.header if c not in keys and (c in skip or is_timing_column(c))]
-    excluded = [c for c in excluded if c not in include]
-    compared = [c for c in t_old.header if c not in keys and c not in excluded and c in h_new]
-    only_old_columns = [c for c in t_old.header if c not in h_new and c not in excluded]
-    only_new_columns = [
-        c for c in t_new.header if c not in h_old and c not in skip and not is_timing_column(c)
-    ]
-
-    canon_new = {tuple(_canonical_key(k) for k in key): key for key in t_new.order}
-    matched: list[tuple[tuple[str, ...], tuple[str, ...]]] = []
-    only_old_rows = []
-    for key in t_old.order:
-        other = canon_new.pop(tuple(_canonical_key(k) for k in key), None)
-        if other is None:
-            only_old_rows.append(key)
-        else:
-            matched.append((key, other))
-    only_new_rows = [k for k in t_new.order if k in canon_new.values()]
-
-    differing: list[Cell] = []
-    max_rel, max_at, cells = 0.0, None, 0
-    for key_old, key_new in matched:
-        ro, rn = t_old.rows[key_old], t_new.rows[key_new]
-        for c in compared:
-            a, b = ro[c], rn[c]
-            xa, xb = _number(a), _number(b)
-            quantum = 0.0
-            if xa is not None and xb is not None:
-                quantum = max(_quantum(xa, t_old.digits), _quantum(xb, t_new.digits))
-            rel, status = _compare_cell(a, b, rtol, atol, quantum)
-            cells += 1
-            if rel > max_rel or (max_at is None and rel > 0):
-                max_rel, max_at = rel, (key_old, c)
-            if status:
-                differing.append(Cell(key_old, c, a, b, rel, status))
+    excluded, compared, only_old_columns, only_new_columns = _columns(
+        t_old.header, h_old, t_new.header, h_new, keys, set(exclude or []), set(include or [])
+    )
+    matched, only_old_rows, only_new_rows = _matched_rows(t_old.order, t_new.order)
+    differing, max_rel, max_at, cells = _compared_cells(t_old, t_new, matched, compared, rtol, atol)
     return Comparison(
         keys=keys,
         compared=compared,
@@ -304,6 +331,35 @@ def _fmt_key(keys: list[str], key: tuple[str, ...]) -> str:
 
 def _fmt_rel(rel: float) -> str:
     return "inf" if math.isinf(rel) else f"{rel:.3e}"
+
+
+def _differing_lines(cmp: Comparison, max_lines: int) -> list[str]:
+    """The table of the values that differ, largest first (at most ``max_lines``)."""
+    if not cmp.differing:
+        return []
+    shown = sorted(cmp.differing, key=lambda c: -c.rel)[:max_lines]
+    wk = max(len(_fmt_key(cmp.keys, c.key)) for c in shown)
+    wk = max(wk, len("row"))
+    wc = max(max(len(c.column) for c in shown), len("column"))
+    wv = max(max(len(c.old) for c in shown), max(len(c.new) for c in shown), 3)
+    wv = min(wv, 24)
+    n_diff = sum(c.status == "differs" for c in cmp.differing)
+    n_print = len(cmp.differing) - n_diff
+    lines = [""]
+    lines.append(
+        f"values that differ: {n_diff} beyond tolerance, {n_print} at printed precision "
+        f"(~print){'' if len(shown) == len(cmp.differing) else f'; largest {len(shown)}'}"
+    )
+    lines.append(
+        f"  {'row':{wk}s}  {'column':{wc}s}  {'old':>{wv}s}  {'new':>{wv}s}  "
+        f"{'rel. diff':>9s}  status"
+    )
+    for c in shown:
+        lines.append(
+            f"  {_fmt_key(cmp.keys, c.key):{wk}s}  {c.column:{wc}s}  {c.old[:wv]:>{wv}s}  "
+            f"{c.new[:wv]:>{wv}s}  {_fmt_rel(c.rel):>9s}  {c.status}"
+        )
+    return lines
 
 
 def format_report(
@@ -345,29 +401,7 @@ def format_report(
         tag = "" if strict_rows else ", not a failure"
         lines.append(f"rows only in NEW ({len(cmp.only_new_rows)}{tag}):")
         lines += [f"  + {_fmt_key(cmp.keys, k)}" for k in cmp.only_new_rows]
-    if cmp.differing:
-        shown = sorted(cmp.differing, key=lambda c: -c.rel)[:max_lines]
-        wk = max(len(_fmt_key(cmp.keys, c.key)) for c in shown)
-        wk = max(wk, len("row"))
-        wc = max(max(len(c.column) for c in shown), len("column"))
-        wv = max(max(len(c.old) for c in shown), max(len(c.new) for c in shown), 3)
-        wv = min(wv, 24)
-        n_diff = sum(c.status == "differs" for c in cmp.differing)
-        n_print = len(cmp.differing) - n_diff
-        lines.append("")
-        lines.append(
-            f"values that differ: {n_diff} beyond tolerance, {n_print} at printed precision "
-            f"(~print){'' if len(shown) == len(cmp.differing) else f'; largest {len(shown)}'}"
-        )
-        lines.append(
-            f"  {'row':{wk}s}  {'column':{wc}s}  {'old':>{wv}s}  {'new':>{wv}s}  "
-            f"{'rel. diff':>9s}  status"
-        )
-        for c in shown:
-            lines.append(
-                f"  {_fmt_key(cmp.keys, c.key):{wk}s}  {c.column:{wc}s}  {c.old[:wv]:>{wv}s}  "
-                f"{c.new[:wv]:>{wv}s}  {_fmt_rel(c.rel):>9s}  {c.status}"
-            )
+    lines += _differing_lines(cmp, max_lines)
     lines.append("")
     if cmp.max_rel_at is None:
         lines.append("largest relative difference: 0 (every compared value equal within atol)")
