@@ -257,15 +257,7 @@ class OsqpQP:
         self.last_method = "osqp"
         self._active = None
         if ok and self.refine:
-            y = np.asarray(res.y)
-            ax = self._a_dense @ x
-            scale = max(1.0, float(np.max(np.abs(y))))
-            at_low = (ax - lower <= 1e-6) & (y < -1e-9 * scale)
-            at_up = (upper - ax <= 1e-6) & (y > 1e-9 * scale)
-            refined = self._kkt(p_values, c, lower, upper, at_low, at_up)
-            if refined is not None:
-                x = refined
-                self.last_method = "osqp+refine"
+            x = self._refined(x, np.asarray(res.y), p_values, c, lower, upper)
         return QPSolution(
             x=x,
             y=np.array(res.y) if ok else None,
@@ -274,6 +266,19 @@ class OsqpQP:
             iterations=int(res.info.iter),
             solve_time_s=time.perf_counter() - start,
         )
+
+    def _refined(self, x, y, p_values, c, lower, upper) -> np.ndarray:
+        """OSQP's ``x`` refined by one KKT solve on the rows its multipliers ``y`` hold at
+        a bound (``last_method`` says so), or ``x`` as it is where that solve is refused."""
+        ax = self._a_dense @ x
+        scale = max(1.0, float(np.max(np.abs(y))))
+        at_low = (ax - lower <= 1e-6) & (y < -1e-9 * scale)
+        at_up = (upper - ax <= 1e-6) & (y > 1e-9 * scale)
+        refined = self._kkt(p_values, c, lower, upper, at_low, at_up)
+        if refined is None:
+            return x
+        self.last_method = "osqp+refine"
+        return refined
 
     def _kkt(
         self,

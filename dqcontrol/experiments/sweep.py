@@ -76,12 +76,8 @@ def sweep(
     A ``KeyboardInterrupt`` stops the sweep: the finished cases are kept and returned with
     ``interrupted`` set; any other exception propagates.
     """
-    from dqcontrol.runs.storage import atomic_write_text, jsonable
-
     results: dict[int, Any] = {}
-    folder = None if record is None or record_dir is None else Path(record_dir)
-    if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
+    folder = _record_folder(record, record_dir)
     bar = progress_bar(len(cases), progress or "", progress is not None)
 
     def on_done(item: tuple[int, Any]) -> None:
@@ -89,8 +85,7 @@ def sweep(
         results[index] = result
         label = name(cases[index])
         if folder is not None and record is not None:
-            text = json.dumps(jsonable(record(result)), indent=1, allow_nan=False)
-            atomic_write_text(folder / f"{label}.json", text + "\n")
+            _save_record(folder / f"{label}.json", record(result))
         bar.set_postfix_str(label, refresh=False)
         bar.update(1)
         if on_result is not None:
@@ -108,6 +103,23 @@ def sweep(
         bar.close()
     done = sorted(results)
     return SweepOutcome([results[i] for i in done], done, interrupted, time.perf_counter() - start)
+
+
+def _record_folder(record, record_dir: str | Path | None) -> Path | None:
+    """The folder of the cases' records (made if missing), or ``None`` without records."""
+    if record is None or record_dir is None:
+        return None
+    folder = Path(record_dir)
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def _save_record(path: Path, data: dict) -> None:
+    """``data`` (plain JSON data) written to ``path`` at once, atomically."""
+    from dqcontrol.runs.storage import atomic_write_text, jsonable
+
+    text = json.dumps(jsonable(data), indent=1, allow_nan=False)
+    atomic_write_text(path, text + "\n")
 
 
 def _bind(job: Callable[[Any], Any]) -> Callable[[tuple[int, Any]], tuple[int, Any]]:

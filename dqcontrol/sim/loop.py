@@ -216,21 +216,26 @@ def run_loop(
         ParameterError: bad ``max_time_s``/``stale_periods``; ``q0`` for a driver without
             ``reset``.
     """
-    robot = controller.robot
-    period = controller.period_s
-    order = _JointOrder(driver.joint_names, tuple(robot.joint_names))
+    order = _JointOrder(driver.joint_names, tuple(controller.robot.joint_names))
     num = _sample_count(controller, max_time_s, stale_periods)
-    meas = _first_measurement(driver, robot, q0, order)
-    q, qd = order.to_model(meas)
-    controller.reset(q)
-    rec = LogRecorder(robot.nq, _run_info(driver, controller, order.names, q, warm_up, meta))
-    clock = _Clock(period, bool(realtime))
-    run = _Samples(controller, driver, order, rec, clock, meas)
-    with _young_gc_only(clock.realtime), single_blas_thread():
-        clock.restart()
+    run = _started(controller, driver, order, q0, realtime, warm_up, meta)
+    with _young_gc_only(run.clock.realtime), single_blas_thread():
+        run.clock.restart()
         run.loop(num, stale_periods, on_sample, on_progress)
     stop = _stop_and_brake(run, brake)
-    return _result(controller, driver, rec, stop, run)
+    return _result(controller, driver, run.rec, stop, run)
+
+
+def _started(controller, driver, order, q0, realtime: bool, warm_up: bool, meta) -> _Samples:
+    """The run at its first measurement: the controller reset there (and warmed up on a
+    copy where ``warm_up``), its log opened and its clock set."""
+    robot = controller.robot
+    meas = _first_measurement(driver, robot, q0, order)
+    q, _qd = order.to_model(meas)
+    controller.reset(q)
+    rec = LogRecorder(robot.nq, _run_info(driver, controller, order.names, q, warm_up, meta))
+    clock = _Clock(controller.period_s, bool(realtime))
+    return _Samples(controller, driver, order, rec, clock, meas)
 
 
 def _sample_count(controller: Controller, max_time_s: float | None, stale_periods) -> int:

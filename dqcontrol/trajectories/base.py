@@ -36,6 +36,21 @@ _K_NEAREST = 32
 _SEARCH_RADIUS_SEGMENTS = 64
 
 
+def _positions(points_m) -> tuple[np.ndarray, bool]:
+    """``points_m`` as a finite ``(M, 3)`` float array, and whether it was one ``(3,)``
+    point; otherwise a :class:`ParameterError`."""
+    pts = np.asarray(points_m, dtype=float)
+    single = pts.shape == (3,)
+    if single:
+        pts = pts[None, :]
+    if pts.ndim != 2 or pts.shape[1] != 3 or not np.isfinite(pts).all():
+        raise ParameterError(
+            f"points_m must be a finite (M, 3) array of positions [m], got shape "
+            f"{np.shape(points_m)}"
+        )
+    return pts, single
+
+
 class Trajectory(ABC):
     """A geometric pose path ``traj(σ)``, ``σ ∈ [0, T_tot]``, in a reference frame ``ref``.
 
@@ -289,15 +304,7 @@ class Trajectory(ABC):
             distances ``(M,)`` [m] (a float for a single ``(3,)`` point).
         """
         segments = _check_count("segments", segments, 1)
-        pts = np.asarray(points_m, dtype=float)
-        single = pts.shape == (3,)
-        if single:
-            pts = pts[None, :]
-        if pts.ndim != 2 or pts.shape[1] != 3 or not np.isfinite(pts).all():
-            raise ParameterError(
-                f"points_m must be a finite (M, 3) array of positions [m], got shape "
-                f"{np.shape(points_m)}"
-            )
+        pts, single = _positions(points_m)
         vertices, tree, half_len = self._polyline(segments)
         n_vert = vertices.shape[0]
         a = vertices[:-1]

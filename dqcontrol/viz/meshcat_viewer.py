@@ -661,15 +661,16 @@ class MeshcatViewer:
         speed = _check_speed(speed)
         if len(log) == 0:
             raise ParameterError("cannot animate an empty run log")
-        times = np.asarray(log.t_s, dtype=float)
-        period = float(log.meta.get("period_s", np.median(np.diff(times)) if len(times) > 1 else 0))
-        end_s = float(times[-1] + max(period, 0.0))
-        n_frames = max(2, int(math.ceil(end_s / speed * fps)) + 1)
-        frame_times = np.minimum(np.arange(n_frames) * speed / fps, times[-1])
-        sample = np.clip(np.searchsorted(times, frame_times + 1e-12, side="right") - 1, 0, None)
-        sample[-1] = len(log) - 1
+        sample = _frame_samples(log, fps, speed)
         anim = Animation(default_framerate=fps)
-        positions = translation(log.pose)
+        self._animate_robot(anim, log, sample)
+        self._animate_trace(anim, translation(log.pose), sample, max_trace_pieces)
+        self.display(log.q[0])
+        repetitions = 1_000_000 if loop else 1
+        self._guard(self.vis.set_animation, anim, play=True, repetitions=repetitions)
+
+    def _animate_robot(self, anim, log, sample: np.ndarray) -> None:
+        """The robot and the target frame at each frame's sample of ``log``."""
         target_node = f"{self.root}/target"
         self.show_target(log.target[0])
         viz = self._pin_viz
@@ -682,7 +683,12 @@ class MeshcatViewer:
                     frame_vis[target_node].set_transform(dq_to_matrix(log.target[k]))
         finally:
             viz.viewer = viewer
-        # The trace: pieces that appear one after the other.
+
+    def _animate_trace(
+        self, anim, positions: np.ndarray, sample: np.ndarray, max_trace_pieces: int
+    ) -> None:
+        """The end-effector trace as pieces that appear one after the other."""
+        n_frames = sample.size
         self._guard(self.vis[f"{self.root}/trace"].delete)
         step = max(1, int(math.ceil((n_frames - 1) / max_trace_pieces)))
         bounds = list(range(0, n_frames - 1, step)) + [n_frames - 1]
@@ -702,9 +708,6 @@ class MeshcatViewer:
             for frame in sorted({f1, n_frames - 1}):
                 with anim.at_frame(self.vis, frame) as frame_vis:
                     frame_vis[node].set_property("visible", "boolean", True)
-        self.display(log.q[0])
-        repetitions = 1_000_000 if loop else 1
-        self._guard(self.vis.set_animation, anim, play=True, repetitions=repetitions)
 
     def static_html(self) -> str:
         """The scene as one self-contained HTML page (meshcat's ``static_html``)."""
@@ -740,6 +743,20 @@ class MeshcatViewer:
     def __repr__(self) -> str:
         mode = f"live at {self.url}" if self.url else "offline"
         return f"MeshcatViewer({self.robot.ee_frame!r}, {mode})"
+
+
+def _frame_samples(log, fps: float, speed: float) -> np.ndarray:
+    """For each animation frame (``fps`` frames per second of ``speed`` × real time, at
+    least two), the index of the log's sample shown: the last one at or before the frame's
+    time, the last sample on the last frame."""
+    times = np.asarray(log.t_s, dtype=float)
+    period = float(log.meta.get("period_s", np.median(np.diff(times)) if len(times) > 1 else 0))
+    end_s = float(times[-1] + max(period, 0.0))
+    n_frames = max(2, int(math.ceil(end_s / speed * fps)) + 1)
+    frame_times = np.minimum(np.arange(n_frames) * speed / fps, times[-1])
+    sample = np.clip(np.searchsorted(times, frame_times + 1e-12, side="right") - 1, 0, None)
+    sample[-1] = len(log) - 1
+    return sample
 
 
 def _check_speed(speed: float) -> float:
