@@ -20,20 +20,31 @@ __all__ = ["carried_set"]
 
 #: Keys within one limit are below this; a limit's number times it names its rows apart.
 _SPAN = 1 << 40
+#: The number of each limit ever seen (its name and its place among those of that name):
+#: the same in every set of rows, so that a set's names can be kept with it.
+_LIMITS: dict[tuple[str, int], int] = {}
+#: The names of the last sets of rows asked for, by identity (a step asks for the same two
+#: for each of its levels).
+_RECENT: list[tuple[tuple[Inequality, ...], np.ndarray]] = []
 
 
-def _names(inequalities: tuple[Inequality, ...], limits: dict) -> np.ndarray:
-    """Every general row's name as an integer; ``limits`` numbers the limits (``(name,
-    place among those of that name)``), shared by the sets of rows to be matched."""
+def _names(inequalities: tuple[Inequality, ...]) -> np.ndarray:
+    """Every general row's name as an integer (the same rows' names while the tuple is the
+    same object)."""
+    for rows, names in _RECENT:
+        if rows is inequalities:
+            return names
     parts = []
     seen: dict[str, int] = {}
     for g in inequalities:
         place = seen.get(g.name, 0)
         seen[g.name] = place + 1
-        number = limits.setdefault((g.name, place), len(limits))
+        number = _LIMITS.setdefault((g.name, place), len(_LIMITS))
         keys = np.arange(g.lower.size) if g.keys is None else np.asarray(g.keys, dtype=np.int64)
         parts.append(number * _SPAN + keys)
-    return np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+    names = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+    _RECENT[:] = [(inequalities, names), *_RECENT[:3]]
+    return names
 
 
 def carried_set(
@@ -48,8 +59,7 @@ def carried_set(
     ``now``'s: a row before ``first_general`` keeps its index, a general row takes the index
     of the row of the same name now and is dropped where there is none. The order is
     kept."""
-    limits: dict = {}
-    names_before, names_now = _names(before, limits), _names(now, limits)
+    names_before, names_now = _names(before), _names(now)
     general = active >= first_general
     moved = np.full(active.size, -1, dtype=np.int64)
     moved[~general] = active[~general]
