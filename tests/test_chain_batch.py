@@ -119,6 +119,22 @@ def test_closed_form_equals_pinocchio_and_single(name):
     _assert_matches_single_and_pinocchio(robot, _configurations(robot, seed=len(name)))
 
 
+@pytest.mark.parametrize("name", list(MODELS))
+def test_pose_alone_equals_the_batch_and_pinocchio(name):
+    """``robot.fast.poses`` (the chain's pose columns alone) against the batch's poses and
+    Pinocchio's forward kinematics."""
+    robot = MODELS[name]()
+    qs = _configurations(robot, seed=3 + len(name))
+    xs, _ = robot.poses_and_jacobians(qs)
+    alone = robot.fast.poses(qs)
+    reference = np.array([robot._pose(q) for q in qs])
+    np.testing.assert_array_equal(alone[:, 0] >= 0.0, True)
+    for other in (xs, reference):  # the same pose; ±x where r_w is zero to rounding
+        sign = np.copysign(1.0, np.einsum("ij,ij->i", alone, other))
+        np.testing.assert_allclose(alone, sign[:, None] * other, rtol=0, atol=TOL)
+        assert np.all((sign > 0) | (np.abs(alone[:, 0]) < TOL))
+
+
 @pytest.mark.parametrize("name", list(FALLBACKS))
 def test_unsupported_models_fall_back_to_pinocchio(name):
     robot = FALLBACKS[name]()
@@ -126,7 +142,10 @@ def test_unsupported_models_fall_back_to_pinocchio(name):
     assert ChainBatch.build(robot.model, robot._fid) is None
     qs = robot.random_configurations(40, seed=5)
     xs, jacs = robot.poses_and_jacobians(qs)
-    for q, x, jac in zip(qs, xs, jacs, strict=True):
+    alone = robot.fast.poses(qs)
+    assert alone.shape == (40, 8)
+    for q, x, jac, x_alone in zip(qs, xs, jacs, alone, strict=True):
+        assert np.array_equal(x_alone, robot.fast.pose(q))  # Pinocchio's, one by one
         x1, jac1 = robot.pose_and_jacobian(q)
         np.testing.assert_allclose(x, x1, rtol=0, atol=TOL)
         np.testing.assert_allclose(jac, jac1, rtol=0, atol=TOL)

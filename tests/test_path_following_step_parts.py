@@ -48,7 +48,7 @@ def test_the_memo_hands_back_the_last_steps_kinematics_once(lbr4p):
     memo = KinematicsMemo(lbr4p)
     traj = Circle(2.0).anchored_at(lbr4p.pose(LBR4P_Q0))
     q1 = LBR4P_Q0 + 0.01
-    x1 = lbr4p.fast.pose_and_jacobian(q1)[0]
+    x1 = lbr4p.fast.poses(q1[None, :])[0]
     xd1 = traj.target(0.25)
     memo.keep_pose(q1, x1)
     memo.keep_target(traj, 0.25, xd1)
@@ -63,7 +63,7 @@ def test_the_memo_hands_back_the_last_steps_kinematics_once(lbr4p):
     memo.advance()
     other = q1.copy()
     other[3] += 1e-15
-    assert np.array_equal(memo.pose(other), lbr4p.fast.pose_and_jacobian(other)[0])
+    assert np.array_equal(memo.pose(other), lbr4p.fast.poses(other[None, :])[0])
     assert np.array_equal(memo.target(traj, 0.5), traj.target(0.5))
     assert np.array_equal(memo.target(traj, 0.25), xd1)  # still kept
     memo.keep_target(traj, 0.25, xd1)

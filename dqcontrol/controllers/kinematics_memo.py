@@ -57,7 +57,7 @@ class KinematicsMemo:
         if kept is not None and max_abs_difference(kept, q) == 0.0:
             self._pose_read = _NONE
             return pose
-        return self._fast.pose(q)
+        return self._fast.poses(q[None, :])[0]
 
     def keep_target(self, trajectory: Trajectory, sigma: float, target: np.ndarray) -> None:
         """Keep ``target = trajectory.target(sigma)``."""

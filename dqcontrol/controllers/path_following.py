@@ -433,7 +433,7 @@ class PathFollowingController(Controller):
         path = problem.levels[0].residuals[0]
         q1 = self.prediction_model.state_after_first(q, z[: self.n])
         sigma1 = self.sigma + self.period_s * min(max(float(z[self.n]), 0.0), self.s_max)
-        x1 = self.robot.fast.pose(q1)
+        x1 = self.robot.fast.poses(q1[None, :])[0]
         xd1 = self.trajectory.target(sigma1)
         self._memo.keep_pose(q1, x1)  # the next measured q, in a simulated loop
         self._memo.keep_target(self.trajectory, sigma1, xd1)

@@ -95,6 +95,7 @@ class ChainBatch:
         self._offsets = offsets
         self._size_a = size_a
         self._t = t
+        self._t_pose = np.ascontiguousarray(t[:, :8])  # the pose's columns alone
         self._products = t.shape[0]
 
     @classmethod
@@ -137,6 +138,18 @@ class ChainBatch:
         out = k.dot(self._t)
         positive_scalar_rows(out)  # r_w ≥ 0, Jacobian row flipped with x
         return out[:, :8], out[:, 8:].reshape(count, 8, self.nq)
+
+    def poses(self, qs: np.ndarray) -> np.ndarray:
+        """``(N, 8)`` poses of checked configurations, without the Jacobians (the first
+        eight columns of ``T``; ``r_w ≥ 0``)."""
+        v = qs.dot(self._e)
+        v += self._offsets
+        np.sin(v, out=v)
+        k = np.empty((qs.shape[0], self._products))
+        outer_rows_into(v, self._size_a, k)
+        out = k.dot(self._t_pose)
+        positive_scalar_rows(out)
+        return out
 
 
 @compiled

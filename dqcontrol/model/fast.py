@@ -33,6 +33,17 @@ class UncheckedModel:
         """Pose ``vec8`` (8,) at ``q`` (the kinematics alone)."""
         return self._robot._pose(q)
 
+    def poses(self, qs: np.ndarray) -> np.ndarray:
+        """Batched poses ``(N, 8)`` without the Jacobians (``r_w ≥ 0``): in closed form
+        where the model's chain has one (:mod:`~dqcontrol.model.chain_batch`), else from
+        Pinocchio one by one. They agree with :meth:`poses_and_jacobians`' poses to
+        rounding, not bit for bit."""
+        chain = self._robot._chain
+        if chain is not None:
+            return chain.poses(qs)
+        robot = self._robot
+        return np.array([robot._pose(q) for q in qs]).reshape(qs.shape[0], 8)
+
     def poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Batched poses ``(N, 8)`` and Jacobians ``(N, 8, n)``."""
         return self._robot._poses_and_jacobians(qs)

@@ -160,9 +160,11 @@ class Trajectory(ABC):
         Raises:
             ParameterError: if the trajectory has no reference yet, or ``σ`` is not finite.
         """
-        h = self._ref_plus()
+        h_t = self._ref_plus_t
+        if h_t is None:
+            raise self._not_anchored_error()
         s = self._check_sigma(sigma)
-        return h @ self.local_pose(min(max(s, 0.0), self._duration))
+        return self.local_pose(min(max(s, 0.0), self._duration)).dot(h_t)
 
     def target_derivative(self, sigma: float) -> np.ndarray:
         """``dx_d/dσ = ref ⊗ dtraj/dσ`` (vec8) [1/s]; zero outside ``[0, T_tot)``.

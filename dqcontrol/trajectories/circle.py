@@ -12,6 +12,8 @@ from dqcontrol.trajectories.base import Trajectory
 
 __all__ = ["Circle"]
 
+_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # copied, never written
+
 
 class Circle(Trajectory):
     """One turn of a circle of radius ``R`` about the reference frame's z-axis.
@@ -53,8 +55,10 @@ class Circle(Trajectory):
     def local_pose(self, sigma: float) -> np.ndarray:
         """``traj(σ)`` in the reference frame (:meth:`Trajectory.local_pose`)."""
         angle = self._omega * sigma
-        h = self._half_r
-        return np.array([1.0, 0.0, 0.0, 0.0, 0.0, h * math.cos(angle), h * math.sin(angle), 0.0])
+        pose = _IDENTITY.copy()
+        pose[5] = self._half_r * math.cos(angle)
+        pose[6] = self._half_r * math.sin(angle)
+        return pose
 
     def local_derivative(self, sigma: float) -> np.ndarray:
         """``dtraj/dσ`` in the reference frame (:meth:`Trajectory.local_derivative`)."""
