@@ -33,7 +33,7 @@ import pinocchio as pin
 from dqcontrol._compiled import compiled
 from dqcontrol.dq.algebra import dq_from_se3, dq_mul
 
-__all__ = ["MAX_JOINTS", "ChainBatch"]
+__all__ = ["MAX_JOINTS", "ChainBatch", "revolute_axis"]
 
 #: Longest chain handled in closed form: ``T`` has ``2^m`` rows, and past 8 joints its
 #: product costs more than the per-configuration Pinocchio calls it replaces.
@@ -46,7 +46,7 @@ _AXES = {
 }
 
 
-def _revolute_axis(joint) -> np.ndarray | None:
+def revolute_axis(joint) -> np.ndarray | None:
     """Unit axis of a 1-DoF revolute joint in its own frame, ``None`` for any other joint."""
     name = joint.shortname()
     if name in _AXES:
@@ -186,7 +186,7 @@ def _revolute_chain(model: pin.Model, parent: int) -> tuple[list[int], list[np.n
         return None
     axes = []
     for j in chain:
-        axis = _revolute_axis(model.joints[j])
+        axis = revolute_axis(model.joints[j])
         if axis is None or model.joints[j].nq != 1:
             return None
         axes.append(axis)

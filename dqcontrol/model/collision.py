@@ -712,7 +712,7 @@ class CollisionModel:
         joints (``None`` otherwise): each joint's parent, placement ``(R_p, t_p)``,
         ``R_p K`` and ``R_p K²`` (``K`` the cross-product matrix of its unit axis ``a``),
         ``a`` and its index in ``q``."""
-        from dqcontrol.model.chain_batch import _revolute_axis
+        from dqcontrol.model.chain_batch import revolute_axis
 
         model = self.model
         nj = model.njoints
@@ -720,7 +720,7 @@ class CollisionModel:
         k1, k2, axes = np.zeros((nj, 3, 3)), np.zeros((nj, 3, 3)), np.zeros((nj, 3))
         iq = np.zeros(nj, dtype=np.int64)
         for j in range(1, nj):
-            axis = _revolute_axis(model.joints[j])
+            axis = revolute_axis(model.joints[j])
             if axis is None or model.joints[j].nq != 1:
                 return None
             k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])

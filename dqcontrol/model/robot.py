@@ -34,6 +34,7 @@ from dqcontrol.dq.kernels import (
 )
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
+from dqcontrol.model.chain_dynamics import ChainDynamics
 from dqcontrol.model.fast import UncheckedModel
 from dqcontrol.model.pinocchio_model import angle_model, build_angle_model, lock_joints
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
@@ -133,6 +134,8 @@ class RobotModel:
         # closed-form batched kinematics (None: loop on Pinocchio). Its tables are read from
         # the model here, once: a model edited in place afterwards needs a new RobotModel.
         self._chain = self._build_chain()
+        # the same for the mass matrix's diagonal and the gravity torques (None: Pinocchio)
+        self._dynamics = self._build_dynamics()
         #: the unchecked hot-path API (:class:`~dqcontrol.model.fast.UncheckedModel`)
         self.fast = UncheckedModel(self)
 
@@ -305,6 +308,32 @@ class RobotModel:
             return None
         return chain
 
+    def _build_dynamics(self) -> ChainDynamics | None:
+        """The compiled ``diag M`` and ``g`` of this model, if it applies and agrees with
+        Pinocchio's on a few configurations."""
+        dynamics = ChainDynamics.build(self.model)
+        if dynamics is None:
+            return None
+        qs = np.random.default_rng(1).uniform(-np.pi, np.pi, size=(4, self.nq))
+        diag, g = dynamics.diagonal_and_gravity(qs)
+        diag_ref, g_ref = self._diagonal_and_gravity_pinocchio(qs)
+        if not (
+            np.allclose(diag, diag_ref, rtol=1e-12, atol=1e-12)
+            and np.allclose(g, g_ref, rtol=1e-12, atol=1e-10)
+        ):
+            return None
+        return dynamics
+
+    def _diagonal_and_gravity_pinocchio(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``diag M`` and ``g`` at each row of ``qs`` by two Pinocchio calls a row."""
+        model, data = self.model, self.data
+        crba, gravity = pin.crba, pin.computeGeneralizedGravity
+        diag, g = np.empty(qs.shape), np.empty(qs.shape)
+        for i, qi in enumerate(qs):
+            diag[i] = np.diagonal(crba(model, data, qi))
+            g[i] = gravity(model, data, qi)
+        return diag, g
+
     def _poses_and_jacobians_pinocchio(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The batch by one Pinocchio call per configuration (any model; ``N ≥ 1``)."""
         count = qs.shape[0]
@@ -354,26 +383,20 @@ class RobotModel:
     def _acceleration_limits(
         self, q: np.ndarray, effort_fraction: float, floor: float, cap: float
     ) -> np.ndarray:
-        self._check_acceleration_settings(effort_fraction, floor, cap)
-        m = pin.crba(self.model, self.data, q)
-        g = pin.computeGeneralizedGravity(self.model, self.data, q)
-        diag = np.diagonal(m)
-        self._check_inertias(diag)
-        spare = effort_fraction * self.limits.effort_max - np.abs(g)
-        return np.clip(spare / diag, floor, cap)
+        return self._acceleration_limits_batch(q[None, :], effort_fraction, floor, cap)[0]
 
     def _acceleration_limits_batch(
         self, qs: np.ndarray, effort_fraction: float, floor: float, cap: float
     ) -> np.ndarray:
-        """:meth:`_acceleration_limits` at each row of ``qs``: one Pinocchio pass per row,
-        the arithmetic once for the batch (the same operations, entry by entry)."""
+        """:meth:`_acceleration_limits` at each row of ``qs``: ``diag M`` and ``g`` in one
+        compiled pass where the model is a chain of revolute joints
+        (:mod:`~dqcontrol.model.chain_dynamics`), else by two Pinocchio calls a row; the
+        arithmetic once for the batch."""
         self._check_acceleration_settings(effort_fraction, floor, cap)
-        model, data = self.model, self.data
-        crba, gravity = pin.crba, pin.computeGeneralizedGravity
-        diag, g = np.empty(qs.shape), np.empty(qs.shape)
-        for i, qi in enumerate(qs):
-            diag[i] = np.diagonal(crba(model, data, qi))
-            g[i] = gravity(model, data, qi)
+        if self._dynamics is not None:
+            diag, g = self._dynamics.diagonal_and_gravity(qs)
+        else:
+            diag, g = self._diagonal_and_gravity_pinocchio(qs)
         if not np.all(diag > 0.0):
             for row in diag:  # the first configuration with a massless joint
                 self._check_inertias(row)
