@@ -63,6 +63,10 @@ CONTROLLERS: dict[str, tuple[str, dict]] = {
     "predictive_noscale_p10": ("PredictiveNoScalingController", {"num_instants": 10}),
     "proportional": ("ProportionalController", {}),
     "path_following_p10": ("PathFollowingController", {"num_intervals": 10}),
+    "path_following_p10_dynamics": (
+        "PathFollowingController",
+        {"num_intervals": 10, "acceleration_limit": "dynamics"},
+    ),
 }
 ALIASES = {
     "p6": "predictive_p6",
@@ -71,6 +75,7 @@ ALIASES = {
     "noscale": "predictive_noscale_p10",
     "pf": "path_following_p10",
     "pf10": "path_following_p10",
+    "pf_dynamics": "path_following_p10_dynamics",
 }
 PERIOD_S = 0.001
 CIRCLE_S = 2.0

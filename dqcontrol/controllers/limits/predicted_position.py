@@ -67,6 +67,9 @@ class PredictedPositionLimit(Limit):
         self._terminal_rows: tuple[np.ndarray, np.ndarray, np.ndarray] = (np.zeros(0),) * 3
         self._selections: dict[str, tuple[np.ndarray, bytes, tuple[np.ndarray, np.ndarray]]] = {}
         self._no_extra = np.zeros(layout.num_joints)  # the states' rows: the reach alone
+        # entry (j, qd_{p-1, j}) of each terminal row, in the flat (n, len(z)) rows
+        n = layout.num_joints
+        self._terminal_entries = np.arange(n) * layout.num_vars + layout.qd_index()[-1]
 
     def widened(self, slack_rad: float) -> PredictedPositionLimit:
         """The same rows with the position bounds ``slack_rad`` [rad] looser on each side."""
@@ -104,7 +107,7 @@ class PredictedPositionLimit(Limit):
             n = self.layout.num_joints
             coeff = self.qd_max / (2.0 * a_max[-1])
             last = c[-n:].copy()
-            last[np.arange(n), self.layout.qd_index()[-1]] += coeff
+            last.ravel()[self._terminal_entries] += coeff
             self._terminal_key = (c, a_max)
             self._terminal_rows = (coeff, frozen(last), coeff * self.qd_max)
         return self._terminal_rows
@@ -112,13 +115,18 @@ class PredictedPositionLimit(Limit):
     def _selected(
         self, kind: str, c: np.ndarray, keep: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """``c[keep]`` and the rows' keys (their indices in ``c``: state and joint), read-only,
-        the same arrays while ``c`` and ``keep`` are the same."""
+        """``c[keep]`` and the rows' keys (their indices in ``c``: state and joint), the same
+        arrays while ``c`` and ``keep`` are the same. The rows are read-only from the
+        second step that reads them: what is derived from read-only rows is kept by their
+        identity (:func:`~dqcontrol.controllers.gram.kept`), worth it for rows that stay,
+        not for rows that change at every step (the terminal rows of a bound ``a_max`` that
+        moves with the state), whose derived data is computed at each step instead."""
         mask = keep.tobytes()
         last = self._selections.get(kind)
         if last is not None and last[0] is c and last[1] == mask:
+            last[2][0].flags.writeable = False
             return last[2]
-        rows = (frozen(c[keep]), frozen(np.flatnonzero(keep)))
+        rows = (c[keep], frozen(np.flatnonzero(keep)))
         self._selections[kind] = (c, mask, rows)
         return rows
 
