@@ -163,3 +163,20 @@ def test_acceleration_limits_read_the_compiled_pass(lbr4p):
         one = lbr4p.acceleration_limits(q, effort_fraction=0.8)
         np.testing.assert_array_equal(one, row)
     assert lbr4p.fast.acceleration_limits_batch(np.empty((0, 7)), 1.0, 0.5, 50.0).shape == (0, 7)
+
+
+def test_the_bound_arithmetic_is_numpys():
+    """``acceleration_bounds`` against numpy's ``clip((f τ - |g|) / diag, floor, cap)``
+    bit for bit, through both clips; a non-positive inertia is reported."""
+    from dqcontrol.model.chain_dynamics import acceleration_bounds
+
+    rng = np.random.default_rng(21)
+    diag = rng.uniform(0.01, 3.0, size=(12, 7))
+    g = rng.normal(scale=40.0, size=(12, 7))
+    effort = rng.uniform(20.0, 200.0, size=7)
+    bounds, positive = acceleration_bounds(diag, g, 0.9, effort, 0.5, 50.0)
+    expected = np.clip((0.9 * effort - np.abs(g)) / diag, 0.5, 50.0)
+    assert positive and np.array_equal(bounds, expected)
+    assert (bounds == 0.5).any() and (bounds == 50.0).any()  # both clips were reached
+    diag[4, 2] = 0.0
+    assert not acceleration_bounds(diag, g, 0.9, effort, 0.5, 50.0)[1]

@@ -375,7 +375,7 @@ class PathFollowingController(Controller):
         if self.a_const is not None:
             a_max = self._constant_a_max(self.a_const, p)
         else:
-            starts = np.vstack([q[None, :], pred.q_lin[:-1]])
+            starts = np.concatenate((q[None, :], pred.q_lin[:-1]))
             a_max = self.robot.fast.acceleration_limits_batch(
                 starts, 1.0, self.acceleration_floor, self.acceleration_cap
             )

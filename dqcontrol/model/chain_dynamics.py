@@ -30,7 +30,7 @@ import pinocchio as pin
 from dqcontrol._compiled import compiled
 from dqcontrol.model.chain_batch import revolute_axis
 
-__all__ = ["ChainDynamics"]
+__all__ = ["ChainDynamics", "acceleration_bounds"]
 
 
 class ChainDynamics:
@@ -176,3 +176,26 @@ def diagonal_gravity_into(qs, placements, axes, bodies, inertias, armature, grav
             t1 = f2 * gravity[0] - f0 * gravity[2]
             t2 = f0 * gravity[1] - f1 * gravity[0]
             g[i, j] = -(w[0] * t0 + w[1] * t1 + w[2] * t2)
+
+
+@compiled
+def acceleration_bounds(diag, g, effort_fraction, effort_max, floor, cap):
+    """``clip((effort_fraction τ_max - |g|) / diag, floor, cap)`` entry by entry, as numpy
+    computes it (a NaN stays NaN), and whether every ``diag`` entry is positive (where one
+    is not, its bound is NaN)."""
+    out = np.empty(diag.shape)
+    positive = True
+    for i in range(diag.shape[0]):
+        for j in range(diag.shape[1]):
+            d = diag[i, j]
+            if not d > 0.0:
+                positive = False
+                out[i, j] = np.nan
+                continue
+            v = (effort_fraction * effort_max[j] - abs(g[i, j])) / d
+            if v < floor:
+                v = floor
+            if v > cap:
+                v = cap
+            out[i, j] = v
+    return out, positive

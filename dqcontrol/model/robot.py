@@ -34,7 +34,7 @@ from dqcontrol.dq.kernels import (
 )
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
-from dqcontrol.model.chain_dynamics import ChainDynamics
+from dqcontrol.model.chain_dynamics import ChainDynamics, acceleration_bounds
 from dqcontrol.model.fast import UncheckedModel
 from dqcontrol.model.pinocchio_model import angle_model, build_angle_model, lock_joints
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
@@ -397,11 +397,13 @@ class RobotModel:
             diag, g = self._dynamics.diagonal_and_gravity(qs)
         else:
             diag, g = self._diagonal_and_gravity_pinocchio(qs)
-        if not np.all(diag > 0.0):
+        bounds, positive = acceleration_bounds(
+            diag, g, effort_fraction, self.limits.effort_max, floor, cap
+        )
+        if not positive:
             for row in diag:  # the first configuration with a massless joint
                 self._check_inertias(row)
-        spare = effort_fraction * self.limits.effort_max - np.abs(g)
-        return np.clip(spare / diag, floor, cap)
+        return bounds
 
     @staticmethod
     def _check_acceleration_settings(effort_fraction: float, floor: float, cap: float) -> None:
