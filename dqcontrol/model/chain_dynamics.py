@@ -91,87 +91,129 @@ class ChainDynamics:
 
 
 @compiled
-def _place(
-    rotation, origin, placement, axis, angle, turn, before, rotation_out, origin_out, axis_out
-) -> None:
-    """The frame of a joint turned by ``angle``: ``R_out = R P_R Rot(axis, angle)``,
-    ``o_out = o + R P_p``, and its world axis ``R P_R axis`` (``turn``, ``before``:
-    ``(3, 3)`` scratch)."""
-    c, s = math.cos(angle), math.sin(angle)
+def _joint_frame(rot, origin, placement, axis, angle):
+    """The frame of a joint turned by ``angle`` after its parent's ``(rot, origin)``
+    (``rot`` row by row, nine numbers): ``R P_R Rot(axis, angle)``, ``o + R P_p``, and the
+    joint's world axis ``R P_R axis``."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
+    o = (
+        origin[0] + r00 * placement[0, 3] + r01 * placement[1, 3] + r02 * placement[2, 3],
+        origin[1] + r10 * placement[0, 3] + r11 * placement[1, 3] + r12 * placement[2, 3],
+        origin[2] + r20 * placement[0, 3] + r21 * placement[1, 3] + r22 * placement[2, 3],
+    )
+    b = _times(rot, placement)
     x, y, z = axis[0], axis[1], axis[2]
+    c, s = math.cos(angle), math.sin(angle)
     t = 1.0 - c
-    turn[0, 0], turn[0, 1], turn[0, 2] = c + x * x * t, x * y * t - z * s, x * z * t + y * s
-    turn[1, 0], turn[1, 1], turn[1, 2] = y * x * t + z * s, c + y * y * t, y * z * t - x * s
-    turn[2, 0], turn[2, 1], turn[2, 2] = z * x * t - y * s, z * y * t + x * s, c + z * z * t
+    turn = (  # Rodrigues' rotation about the unit axis
+        c + x * x * t, x * y * t - z * s, x * z * t + y * s,
+        y * x * t + z * s, c + y * y * t, y * z * t - x * s,
+        z * x * t - y * s, z * y * t + x * s, c + z * z * t,
+    )  # fmt: skip
+    w = (
+        b[0] * x + b[1] * y + b[2] * z,
+        b[3] * x + b[4] * y + b[5] * z,
+        b[6] * x + b[7] * y + b[8] * z,
+    )
+    return _product(b, turn), o, w
+
+
+@compiled
+def _times(rot, m):
+    """``R M`` for ``R`` given row by row (nine numbers) and ``M`` ``(3, ≥3)``: nine numbers."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = rot
+    return (
+        r00 * m[0, 0] + r01 * m[1, 0] + r02 * m[2, 0],
+        r00 * m[0, 1] + r01 * m[1, 1] + r02 * m[2, 1],
+        r00 * m[0, 2] + r01 * m[1, 2] + r02 * m[2, 2],
+        r10 * m[0, 0] + r11 * m[1, 0] + r12 * m[2, 0],
+        r10 * m[0, 1] + r11 * m[1, 1] + r12 * m[2, 1],
+        r10 * m[0, 2] + r11 * m[1, 2] + r12 * m[2, 2],
+        r20 * m[0, 0] + r21 * m[1, 0] + r22 * m[2, 0],
+        r20 * m[0, 1] + r21 * m[1, 1] + r22 * m[2, 1],
+        r20 * m[0, 2] + r21 * m[1, 2] + r22 * m[2, 2],
+    )
+
+
+@compiled
+def _product(a, b):
+    """``A B`` of two rotations given row by row (nine numbers each): nine numbers."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = b
+    return (
+        a00 * b00 + a01 * b10 + a02 * b20,
+        a00 * b01 + a01 * b11 + a02 * b21,
+        a00 * b02 + a01 * b12 + a02 * b22,
+        a10 * b00 + a11 * b10 + a12 * b20,
+        a10 * b01 + a11 * b11 + a12 * b21,
+        a10 * b02 + a11 * b12 + a12 * b22,
+        a20 * b00 + a21 * b10 + a22 * b20,
+        a20 * b01 + a21 * b11 + a22 * b21,
+        a20 * b02 + a21 * b12 + a22 * b22,
+    )
+
+
+@compiled
+def _body_terms(rot, origin, bodies, inertias, j, coms, world_inertias) -> None:
+    """Body ``j``'s centre of mass ``o + R lever`` and inertia ``R I Rᵀ`` in world axes,
+    written to ``coms[j]`` and ``world_inertias[j]``."""
     for r in range(3):
-        origin_out[r] = origin[r]
-        for k in range(3):
-            origin_out[r] += rotation[r, k] * placement[k, 3]
-            before[r, k] = (
-                rotation[r, 0] * placement[0, k]
-                + rotation[r, 1] * placement[1, k]
-                + rotation[r, 2] * placement[2, k]
-            )
-        axis_out[r] = before[r, 0] * x + before[r, 1] * y + before[r, 2] * z
+        coms[j, r] = (
+            origin[r]
+            + rot[3 * r] * bodies[j, 1]
+            + rot[3 * r + 1] * bodies[j, 2]
+            + (rot[3 * r + 2] * bodies[j, 3])
+        )
+    ri = _times(rot, inertias[j])  # R I, then (R I) Rᵀ
     for r in range(3):
         for k in range(3):
-            rotation_out[r, k] = (
-                before[r, 0] * turn[0, k] + before[r, 1] * turn[1, k] + before[r, 2] * turn[2, k]
+            world_inertias[j, r, k] = (
+                ri[3 * r] * rot[3 * k]
+                + ri[3 * r + 1] * rot[3 * k + 1]
+                + ri[3 * r + 2] * rot[3 * k + 2]
             )
 
 
 @compiled
-def _body_terms(rotation, origin, body, inertia, com_out, inertia_out) -> None:
-    """A body's centre of mass ``o + R lever`` and inertia ``R I Rᵀ`` in world axes."""
-    for r in range(3):
-        com_out[r] = origin[r]
-        for k in range(3):
-            com_out[r] += rotation[r, k] * body[1 + k]
-    for r in range(3):  # (R I) Rᵀ, a row of R I at a time
-        ri0 = rotation[r, 0] * inertia[0, 0] + rotation[r, 1] * inertia[1, 0]
-        ri1 = rotation[r, 0] * inertia[0, 1] + rotation[r, 1] * inertia[1, 1]
-        ri2 = rotation[r, 0] * inertia[0, 2] + rotation[r, 1] * inertia[1, 2]
-        ri0 += rotation[r, 2] * inertia[2, 0]
-        ri1 += rotation[r, 2] * inertia[2, 1]
-        ri2 += rotation[r, 2] * inertia[2, 2]
-        for k in range(3):
-            inertia_out[r, k] = ri0 * rotation[k, 0] + ri1 * rotation[k, 1] + ri2 * rotation[k, 2]
+def _diagonal_entry(j, w, o, coms, world_inertias, bodies, armature) -> float:
+    """``M_jj``: the armature and, for each body ``k ≥ j``, ``w_jᵀ I_k w_j`` and
+    ``m_k |(c_k - o_j) × w_j|²`` (``w``, ``o``: joint ``j``'s axis and origin)."""
+    w0, w1, w2 = w
+    total = armature[j]
+    for k in range(j, coms.shape[0]):
+        d0, d1, d2 = coms[k, 0] - o[0], coms[k, 1] - o[1], coms[k, 2] - o[2]
+        e0, e1, e2 = d1 * w2 - d2 * w1, d2 * w0 - d0 * w2, d0 * w1 - d1 * w0
+        spin = 0.0
+        for r in range(3):
+            i_r = world_inertias[k, r]
+            spin += w[r] * (i_r[0] * w0 + i_r[1] * w1 + i_r[2] * w2)
+        total += spin + bodies[k, 0] * (e0 * e0 + e1 * e1 + e2 * e2)
+    return total
 
 
 @compiled
 def diagonal_gravity_into(qs, placements, axes, bodies, inertias, armature, gravity, diag, g):
     """``diag[i] = diag M(qs[i])`` and ``g[i] = g(qs[i])`` (module docstring)."""
     count, n = qs.shape
-    rotations, origins = np.zeros((n + 1, 3, 3)), np.zeros((n + 1, 3))
-    for r in range(3):
-        rotations[0, r, r] = 1.0  # the universe's frame
-    world_axes, coms, world_inertias = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3, 3))
-    turn, before, moment = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    frames = np.empty((n, 6))  # each joint's world axis and origin
+    coms, world_inertias = np.empty((n, 3)), np.empty((n, 3, 3))
     for i in range(count):
+        rot = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)  # the universe's frame
+        o = (0.0, 0.0, 0.0)
         for j in range(n):
-            _place(rotations[j], origins[j], placements[j], axes[j], qs[i, j], turn, before,
-                   rotations[j + 1], origins[j + 1], world_axes[j])  # fmt: skip
-            _body_terms(rotations[j + 1], origins[j + 1], bodies[j], inertias[j],
-                        coms[j], world_inertias[j])  # fmt: skip
-        mass = 0.0  # suffix sums of m_k and of m_k c_k
-        moment[:] = 0.0
+            rot, o, w = _joint_frame(rot, o, placements[j], axes[j], qs[i, j])
+            frames[j, 0], frames[j, 1], frames[j, 2] = w
+            frames[j, 3], frames[j, 4], frames[j, 5] = o
+            _body_terms(rot, o, bodies, inertias, j, coms, world_inertias)
+        mass, m0, m1, m2 = 0.0, 0.0, 0.0, 0.0  # suffix sums of m_k and of m_k c_k
         for j in range(n - 1, -1, -1):
             m_j = bodies[j, 0]
             mass += m_j
-            for r in range(3):
-                moment[r] += m_j * coms[j, r]
-            w, o = world_axes[j], origins[j + 1]
-            total = armature[j]
-            for k in range(j, n):
-                d0, d1, d2 = coms[k, 0] - o[0], coms[k, 1] - o[1], coms[k, 2] - o[2]
-                e0, e1, e2 = d1 * w[2] - d2 * w[1], d2 * w[0] - d0 * w[2], d0 * w[1] - d1 * w[0]
-                spin = 0.0
-                for r in range(3):
-                    for c in range(3):
-                        spin += w[r] * world_inertias[k, r, c] * w[c]
-                total += spin + bodies[k, 0] * (e0 * e0 + e1 * e1 + e2 * e2)
-            diag[i, j] = total
-            f0, f1, f2 = moment[0] - mass * o[0], moment[1] - mass * o[1], moment[2] - mass * o[2]
+            m0, m1, m2 = m0 + m_j * coms[j, 0], m1 + m_j * coms[j, 1], m2 + m_j * coms[j, 2]
+            w = (frames[j, 0], frames[j, 1], frames[j, 2])
+            o = (frames[j, 3], frames[j, 4], frames[j, 5])
+            diag[i, j] = _diagonal_entry(j, w, o, coms, world_inertias, bodies, armature)
+            f0, f1, f2 = m0 - mass * o[0], m1 - mass * o[1], m2 - mass * o[2]
             t0 = f1 * gravity[2] - f2 * gravity[1]
             t1 = f2 * gravity[0] - f0 * gravity[2]
             t2 = f0 * gravity[1] - f1 * gravity[0]
