@@ -257,3 +257,21 @@ def test_a_limit_that_changes_its_rows_starts_a_new_structure(lbr4p):
     third = assembly.build(ctx)
     assert third.C.shape == first.C.shape and third.structure not in (first.structure,
                                                                       second.structure)  # fmt: skip
+
+
+def test_compiled_braking_and_coupling_constants_are_numpys():
+    """The limits' per-step constants from a moving ``a_max``: the braking rows
+    ``[a T; 2 a; (a T)²]`` and the coupling steps ``±h_i a_max[i + 1]``, bit for bit."""
+    from dqcontrol.controllers.bounds import braking_constants
+    from dqcontrol.controllers.joint_box import braking_rows
+    from dqcontrol.controllers.limits.acceleration import coupling_steps
+
+    rng = np.random.default_rng(31)
+    a_max = rng.uniform(0.5, 50.0, size=(6, 7))
+    assert np.array_equal(braking_rows(a_max[0], 1e-3), np.array(braking_constants(a_max[0], 1e-3)))
+    h = rng.uniform(0.01, 0.2, size=5)
+    dv, neg_dv = coupling_steps(h, a_max)
+    assert np.array_equal(dv, (h[:, None] * a_max[1:]).ravel())
+    assert np.array_equal(neg_dv, -dv)
+    steady = np.broadcast_to(a_max[0], (6, 7))  # a constant bound, as the controllers pass it
+    assert np.array_equal(coupling_steps(h, steady)[0], (h[:, None] * steady[1:]).ravel())

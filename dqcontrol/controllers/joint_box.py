@@ -266,6 +266,19 @@ def hard_interval_into(
 
 
 @compiled
+def braking_rows(a: np.ndarray, period_s: float) -> np.ndarray:
+    """``[a T; 2 a; (a T)²]`` ``(3, n)`` of the bound ``a`` [rad/s²] (the braking constants
+    of :func:`applied_box_into`)."""
+    out = np.empty((3, a.shape[0]))
+    for j in range(a.shape[0]):
+        at = a[j] * period_s
+        out[0, j] = at
+        out[1, j] = 2.0 * a[j]
+        out[2, j] = at * at
+    return out
+
+
+@compiled
 def applied_box_into(
     q: np.ndarray,
     q_min: np.ndarray,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dqcontrol._compiled import compiled
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.joint_box import hard_interval_into
@@ -77,8 +78,8 @@ class AccelerationLimit(Limit):
     def _coupling(self, ctx: StepContext) -> np.ndarray:
         """``h_i a_max,i`` of every coupling row, cached while ``ctx.a_max`` is the same."""
         if ctx.a_max is not self._dv_key:
-            self._dv = frozen((self.coupling_s[:, None] * ctx.a_max[1:]).ravel())
-            self._neg_dv = frozen(-self._dv)
+            dv, neg_dv = coupling_steps(self.coupling_s, ctx.a_max)
+            self._dv, self._neg_dv = frozen(dv), frozen(neg_dv)
             self._dv_key = ctx.a_max
         return self._dv
 
@@ -112,3 +113,16 @@ class AccelerationLimit(Limit):
             return (first,)
         dv = self._coupling(ctx)
         return first, Inequality("acceleration_coupling", self._c, self._neg_dv, dv)
+
+
+@compiled
+def coupling_steps(coupling_s: np.ndarray, a_max: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``h_i a_max[i + 1]`` of every coupling row, flat ``((p - 1) n,)``, and its negation."""
+    rows, n = coupling_s.shape[0], a_max.shape[1]
+    dv, neg_dv = np.empty(rows * n), np.empty(rows * n)
+    for i in range(rows):
+        for j in range(n):
+            v = coupling_s[i] * a_max[i + 1, j]
+            dv[i * n + j] = v
+            neg_dv[i * n + j] = -v
+    return dv, neg_dv

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.bounds import braking_constants
 from dqcontrol.controllers.context import StepContext
 from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.joint_box import applied_box_into
+from dqcontrol.controllers.joint_box import applied_box_into, braking_rows
 from dqcontrol.controllers.problem import Bounds, DecisionLayout, Limit
 
 __all__ = ["AppliedCommandBox"]
@@ -45,7 +44,7 @@ class AppliedCommandBox(Limit):
     def _braking(self, a_max: np.ndarray) -> np.ndarray:
         """``[a T; 2 a; (a T)²]`` of the first block (kept while ``a_max`` is the same)."""
         if a_max is not self._brake_key:
-            self._brake = np.array(braking_constants(a_max[0], self.period_s))
+            self._brake = braking_rows(a_max[0], self.period_s)
             self._brake_key = a_max
         return self._brake
 

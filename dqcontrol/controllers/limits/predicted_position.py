@@ -109,7 +109,7 @@ class PredictedPositionLimit(Limit):
             last = c[-n:].copy()
             last.ravel()[self._terminal_entries] += coeff
             self._terminal_key = (c, a_max)
-            self._terminal_rows = (coeff, frozen(last), coeff * self.qd_max)
+            self._terminal_rows = (coeff, last, coeff * self.qd_max)  # last: _selected
         return self._terminal_rows
 
     def _selected(
@@ -123,10 +123,14 @@ class PredictedPositionLimit(Limit):
         moves with the state), whose derived data is computed at each step instead."""
         mask = keep.tobytes()
         last = self._selections.get(kind)
-        if last is not None and last[0] is c and last[1] == mask:
-            last[2][0].flags.writeable = False
-            return last[2]
-        rows = (c[keep], frozen(np.flatnonzero(keep)))
+        if last is not None and last[1] == mask:
+            if last[0] is c:
+                last[2][0].flags.writeable = False
+                return last[2]
+            keys = last[2][1]  # the same rows of other values
+        else:
+            keys = frozen(np.flatnonzero(keep))
+        rows = (c if keys.shape[0] == c.shape[0] else c[keep], keys)
         self._selections[kind] = (c, mask, rows)
         return rows
 
