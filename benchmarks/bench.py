@@ -373,7 +373,17 @@ def bench_path_following(
         ctrl = _make("pf10", rob, Circle(2.0), period_s, None)
         res = step_times(ctrl, q0, max(steps // 10, 20), 1, reference=False)
         by_n[n] = {k: res[k] for k in keys}
-    return {"by_p": by_p, "by_joints_p10": by_n, "fit_p": _power_fit(by_p)}
+    # the controller as the API and `dqcontrol run` give it: the dynamics-aware bound
+    shared = {"velocity_limits": THESIS_VEL}
+    ctrl = build_controller("pf10", robot, Circle(2.0), period_s, shared=shared)
+    res = step_times(ctrl, LBR4P_Q0, steps, 1, reference=False)
+    dynamics = {k: res[k] for k in keys}
+    return {
+        "by_p": by_p,
+        "by_joints_p10": by_n,
+        "fit_p": _power_fit(by_p),
+        "dynamics_p10": dynamics,
+    }
 
 
 def held_against_unheld(robot: RobotModel, period_s: float, steps: int, block: int = 100) -> dict:
@@ -1052,6 +1062,13 @@ def _path_following_lines(pf: dict | None) -> list[str]:
                 f"    one BLAS thread held over the loop / each step switching it itself: "
                 f"{v['held_over_unheld']:.3f} (interleaved)"
             )
+    dyn = pf.get("dynamics_p10")
+    if dyn:
+        lines.append(
+            f"  p=10 with its default dynamics-aware acceleration bound: {dyn['median_us']:.0f} / "
+            f"{dyn['p99_us']:.0f} ({dyn['levels_median_us']:.0f}), step/solve "
+            f"{dyn['median_us'] / dyn['levels_median_us']:.2f}"
+        )
     lines.append("path-following p = 10 against the number of joints [µs]: median (solver)")
     lines.append(
         "  "

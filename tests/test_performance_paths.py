@@ -148,6 +148,8 @@ def test_quick_bench_writes_every_figure(tmp_path):
     assert 0.0 < pf10["solver_median_us"] <= pf10["levels_median_us"] <= pf10["median_us"]
     for key in ("path_following_p10", "path_following_step_over_solve"):
         assert data["targets"][key]["value"] > 0.0
+    default = data["path_following"]["dynamics_p10"]  # the dynamics-aware bound, as shipped
+    assert 0.0 < default["solver_median_us"] <= default["levels_median_us"] <= default["median_us"]
     assert data["scaling"]["by_p"] and data["scaling"]["by_joints_p10"]
     whole = data["collision"]["pf10_whole_circle"]  # the quick run: its first 20 steps
     assert whole["steps"] == 20 and not whole["completed"] and whole["fallbacks"] == 0
