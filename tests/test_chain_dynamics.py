@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_continuous_joint import _TILTED  # a tilted two-joint arm, first joint's kind open
 
 import dqcontrol
 from dqcontrol.cli.bench_cmd import load_bench
@@ -20,20 +21,6 @@ from dqcontrol.model import robot as robot_module
 from dqcontrol.model.chain_dynamics import ChainDynamics
 
 long_chain_urdf = load_bench().long_chain_urdf
-
-PRISMATIC_URDF = """<robot name="slider">
-  <link name="base"/>
-  <link name="l0"><inertial><mass value="2"/><origin xyz="0.1 0 0"/>
-    <inertia ixx="0.02" iyy="0.03" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="l1"><inertial><mass value="1"/>
-    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <joint name="j0" type="revolute"><parent link="base"/><child link="l0"/>
-    <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
-    <limit lower="-2.9" upper="2.9" effort="10" velocity="1"/></joint>
-  <joint name="j1" type="prismatic"><parent link="l0"/><child link="l1"/>
-    <origin xyz="0.1 0 0.2" rpy="0.3 0 0"/><axis xyz="1 0 0"/>
-    <limit lower="-0.2" upper="0.2" effort="10" velocity="1"/></joint>
-</robot>"""
 
 
 def _general_chain_urdf(n: int, seed: int) -> str:
@@ -80,6 +67,7 @@ MODELS = {
         base=pin.SE3(pin.rpy.rpyToMatrix(0.3, -0.4, 1.1), np.array([0.2, -0.1, 0.5]))
     ),
     "chain1": lambda: RobotModel.from_urdf(long_chain_urdf(1), "flange"),
+    "tilted_continuous": lambda: RobotModel.from_urdf(_TILTED.format(kind="continuous"), "l2"),
     "chain14": lambda: RobotModel.from_urdf(long_chain_urdf(14), "flange"),
     "general7": lambda: RobotModel.from_urdf(_general_chain_urdf(7, seed=3), "l6"),
     "general10_armature": lambda: _with_armature(
@@ -126,7 +114,7 @@ def test_gravity_is_the_gradient_of_the_potential(name):
 
 def test_models_that_are_not_revolute_chains_stay_on_pinocchio():
     for robot in (
-        RobotModel.from_urdf(PRISMATIC_URDF, "l1"),
+        RobotModel.from_urdf(_TILTED.format(kind="prismatic"), "l2"),
         dqcontrol.load_panda(locked_joints={}),  # the fingers branch off the hand
     ):
         assert robot._dynamics is None
