@@ -129,25 +129,23 @@ class ChainBatch:
 
     def __call__(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(N, 8)`` poses and ``(N, 8, n)`` pose Jacobians of checked configurations."""
-        count = qs.shape[0]
-        v = qs.dot(self._e)
-        v += self._offsets
-        np.sin(v, out=v)
-        k = np.empty((count, self._products))
-        outer_rows_into(v, self._size_a, k)
-        out = k.dot(self._t)
-        positive_scalar_rows(out)  # r_w ≥ 0, Jacobian row flipped with x
-        return out[:, :8], out[:, 8:].reshape(count, 8, self.nq)
+        out = self._rows(qs, self._t)
+        return out[:, :8], out[:, 8:].reshape(qs.shape[0], 8, self.nq)
 
     def poses(self, qs: np.ndarray) -> np.ndarray:
         """``(N, 8)`` poses of checked configurations, without the Jacobians (the first
         eight columns of ``T``; ``r_w ≥ 0``)."""
+        return self._rows(qs, self._t_pose)
+
+    def _rows(self, qs: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """``k · t`` for the products ``k`` of the configurations ``qs`` (module docstring),
+        each row's sign set by ``r_w ≥ 0`` (the Jacobian's row flipped with ``x``)."""
         v = qs.dot(self._e)
         v += self._offsets
         np.sin(v, out=v)
         k = np.empty((qs.shape[0], self._products))
         outer_rows_into(v, self._size_a, k)
-        out = k.dot(self._t_pose)
+        out = k.dot(t)
         positive_scalar_rows(out)
         return out
 
