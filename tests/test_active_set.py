@@ -17,7 +17,7 @@ from dqcontrol.controllers.backends.active_set import (
     dense_factor,
     solve_on_active_set,
 )
-from dqcontrol.controllers.backends.daqp_dense import DaqpBackend, _factor
+from dqcontrol.controllers.backends.daqp import DaqpBackend, _factor
 from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.problem import DenseQP
 

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from dqcontrol.controllers.qp_daqp import DaqpQP
+from dqcontrol.controllers.backends.daqp_blocks import DaqpBlocks
 from dqcontrol.errors import ParameterError
 
 
-def _qp(**kwargs) -> DaqpQP:
+def _qp(**kwargs) -> DaqpBlocks:
     pattern = sp.csc_matrix(np.triu(np.ones((2, 2))))
-    return DaqpQP(pattern, sp.identity(2, format="csc"), **kwargs)
+    return DaqpBlocks(pattern, sp.identity(2, format="csc"), **kwargs)
 
 
 def _values(h: np.ndarray) -> np.ndarray:
@@ -77,15 +77,15 @@ def _block_problem(rng, blocks: int, size: int, equality: bool):
 
 
 def test_block_diagonal_p_as_least_distance_problem_gives_the_same_optimum():
-    """``DaqpQP(block_size=…)`` (the least-distance form of ``qp_ldp.py``) against DAQP on
+    """``DaqpBlocks(block_size=…)`` (the least-distance form of ``qp_ldp.py``) against DAQP on
     the problem as it is, over a sequence of solves (warm active sets), with equalities by
     design, unbounded sides, an infeasible step and a block that is not positive definite
     (which falls back to the plain form and stays correct)."""
     rng = np.random.default_rng(2024)
     for blocks, size, equality in ((10, 8, False), (6, 8, True), (3, 4, False)):
         h, pattern, pat, a, lower, upper, eq = _block_problem(rng, blocks, size, equality)
-        plain = DaqpQP(pattern, a, equality_rows=eq)
-        ldp = DaqpQP(pattern, a, equality_rows=eq, block_size=size)
+        plain = DaqpBlocks(pattern, a, equality_rows=eq)
+        ldp = DaqpBlocks(pattern, a, equality_rows=eq, block_size=size)
         for _ in range(12):
             hs = h * rng.uniform(0.5, 2.0)  # a new P each step, same pattern
             c = rng.standard_normal(h.shape[0])
@@ -114,8 +114,8 @@ def test_block_diagonal_p_as_least_distance_problem_gives_the_same_optimum():
     h_psd[4:8, 4:8] = 0.0
     h_psd[4, 4] = h_psd[5, 5] = h_psd[6, 6] = h_psd[7, 7] = 1.0
     h_psd[5, 5] = 0.0
-    ldp = DaqpQP(pattern, a, block_size=4)
-    plain = DaqpQP(pattern, a)
+    ldp = DaqpBlocks(pattern, a, block_size=4)
+    plain = DaqpBlocks(pattern, a)
     c = rng.standard_normal(16)
     got = ldp.solve(h_psd[pat.row, pat.col], c, lower, upper)
     ref = plain.solve(h_psd[pat.row, pat.col], c, lower, upper)
@@ -127,4 +127,4 @@ def test_block_diagonal_p_as_least_distance_problem_gives_the_same_optimum():
 def test_block_size_must_match_the_pattern():
     pattern = sp.csc_matrix(np.triu(np.ones((4, 4))))
     with pytest.raises(ParameterError, match="not block diagonal"):
-        DaqpQP(pattern, sp.identity(4, format="csc"), block_size=2)
+        DaqpBlocks(pattern, sp.identity(4, format="csc"), block_size=2)

@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 from dqcontrol.cli import main
 from dqcontrol.controllers import (
     LocalController,
+    PathFollowingController,
     PredictiveController,
     PredictiveNoScalingController,
     ProportionalController,
@@ -288,8 +289,53 @@ def test_contradictory_bounds_reach_the_solver(lbr4p):
     assert made and np.any(lo > ctrl.last_problem().lower)
 
 
+def _corrupted(ctrl, steps: int, period_s: float) -> tuple[int, int, np.ndarray]:
+    """``(corrupted solves, fallbacks, |qd| largest over the run)`` of a closed loop."""
+    q = LBR4P_Q0.copy()
+    ctrl.reset(q)
+    fallbacks, qd_peak = 0, np.zeros(ctrl.n)
+    for _ in range(steps):
+        res = ctrl.step(q)
+        fallbacks += res.diagnostics.fallback
+        qd_peak = np.maximum(qd_peak, np.abs(res.qd_command))
+        q = q + period_s * res.qd_command
+    return ctrl.backend.corrupted_solves, fallbacks, qd_peak
+
+
+@pytest.mark.parametrize("mode", ["crossed", "coupled"])
+def test_contradictory_reaches_every_priority_mode(lbr4p, mode):
+    """The wrapper sits on the one backend every QP of a step goes to: the strict
+    priority's levels (the warm levels, the reduced levels) see it as the weighted
+    controller's single level does."""
+    counts = {}
+    for priority in ("weighted", "strict"):
+        ctrl = contradictory(PredictiveController)(
+            lbr4p, Circle(2.0), 0.05, num_instants=6, contradiction=mode,
+            window_steps=(2, 7), priority=priority,
+        )  # fmt: skip
+        counts[priority] = _corrupted(ctrl, 10, 0.05)[:2]
+    assert counts["strict"] == counts["weighted"]
+    assert counts["weighted"][0] >= 5  # every step of the window, and its relaxed retry
+
+
+@pytest.mark.parametrize("mode", ["crossed", "coupled"])
+def test_path_following_runs_the_contradictory_faults(lbr4p, mode):
+    """No feasible point in the window: the path-following controller tries its remedies,
+    then brakes within its bounds (the safe fallback), and resumes after the window."""
+    ctrl = contradictory(PathFollowingController)(
+        lbr4p, Circle(2.0), 0.05, contradiction=mode, window_steps=(2, 5),
+        velocity_limits=1.0, acceleration_limit=5.0,
+    )  # fmt: skip
+    assert isinstance(ctrl.backend, ContradictoryBoundsQP) and ctrl.qp is ctrl.backend
+    corrupted, fallbacks, qd_peak = _corrupted(ctrl, 12, 0.05)
+    assert corrupted >= 3 and fallbacks == 3
+    assert ctrl.backend.false_successes == 0
+    assert np.all(qd_peak <= 1.0 + 1e-9)
+    assert ctrl.sigma > 0.0  # the task went on after the window
+
+
 def test_contradictory_needs_a_qp_controller(lbr4p):
-    with pytest.raises(ParameterError, match="TrackingController subclass"):
+    with pytest.raises(ParameterError, match="QP controller class"):
         contradictory(ProportionalController)
     with pytest.raises(ParameterError, match="mode 'coupled' needs a predictive controller"):
         contradictory(LocalController)(lbr4p, Circle(1.0), 0.05, contradiction="coupled")

@@ -1,7 +1,7 @@
 """The local controller's QP on each backend against a reference solve (docs/theory.md §7.5).
 
 The local controller's QP has one block and bounds only: the DAQP backend hands DAQP the
-whole Hessian (``DaqpQP``'s dense form), OSQP (refined) is the other backend. Over whole
+whole Hessian (``DaqpBlocks``'s dense form), OSQP (refined) is the other backend. Over whole
 closed loops, every QP a backend solves is solved again by an independent dense active-set
 solver (quadprog) and the two optima must agree; the bounds the backend receives must be
 ``bounds._vp_box`` + ``intersect_acceleration`` bit for bit on random states.
@@ -17,9 +17,10 @@ import quadprog
 
 from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import LocalController, command_box
+from dqcontrol.controllers.backends import DaqpBackend, ForwardingBackend
+from dqcontrol.controllers.backends.daqp_blocks import DaqpBlocks
 from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.controllers.bounds import _vp_box, braking_constants, intersect_acceleration
-from dqcontrol.controllers.qp_daqp import DaqpQP
 from dqcontrol.faults.qp_faults import contradictory
 from dqcontrol.model import LBR4P_Q0, RobotModel
 from dqcontrol.trajectories import Circle, Sinusoid
@@ -51,19 +52,14 @@ def reference_solve(qp) -> tuple[np.ndarray, object]:
     return x[0], dense
 
 
-class Referee:
+class Referee(ForwardingBackend):
     """Wraps a controller's backend: every QP it solves is solved again by quadprog and
     compared; the last QP and solution are kept."""
 
     def __init__(self, inner) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self.checked = 0
         self.last = None
-
-    def __getattr__(self, name: str):
-        if name == "inner":
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
     def solve_blocks(self, qp):
         sol = self.inner.solve_blocks(qp)
@@ -254,7 +250,7 @@ def test_contradictory_bounds_reach_the_production_backend(lbr4p):
         res = ctrl.step(q)
         statuses.append(res.diagnostics.status)
         q = q + T * res.qd_command
-    assert isinstance(ctrl.qp.inner, DaqpQP) and ctrl.qp.inner.form == "dense"
+    assert isinstance(ctrl.qp.inner, DaqpBackend) and ctrl.qp.inner.form == "dense"
     assert [s.startswith("invalid_bounds") for s in statuses] == [0, 0, 1, 1, 0, 0]
     assert ctrl.qp.false_successes == 0
 
@@ -391,7 +387,7 @@ def test_solve_dense_equals_solve():
     m = 4
     pattern = sp.csc_matrix(np.triu(np.ones((m, m))))
     a_matrix = sp.identity(m, format="csc")
-    fast, ref = DaqpQP(pattern, a_matrix), DaqpQP(pattern, a_matrix)
+    fast, ref = DaqpBlocks(pattern, a_matrix), DaqpBlocks(pattern, a_matrix)
     rows, cols = np.triu_indices(m)
     order = np.lexsort((rows, cols))  # CSC order of the upper triangle
     rng = np.random.default_rng(5)

@@ -11,15 +11,17 @@ import numpy as np
 import pytest
 from test_core_levels_properties import _problem
 
-from dqcontrol.controllers.backends.daqp_dense import DaqpBackend
+from dqcontrol.controllers.backends.base import Backend
+from dqcontrol.controllers.backends.daqp import DaqpBackend
 from dqcontrol.controllers.gram import frozen
 from dqcontrol.controllers.levels import solve_levels
 from dqcontrol.controllers.problem import Residual
 from dqcontrol.controllers.reduced import level_rows, objective_in_basis, reduced_objective
 
 
-class _DenseOnly:
-    """A DAQP backend seen without ``solve_reduced``: every level as its dense QP."""
+class _DenseOnly(Backend):
+    """A DAQP backend seen through the contract's dense defaults: every level as its dense
+    QP (no ``solve_reduced``, no warm levels)."""
 
     name = "daqp"
 
@@ -117,17 +119,17 @@ def test_the_levels_solved_in_one_call_are_those_solved_one_by_one(monkeypatch):
     # can, and says where it stopped: each outcome (first level's set broken, a null
     # space for LAPACK, a lower level's set broken, all levels) must give the answer of
     # the levels solved one by one, bit for bit
-    import dqcontrol.controllers.backends.daqp_dense as daqp_dense
+    import dqcontrol.controllers.backends.daqp as daqp
 
     outcomes = []
-    kernel = daqp_dense.warm_levels
+    kernel = daqp.warm_levels
 
     def counted(*args):
         out = kernel(*args)
         outcomes.append((out[0], len(args[2][0]) + 1, bool(out[6])))
         return out
 
-    monkeypatch.setattr(daqp_dense, "warm_levels", counted)
+    monkeypatch.setattr(daqp, "warm_levels", counted)
     kinds = (
         lambda seed, tight: _problem(seed, 3, 3, (4, 3), tight),  # dense rows: LAPACK's
         lambda seed, tight: _staircase(seed, tight, (8, 3)),  # then dense rows in the basis
@@ -136,7 +138,7 @@ def test_the_levels_solved_in_one_call_are_those_solved_one_by_one(monkeypatch):
     for seed in range(12):
         for make in kinds:
             fused, apart = DaqpBackend(), DaqpBackend()
-            apart.solve_warm_levels = None  # the levels one by one
+            apart.solves_warm_levels = False  # the levels one by one
             for tight in (False, False, True, True, False, False):
                 problem = make(seed, tight)
                 _same(solve_levels(problem, fused), solve_levels(problem, apart))

@@ -13,7 +13,7 @@ from dqcontrol.controllers.backends.active_set import (
     dense_factor,
     solve_on_active_set,
 )
-from dqcontrol.controllers.backends.daqp_dense import PIVOT_SHARE, DaqpBackend, _factor
+from dqcontrol.controllers.backends.daqp import PIVOT_SHARE, DaqpBackend, _factor
 from dqcontrol.controllers.backends.state_factor import (
     state_backward,
     state_factor,

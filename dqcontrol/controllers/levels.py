@@ -173,9 +173,8 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     """Solve the levels in order, each holding the ones above (see the module docstring),
     with one BLAS thread (:func:`~dqcontrol._blas.single_blas_thread`)."""
     start = time.perf_counter()
-    name_rows = getattr(backend, "set_general_rows", None)
-    if name_rows is not None:  # a warm start kept for other rows is carried to these by name
-        name_rows(problem.layout.num_vars, problem.inequalities)
+    # a warm start kept for other rows is carried to these by name
+    backend.set_general_rows(problem.layout.num_vars, problem.inequalities)
     with single_blas_thread():
         result = _solve_levels(problem, backend)
     return LevelsResult(
@@ -235,11 +234,10 @@ def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
 def _warm_levels(problem: Problem, backend: Backend, first: SplitQP) -> WarmLevels | None:
     """The first levels from a backend that solves them on their last active sets in one
     call (``solve_warm_levels``), for a problem of several levels; ``None`` otherwise."""
-    solve_warm = getattr(backend, "solve_warm_levels", None)
-    if solve_warm is None or len(problem.levels) < 2:
+    if not backend.solves_warm_levels or len(problem.levels) < 2:
         return None
     lower = tuple(level_rows(level.residuals) for level in problem.levels[1:])
-    return solve_warm(first, _held_dense(problem, 0), lower)
+    return backend.solve_warm_levels(first, _held_dense(problem, 0), lower)
 
 
 def _held_dense(problem: Problem, k: int) -> np.ndarray:
@@ -294,12 +292,7 @@ def _reduced_level(
     if dim == 0:  # the levels above leave no freedom
         return Solution(True, "solved", 0, 0.0, point.copy(), None), None
     reduced = _reduced(problem, k, point, basis)
-    solve_reduced = getattr(backend, "solve_reduced", None)
-    if solve_reduced is not None:
-        sol, held = solve_reduced((k, dim), reduced)
-    else:
-        objective = reduced.objective()
-        sol, held = backend.solve((k, dim), reduced.dense(objective)), objective.held
+    sol, held = backend.solve_reduced((k, dim), reduced)
     if not sol.ok or sol.x is None:
         return sol, held
     duals = None if sol.duals is None else sol.duals[dim:]

@@ -27,7 +27,7 @@ from typing import Literal
 import numpy as np
 
 from dqcontrol._blas import single_blas_thread
-from dqcontrol.controllers.backends import make_backend
+from dqcontrol.controllers.backends import Backend, make_backend
 from dqcontrol.controllers.base import (
     Controller,
     StepDiagnostics,
@@ -158,7 +158,14 @@ class PathFollowingController(Controller):
             measured choices of docs/theory.md §8.
         extra_terms: more terms, added to the lowest (posture) level.
         extra_limits: more limits (any :class:`~dqcontrol.controllers.problem.Limit`).
-        solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
+        solver: a registered backend's name (``"daqp"``, the default, or ``"osqp"``:
+            :func:`~dqcontrol.controllers.backends.base.backend_names`);
+            ``solver_settings`` for it.
+
+    Attributes:
+        backend: the :class:`~dqcontrol.controllers.backends.base.Backend` every level of
+            every step is solved by; it may be replaced by a wrapper (a
+            :class:`~dqcontrol.controllers.backends.base.ForwardingBackend`).
     """
 
     name = "path_following"
@@ -185,7 +192,7 @@ class PathFollowingController(Controller):
         measurement_delay_periods: int = 0,
         extra_terms: tuple[Term, ...] = (),
         extra_limits: tuple[Limit, ...] = (),
-        solver: Literal["daqp", "osqp"] | None = None,
+        solver: str | None = None,
         solver_settings: dict | None = None,
     ) -> None:
         super().__init__(robot, trajectory, period_s, measurement_delay_periods)
@@ -350,6 +357,15 @@ class PathFollowingController(Controller):
         self._s_prev = 0.0
         self._expected_q: np.ndarray | None = None
         self._poor = True  # the first step linearises at rest: iterate
+
+    @property
+    def qp(self) -> Backend:
+        """The backend (:attr:`backend`), under the name the fault wrappers use."""
+        return self.backend
+
+    @qp.setter
+    def qp(self, backend: Backend) -> None:
+        self.backend = backend
 
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
         self.prediction_model.reset(q0, qd0)

@@ -9,9 +9,10 @@ At every step :class:`QPController`
    :class:`~dqcontrol.controllers.context.StepContext`;
 2. builds and solves the QP: with one level whose terms are block diagonal, the
    :class:`~dqcontrol.controllers.problem.BlockQP` of
-   :class:`~dqcontrol.controllers.assembly.BlockAssembly` goes to a structure-specialised
-   backend (:attr:`QPController.qp`); otherwise the levels are solved lexicographically
-   (:func:`~dqcontrol.controllers.levels.solve_levels`) on a dense backend;
+   :class:`~dqcontrol.controllers.assembly.BlockAssembly` goes to the backend's block path
+   (:meth:`~dqcontrol.controllers.backends.base.Backend.solve_blocks`); otherwise the levels
+   are solved lexicographically (:func:`~dqcontrol.controllers.levels.solve_levels`) on the
+   same backend (:attr:`QPController.backend`);
 3. if that fails and some limit is relaxable, solves again without the relaxable limits;
    if it still fails, applies the safe fallback (the point of the applied block's bounds
    closest to zero: braking within ``a_max``, ``s = 0``) and says so;
@@ -23,17 +24,11 @@ It never raises from inside a step because a QP failed (docs/theory.md §5).
 from __future__ import annotations
 
 from time import perf_counter
-from typing import cast
 
 import numpy as np
 
 from dqcontrol.controllers.assembly import BlockAssembly, overrides
-from dqcontrol.controllers.backends.base import (
-    Backend,
-    BlockBackend,
-    make_backend,
-    make_block_backend,
-)
+from dqcontrol.controllers.backends.base import Backend, make_backend
 from dqcontrol.controllers.base import (
     Controller,
     StepDiagnostics,
@@ -65,20 +60,22 @@ class QPController(Controller):
         prediction: the prediction model (its ``layout`` is the decision layout).
         levels: the priority levels, highest first.
         limits: every limit (any order: hard bounds are merged last).
-        solver: ``"daqp"`` (default) or ``"osqp"``; ``solver_settings`` for it.
+        solver: a registered backend's name (``"daqp"``, the default, or ``"osqp"``:
+            :func:`~dqcontrol.controllers.backends.base.backend_names`);
+            ``solver_settings`` for it.
         s_max: the largest time scaling the applied ``s`` is clipped to.
         acceleration_limit: ``a_max`` [rad/s²] of every block (scalar or per joint), in the
             step context (subclasses may compute it per state instead).
 
     Attributes:
-        qp: the backend the QP goes to: a :class:`~dqcontrol.controllers.backends.base.
-            BlockBackend` with one level, a dense :class:`~dqcontrol.controllers.backends.
-            base.Backend` with several. It may be replaced by a wrapper of the same
-            protocol (fault injection, logging): every step goes through it.
+        backend: the :class:`~dqcontrol.controllers.backends.base.Backend` every QP of a
+            step goes to (one level: its block path; several: the levels). It may be
+            replaced by a wrapper (a :class:`~dqcontrol.controllers.backends.base.
+            ForwardingBackend`: fault injection, logging): every solve goes through it.
     """
 
     name = "qp"
-    qp: BlockBackend | Backend
+    backend: Backend
 
     def __init__(
         self,
@@ -126,13 +123,8 @@ class QPController(Controller):
         self._resets = tuple(t for t in terms if overrides(t, Term, "reset"))
         single = len(self.levels) == 1
         self._assembly = BlockAssembly(self.levels[0].terms, self.limits) if single else None
-        self.qp = (
-            make_block_backend(solver, solver_settings)
-            if single
-            else make_backend(solver, solver_settings)
-        )
-        self._dense_backend: Backend | None = None if single else cast(Backend, self.qp)
-        self._warm_starts = bool(getattr(self.qp, "uses_warm_start", False))
+        self.backend = make_backend(solver, solver_settings)
+        self._warm_starts = single and self.backend.uses_warm_start
         prediction.warm = self._warm_starts
         self._one_block = self.layout.num_blocks == 1
         self._constant_acceleration = self._acceleration_is_constant()
@@ -153,10 +145,17 @@ class QPController(Controller):
         self.prediction_model.reset(q0, qd0)
         for term in self._resets:
             term.reset()
-        self.qp.reset()
-        if self._dense_backend is not None:
-            self._dense_backend.reset()
+        self.backend.reset()
         self._ctx = None
+
+    @property
+    def qp(self) -> Backend:
+        """The backend (:attr:`backend`), under the name the fault wrappers use."""
+        return self.backend
+
+    @qp.setter
+    def qp(self, backend: Backend) -> None:
+        self.backend = backend
 
     def _acceleration(self, q_lin: np.ndarray) -> np.ndarray:
         """``a_max`` [rad/s²] at each block's state ``(p, n)``: the constant
@@ -243,15 +242,12 @@ class QPController(Controller):
 
     def _solve_levels(self, ctx: StepContext) -> tuple:
         """``(solution, lower, upper, conflict, relaxed)`` by the lexicographic levels."""
-        if self._dense_backend is None:
-            self._dense_backend = make_backend(self.solver, self._solver_settings)
         problem = build_problem(ctx, self.levels, self.limits, self._cache)
-        result = solve_levels(problem, self._dense_backend)
+        result = solve_levels(problem, self.backend)
         relaxed = False
         if result.failed_level == 0 and any(lim.relaxable for lim in self.limits):
             kept = tuple(lim for lim in self.limits if not lim.relaxable)
-            again = solve_levels(build_problem(ctx, self.levels, kept, self._cache),
-                                 self._dense_backend)  # fmt: skip
+            again = solve_levels(build_problem(ctx, self.levels, kept, self._cache), self.backend)
             if again.failed_level != 0:
                 result, relaxed = again, True
         sol = result.solution
@@ -273,7 +269,7 @@ class QPController(Controller):
         if assembly is not None:  # one level: its BlockQP, solved by the block backend
             qp = assembly.build(ctx, False, self._warm(ctx) if self._warm_starts else None)
             if qp is not None:
-                backend = cast(BlockBackend, self.qp)  # one level: a block backend
+                backend = self.backend
                 sol = backend.solve_blocks(qp)
                 relaxed = False
                 if not sol.ok and assembly.relaxable:  # again without the relaxable limits

@@ -31,7 +31,7 @@ from typing import Literal
 
 import numpy as np
 
-from dqcontrol.controllers.backends.base import DEFAULT_SOLVER
+from dqcontrol.controllers.backends.base import DEFAULT_SOLVER, check_backend_name
 from dqcontrol.controllers.base import (
     acceleration_setting,
     check_position_margin,
@@ -58,7 +58,6 @@ __all__ = [
     "AccelerationLimit",
     "QPProblem",
     "TrackingController",
-    "default_solver",
 ]
 
 #: A QP ``minimize ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` as dense arrays.
@@ -69,16 +68,6 @@ AccelerationLimit = float | np.ndarray | Literal["dynamics"]
 
 #: How far lower levels may move each held row of a higher level (``priority="strict"``).
 STRICT_TOLERANCE = 1e-7
-
-
-def default_solver(solver_settings: dict | None = None) -> str:
-    """The backend used when ``solver=None``: always :data:`DEFAULT_SOLVER`.
-
-    ``solver_settings`` never choose the backend: settings written for OSQP (``max_iter``,
-    ``time_limit`` …) must come with ``solver="osqp"``; given to DAQP they are refused
-    with the list of DAQP's settings."""
-    del solver_settings
-    return DEFAULT_SOLVER
 
 
 def _joint_limits(robot: RobotModel, velocity_limits, position_margin_rad: float) -> tuple:
@@ -193,7 +182,7 @@ class TrackingController(QPController):
         measurement_delay_periods: int = 0,
         scaling: bool = True,
         phase_prediction: Literal["previous", "nominal"] = "previous",
-        solver: Literal["osqp", "daqp"] | None = None,
+        solver: str | None = None,
         solver_settings: dict | None = None,
         priority: Literal["weighted", "strict"] = "weighted",
         extra_terms: tuple[Term, ...] = (),
@@ -203,9 +192,7 @@ class TrackingController(QPController):
             robot, trajectory, period_s, measurement_delay_periods=measurement_delay_periods
         )
         period_s = self.period_s
-        backend: str = default_solver(solver_settings) if solver is None else solver
-        if backend not in ("osqp", "daqp"):
-            raise ParameterError(f"solver must be 'osqp' or 'daqp', got {backend!r}")
+        backend = check_backend_name(solver)
         self._check_weights(gain_per_s, task_weight, scaling_weight, regularization)
         self._check_stall(stall_damping, stall_scaling, stall_delay_s)
         self._check_choices(phase_prediction, priority)

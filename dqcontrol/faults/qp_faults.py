@@ -2,11 +2,13 @@
 
 The least invasive way to make a controller's QP infeasible is to leave the controller's
 code alone and corrupt the bounds on their way to the solver: :func:`contradictory` builds
-a subclass of any :class:`~dqcontrol.controllers.TrackingController` whose backend
-(``qp``, the object every step's QP goes through, docs/theory.md §7.5) is wrapped in a
-:class:`ContradictoryBoundsQP`. The QP is built by the controller's own terms and limits
-and solved by its own backend, on the path that production runs take; during a window of
-control steps the wrapper rewrites the bounds in between:
+a subclass of any QP controller (the thesis's, with either priority mode, or the
+path-following one) whose backend (``backend``, the object every QP of a step goes through,
+docs/theory.md §7.5) is wrapped in a :class:`ContradictoryBoundsQP`. The QP is built by the
+controller's own terms and limits and solved by its own backend, on the path that
+production runs take (every capability of the backend contract: the block path, the
+levels, the reduced levels, the warm levels); during a window of control steps the wrapper
+rewrites the bounds in between:
 
 - ``"crossed"``: the applied command's box of one joint gets ``lower > upper`` (a QP with
   no feasible point that every solver must refuse). Relaxing the predicted instants
@@ -15,8 +17,10 @@ control steps the wrapper rewrites the bounds in between:
 - ``"coupled"`` (predictive controllers, ``p ≥ 2``): every box is consistent on its own, but
   the second instant's box of one joint is moved beyond what the acceleration coupling
   ``|qd_2 - qd_1| ≤ (τ_2 - τ_1) a_max`` allows from the first instant's box — a primal
-  infeasible QP. The controller's first remedy (dropping the predicted instants' boxes,
-  ``relaxed``) restores feasibility.
+  infeasible QP. The thesis's controllers' first remedy (dropping the predicted instants'
+  boxes, ``relaxed``) restores feasibility; the path-following controller keeps a velocity
+  box on every interval, so it falls back to braking. The coupling rows are taken to be
+  the first general rows (the acceleration limit's, as both controllers compose them).
 
 Outside the window the bounds pass unchanged, so a run shows the transition into the
 fault and the recovery out of it.
@@ -28,7 +32,12 @@ from functools import cache
 
 import numpy as np
 
-from dqcontrol.controllers.tracking import TrackingController
+from dqcontrol.controllers.backends.base import Backend, ForwardingBackend
+from dqcontrol.controllers.base import Controller
+from dqcontrol.controllers.path_following import PathFollowingController
+from dqcontrol.controllers.problem import BlockQP, DenseQP, Solution, SplitQP, WarmLevels
+from dqcontrol.controllers.qp_controller import QPController
+from dqcontrol.controllers.reduced import LevelRows, ReducedQP
 from dqcontrol.errors import ParameterError
 
 __all__ = ["MODES", "ContradictoryBoundsQP", "contradictory"]
@@ -37,13 +46,11 @@ __all__ = ["MODES", "ContradictoryBoundsQP", "contradictory"]
 MODES = ("crossed", "coupled")
 
 
-class ContradictoryBoundsQP:
+class ContradictoryBoundsQP(ForwardingBackend):
     """A backend wrapper that makes the bounds contradictory while ``active``.
 
     Args:
-        inner: the controller's backend (a :class:`~dqcontrol.controllers.backends.base.
-            BlockBackend`, or a dense :class:`~dqcontrol.controllers.backends.base.Backend`
-            for a controller with several priority levels).
+        inner: the controller's :class:`~dqcontrol.controllers.backends.base.Backend`.
         num_joints: ``n``; the variables are ``[qd_1, s_1, …, qd_p, s_p]``, then the
             acceleration coupling rows.
         num_instants: ``p``.
@@ -51,13 +58,12 @@ class ContradictoryBoundsQP:
         joint: the joint whose bounds are corrupted.
         gap: how far the bounds are pushed apart [rad/s], > 0.
 
-    Every other attribute (``reset``, ``name``, ``uses_warm_start`` …) is the inner
-    backend's.
+    Every other capability is the inner backend's (:class:`ForwardingBackend`).
     """
 
     def __init__(
         self,
-        inner,
+        inner: Backend,
         num_joints: int,
         num_instants: int,
         mode: str = "crossed",
@@ -75,7 +81,7 @@ class ContradictoryBoundsQP:
             raise ParameterError(f"joint must be in [0, {num_joints - 1}], got {joint}")
         if not gap > 0.0:
             raise ParameterError(f"gap must be > 0 [rad/s], got {gap!r}")
-        self.inner = inner
+        super().__init__(inner)
         self.n = int(num_joints)
         self.p = int(num_instants)
         self.mode = mode
@@ -88,11 +94,6 @@ class ContradictoryBoundsQP:
         #: How many of those the solver nevertheless reported as solved (a wrong answer:
         #: the corrupted QPs have no feasible point).
         self.false_successes = 0
-
-    def __getattr__(self, name: str):
-        if name == "inner":
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
     def corrupt(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         """Copies of ``lower``/``upper`` (the variables' bounds, then the general rows') with
@@ -111,31 +112,49 @@ class ContradictoryBoundsQP:
         lo[row] = up[row] = up[j] + up[coupling] + self.gap
         return lo, up, True
 
-    def _count(self, contradicted: bool, sol):
+    def _count(self, contradicted: bool, sol: Solution) -> Solution:
         if contradicted:
             self.corrupted_solves += 1
             self.false_successes += int(sol.ok)
         return sol
 
-    def solve_blocks(self, qp):
-        """The block QP with contradictory bounds while :attr:`active`, else unchanged."""
-        contradicted = False
-        if self.active:
-            lower, upper, contradicted = self.corrupt(qp.lower, qp.upper)
-            qp = qp._replace(lower=lower, upper=upper)
-        return self._count(contradicted, self.inner.solve_blocks(qp))
+    def solve(self, key: object, qp: DenseQP) -> Solution:
+        """A level's dense QP, corrupted while :attr:`active`."""
+        if not self.active:
+            return self.inner.solve(key, qp)
+        lower, upper, bad = self.corrupt(qp.lower, qp.upper)
+        return self._count(bad, self.inner.solve(key, qp._replace(lower=lower, upper=upper)))
 
-    def solve(self, key, qp):
-        """A priority level's dense QP, corrupted the same way while :attr:`active`."""
-        contradicted = False
-        if self.active:
-            lower, upper, contradicted = self.corrupt(qp.lower, qp.upper)
-            qp = qp._replace(lower=lower, upper=upper)
-        return self._count(contradicted, self.inner.solve(key, qp))
+    def solve_blocks(self, qp: BlockQP) -> Solution:
+        """The block QP, corrupted while :attr:`active`."""
+        if not self.active:
+            return self.inner.solve_blocks(qp)
+        lower, upper, bad = self.corrupt(qp.lower, qp.upper)
+        return self._count(bad, self.inner.solve_blocks(qp._replace(lower=lower, upper=upper)))
+
+    def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
+        """A reduced level, its rows' bounds corrupted while :attr:`active`."""
+        if not self.active:
+            return self.inner.solve_reduced(key, qp)
+        lower, upper, bad = self.corrupt(qp.lower, qp.upper)
+        sol, held = self.inner.solve_reduced(key, qp._replace(lower=lower, upper=upper))
+        return self._count(bad, sol), held
+
+    def solve_warm_levels(
+        self, first: SplitQP, held: np.ndarray, lower: tuple[LevelRows, ...]
+    ) -> WarmLevels | None:
+        """The warm levels, the bounds corrupted while :attr:`active` (one solve)."""
+        if not self.active:
+            return self.inner.solve_warm_levels(first, held, lower)
+        lo, up, bad = self.corrupt(first.lower, first.upper)
+        out = self.inner.solve_warm_levels(first._replace(lower=lo, upper=up), held, lower)
+        if out is not None and out.solutions:
+            self._count(bad, out.solutions[0])
+        return out
 
 
 @cache
-def contradictory(base: type[TrackingController]) -> type[TrackingController]:
+def contradictory(base: type[Controller]) -> type[Controller]:
     """A subclass of ``base`` whose QP gets contradictory bounds during a window of steps.
 
     The subclass takes two more keyword arguments:
@@ -146,13 +165,16 @@ def contradictory(base: type[TrackingController]) -> type[TrackingController]:
 
     Everything else — the QP's terms and limits, the backend, the fallback, the
     relaxation — is ``base``'s own code; the wrapper sits between the built QP and the
-    backend (the public :attr:`~dqcontrol.controllers.qp_controller.QPController.qp`).
+    backend (the controller's public ``backend``).
     """
-    if not (isinstance(base, type) and issubclass(base, TrackingController)):
-        raise ParameterError(f"base must be a TrackingController subclass, got {base!r}")
+    if not (isinstance(base, type) and issubclass(base, (QPController, PathFollowingController))):
+        raise ParameterError(
+            f"base must be a QP controller class (QPController or PathFollowingController), "
+            f"got {base!r}"
+        )
 
     class Contradictory(base):  # type: ignore[misc, valid-type]
-        qp: ContradictoryBoundsQP  # the backend, wrapped
+        backend: ContradictoryBoundsQP  # the backend, wrapped
 
         def __init__(
             self,
@@ -169,18 +191,20 @@ def contradictory(base: type[TrackingController]) -> type[TrackingController]:
                     f"{window_steps!r}"
                 )
             self.window_steps = (first, stop)
-            self.qp = ContradictoryBoundsQP(self.qp, self.n, self.p, contradiction)
+            self.backend = ContradictoryBoundsQP(
+                self.backend, self.n, self.layout.num_blocks, contradiction
+            )
             self._fault_step = 0
 
         def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
             super()._reset_memory(q0, qd0)
             self._fault_step = 0
-            self.qp.corrupted_solves = 0
-            self.qp.false_successes = 0
+            self.backend.corrupted_solves = 0
+            self.backend.false_successes = 0
 
         def _step(self, q: np.ndarray, qd: np.ndarray | None):
             first, stop = self.window_steps
-            self.qp.active = first <= self._fault_step < stop
+            self.backend.active = first <= self._fault_step < stop
             self._fault_step += 1
             return super()._step(q, qd)
 

@@ -1,24 +1,27 @@
-"""QP backends behind two protocols (docs/theory.md §7.5): dense QPs per priority level
-(:class:`Backend`) and single-level QPs with a block-diagonal Hessian (:class:`BlockBackend`,
-structure-specialised: :class:`~dqcontrol.controllers.qp_daqp.DaqpQP`,
-:class:`~dqcontrol.controllers.qp_solver.OsqpQP`)."""
+"""QP backends behind one contract (docs/theory.md §7.5): :class:`Backend` and its
+registry of names (:func:`register_backend`, :func:`make_backend`), DAQP (the default, with
+its structure-specialised paths) and OSQP, and :class:`ForwardingBackend` for wrappers."""
 
 from dqcontrol.controllers.backends.base import (
     DEFAULT_SOLVER,
     Backend,
-    BlockBackend,
+    ForwardingBackend,
+    backend_names,
+    check_backend_name,
     make_backend,
-    make_block_backend,
+    register_backend,
 )
-from dqcontrol.controllers.backends.daqp_dense import DaqpBackend
-from dqcontrol.controllers.backends.osqp_dense import OsqpBackend
+from dqcontrol.controllers.backends.daqp import DaqpBackend
+from dqcontrol.controllers.backends.osqp import OsqpBackend
 
 __all__ = [
     "DEFAULT_SOLVER",
     "Backend",
-    "BlockBackend",
     "DaqpBackend",
+    "ForwardingBackend",
     "OsqpBackend",
+    "backend_names",
+    "check_backend_name",
     "make_backend",
-    "make_block_backend",
+    "register_backend",
 ]

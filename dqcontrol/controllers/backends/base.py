@@ -1,96 +1,232 @@
-"""The backend protocols (docs/theory.md §7.5): solve a built QP, keep a workspace per
-problem structure, never raise for a failed solve."""
+"""The backend contract and the registry of backends by name (docs/theory.md §7.5).
+
+A backend solves the QPs the controllers build. It must implement one method,
+:meth:`Backend.solve` (a dense QP ``min ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with
+``A = [I; C]``); every other capability has a dense default here, which a backend may
+replace by a path specialised on the problem's structure:
+
+- :meth:`Backend.solve_blocks`: one priority level whose ``P`` is block diagonal
+  (:class:`~dqcontrol.controllers.problem.BlockQP`);
+- :meth:`Backend.solve_reduced`: a lower level in the null space of the levels above,
+  given as its parts (:class:`~dqcontrol.controllers.reduced.ReducedQP`);
+- :meth:`Backend.solve_warm_levels`: the first levels of a problem of several in one call,
+  where their last active sets hold (declared by :attr:`Backend.solves_warm_levels`);
+- :meth:`Backend.set_general_rows`: the names of the rows of the next problem, so that a
+  warm start can follow a row by name.
+
+A new backend is one class that implements :meth:`~Backend.solve` and one call to
+:func:`register_backend`; every controller then takes its name as ``solver``. A wrapper
+(fault injection, logging) derives from :class:`ForwardingBackend`, which forwards every
+capability to the backend it wraps, and overrides what it changes.
+"""
 
 from __future__ import annotations
 
-from typing import Protocol
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from dqcontrol.controllers.problem import BlockQP, DenseQP, Solution
+import numpy as np
+
+from dqcontrol.controllers.problem import (
+    BlockQP,
+    DenseQP,
+    Inequality,
+    Solution,
+    SplitQP,
+    WarmLevels,
+)
 from dqcontrol.errors import ParameterError
 
-__all__ = ["DEFAULT_SOLVER", "Backend", "BlockBackend", "make_backend", "make_block_backend"]
+if TYPE_CHECKING:
+    from dqcontrol.controllers.reduced import LevelRows, ReducedQP
+
+__all__ = [
+    "DEFAULT_SOLVER",
+    "Backend",
+    "ForwardingBackend",
+    "backend_names",
+    "check_backend_name",
+    "invalid_bounds",
+    "make_backend",
+    "refused_bounds",
+    "register_backend",
+]
 
 #: The QP backend used when none is named.
 DEFAULT_SOLVER = "daqp"
 
 
-class Backend(Protocol):
-    """Solves ``min ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with ``A = [I; C]`` dense
-    (the priority levels of :func:`~dqcontrol.controllers.levels.solve_levels`).
+class Backend(ABC):
+    """A QP solver behind the controllers' one contract.
 
-    ``key`` names the problem (e.g. the priority level): a backend keeps one workspace per
-    key, set up on the first solve and updated afterwards (warm start: the previous
-    active set); a change of shape sets it up again. ``solve`` never raises for a failed
-    solve: the :class:`Solution` says so.
+    ``key`` names the QP a call belongs to (a priority level, a reduced level ``(k, dim)``):
+    a backend may keep one workspace per key, set up on the first solve and updated
+    afterwards; a change of shape sets it up again. No method raises for a failed solve:
+    the :class:`~dqcontrol.controllers.problem.Solution` says so (``ok`` False, ``status``).
 
-    A backend may also offer ``solve_reduced(key, qp)`` for a level reduced to the null
-    space of the levels above, given as its parts
-    (:class:`~dqcontrol.controllers.reduced.ReducedQP`), returning the :class:`Solution`
-    of its dense QP and the level's held rows in the basis
-    (:meth:`~dqcontrol.controllers.backends.daqp_dense.DaqpBackend.solve_reduced`); the
-    levels use it where it exists and :meth:`solve` with the dense QP otherwise. It may
-    offer ``solve_warm_levels(first, held, lower)`` too: the first levels of a problem of
-    several (the first as a :class:`~dqcontrol.controllers.problem.SplitQP`), solved in
-    one call where their last active sets hold, as a
-    :class:`~dqcontrol.controllers.problem.WarmLevels`
-    (:meth:`~dqcontrol.controllers.backends.daqp_dense.DaqpBackend.solve_warm_levels`).
+    Attributes:
+        name: the name the backend is registered under.
+        uses_warm_start: :meth:`solve_blocks` reads :attr:`BlockQP.warm` (the previous plan
+            shifted), so the controller computes it.
+        solves_warm_levels: :meth:`solve_warm_levels` may return the first levels.
     """
 
-    name: str
+    name: str = ""
+    uses_warm_start: bool = False
+    solves_warm_levels: bool = False
 
+    @abstractmethod
     def solve(self, key: object, qp: DenseQP) -> Solution:
-        """Solve the dense QP of the level ``key`` (its workspace kept between steps)."""
+        """Solve the dense QP of ``key`` (its workspace kept between steps)."""
 
-    def reset(self) -> None:
+    def solve_blocks(self, qp: BlockQP) -> Solution:
+        """Solve one level whose ``P`` is block diagonal; by default as its dense QP."""
+        return self.solve("blocks", qp.dense())
+
+    def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
+        """Solve a level reduced to the null space of the levels above, given as its parts;
+        returns the solution of its dense QP (in the basis' coordinates) and the level's
+        held rows in the basis. By default through :meth:`solve`."""
+        objective = qp.objective()
+        return self.solve(key, qp.dense(objective)), objective.held
+
+    def solve_warm_levels(
+        self, first: SplitQP, held: np.ndarray, lower: tuple[LevelRows, ...]
+    ) -> WarmLevels | None:
+        """The first levels of a problem of several, solved in one call on their last active
+        sets (``first``: level 0's QP, ``held``: its held rows, ``lower``: the rows of the
+        levels below); ``None`` where they do not hold (by default always)."""
+        return None
+
+    def set_general_rows(self, num_vars: int, inequalities: tuple[Inequality, ...]) -> None:  # noqa: B027 - optional
+        """Name the rows of the next problem: its ``num_vars`` variables and its limits'
+        inequalities, in order (a backend may carry warm starts to them by name)."""
+
+    def reset(self) -> None:  # noqa: B027 - optional
         """Forget the workspaces and warm starts."""
 
 
-class BlockBackend(Protocol):
-    """Solves a :class:`~dqcontrol.controllers.problem.BlockQP` (one level, ``P`` block
-    diagonal): the structured path of the controllers with one priority level.
+class ForwardingBackend(Backend):
+    """A backend that forwards every capability to ``inner``: the base of wrappers, which
+    override the methods whose QPs they change.
 
-    The backend specialises on the QP's *structure* (number and size of the blocks, the
-    general rows ``C`` and its :attr:`BlockQP.structure` number, the fixed variables): it
-    sets a workspace up for a structure once and only updates values while the structure
-    stays the same. ``uses_warm_start`` says whether it reads :attr:`BlockQP.warm`.
-    Wrappers (fault injection, logging) keep this protocol and forward to the backend.
+    Args:
+        inner: the backend wrapped.
     """
 
-    name: str
-    uses_warm_start: bool
+    def __init__(self, inner: Backend) -> None:
+        if not isinstance(inner, Backend):
+            raise ParameterError(
+                f"a backend wrapper needs a Backend to wrap, got {type(inner).__name__}"
+            )
+        self.inner = inner
+        self.name = inner.name
+        self.uses_warm_start = inner.uses_warm_start
+        self.solves_warm_levels = inner.solves_warm_levels
+
+    def solve(self, key: object, qp: DenseQP) -> Solution:
+        """The inner backend's :meth:`Backend.solve`."""
+        return self.inner.solve(key, qp)
 
     def solve_blocks(self, qp: BlockQP) -> Solution:
-        """Solve a block-diagonal QP."""
+        """The inner backend's :meth:`Backend.solve_blocks`."""
+        return self.inner.solve_blocks(qp)
+
+    def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
+        """The inner backend's :meth:`Backend.solve_reduced`."""
+        return self.inner.solve_reduced(key, qp)
+
+    def solve_warm_levels(
+        self, first: SplitQP, held: np.ndarray, lower: tuple[LevelRows, ...]
+    ) -> WarmLevels | None:
+        """The inner backend's :meth:`Backend.solve_warm_levels`."""
+        return self.inner.solve_warm_levels(first, held, lower)
+
+    def set_general_rows(self, num_vars: int, inequalities: tuple[Inequality, ...]) -> None:
+        """The inner backend's :meth:`Backend.set_general_rows`."""
+        self.inner.set_general_rows(num_vars, inequalities)
 
     def reset(self) -> None:
-        """Forget the workspace and the warm start."""
+        """The inner backend's :meth:`Backend.reset`."""
+        self.inner.reset()
 
 
-def _check_name(name: str | None) -> str:
-    name = DEFAULT_SOLVER if name is None else name
-    if name not in ("daqp", "osqp"):
-        raise ParameterError(f"solver must be 'daqp' or 'osqp', got {name!r}")
-    return name
+def invalid_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> Solution | None:
+    """A failed :class:`~dqcontrol.controllers.problem.Solution` if some row has
+    ``lower > upper`` or a NaN bound (``start``: when the solve began, ``perf_counter``).
+
+    Solvers must never see such bounds: OSQP rejects the update (its Python wrapper ignores
+    the return code) and DAQP's ``update`` returns an error code, and both would then solve
+    the *previous* problem again and call it solved.
+    """
+    if (lower <= upper).all():  # False where either side is NaN too
+        return None
+    return refused_bounds(lower, upper, start)
 
 
-def make_backend(name: str | None, settings: dict | None = None) -> Backend:
-    """A dense :class:`Backend`: ``"daqp"`` (default) or ``"osqp"``."""
-    from dqcontrol.controllers.backends.daqp_dense import DaqpBackend
-    from dqcontrol.controllers.backends.osqp_dense import OsqpBackend
+def refused_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> Solution:
+    """The failed solution of bounds that :func:`invalid_bounds` refuses."""
+    rows = np.flatnonzero(~(lower <= upper))
+    status = f"invalid_bounds: lower > upper or NaN in rows {rows[:5].tolist()}"
+    return Solution(False, status, 0, time.perf_counter() - start)
 
-    if _check_name(name) == "daqp":
-        return DaqpBackend(settings)
+
+#: A backend's constructor: its settings (``None``: its defaults) -> the backend.
+BackendFactory = Callable[[dict | None], Backend]
+
+
+def _daqp(settings: dict | None) -> Backend:
+    from dqcontrol.controllers.backends.daqp import DaqpBackend
+
+    return DaqpBackend(settings)
+
+
+def _osqp(settings: dict | None) -> Backend:
+    from dqcontrol.controllers.backends.osqp import OsqpBackend
+
     return OsqpBackend(settings)
 
 
-def make_block_backend(name: str | None, settings: dict | None = None) -> BlockBackend:
-    """A :class:`BlockBackend`: ``"daqp"`` (default: :class:`~dqcontrol.controllers.qp_daqp.
-    DaqpQP`, DAQP's own settings) or ``"osqp"`` (:class:`~dqcontrol.controllers.qp_solver.
-    OsqpQP`, OSQP refined to the exact optimum). Unknown settings are refused here, with the
-    list of the solver's own."""
-    from dqcontrol.controllers.qp_daqp import DaqpQP
-    from dqcontrol.controllers.qp_solver import OsqpQP
+_REGISTRY: dict[str, BackendFactory] = {"daqp": _daqp, "osqp": _osqp}
 
-    if _check_name(name) == "daqp":
-        return DaqpQP(settings=settings)
-    return OsqpQP(settings=settings)
+
+def register_backend(name: str, factory: BackendFactory) -> None:
+    """Make ``name`` a ``solver`` of every QP controller, built by ``factory(settings)``
+    (a :class:`Backend` subclass taking its settings works as it is). A name already
+    registered is refused: :func:`backend_names` lists them."""
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ParameterError(f"a backend's name must be an identifier, got {name!r}")
+    key = name.lower()
+    if key in _REGISTRY:
+        raise ParameterError(f"a backend named {key!r} is already registered")
+    if not callable(factory):
+        raise ParameterError(f"the factory of backend {key!r} must be callable")
+    _REGISTRY[key] = factory
+
+
+def backend_names() -> tuple[str, ...]:
+    """The registered backends' names, the default first."""
+    return (DEFAULT_SOLVER, *sorted(k for k in _REGISTRY if k != DEFAULT_SOLVER))
+
+
+def check_backend_name(name: str | None) -> str:
+    """``name`` (``None``: :data:`DEFAULT_SOLVER`) as registered, or a
+    :class:`~dqcontrol.errors.ParameterError` listing the registered names."""
+    key = DEFAULT_SOLVER if name is None else name
+    if not isinstance(key, str) or key.lower() not in _REGISTRY:
+        known = ", ".join(repr(k) for k in backend_names())
+        raise ParameterError(f"solver must be one of {known}, got {name!r}")
+    return key.lower()
+
+
+def make_backend(name: str | None, settings: dict | None = None) -> Backend:
+    """The backend registered as ``name`` (``None``: :data:`DEFAULT_SOLVER`) with its
+    ``settings``; unknown settings are refused by the backend, with the list of its own."""
+    backend = _REGISTRY[check_backend_name(name)](settings)
+    if not isinstance(backend, Backend):
+        raise ParameterError(
+            f"the factory of backend {name!r} returned a {type(backend).__name__}, not a Backend"
+        )
+    return backend

@@ -6,16 +6,16 @@ method solves them exactly in a few iterations where a first-order method needs 
 the workspace is set up once (:class:`daqp.Model`) and later steps only update ``H``, ``f``
 and the bounds, starting from the previous step's active set.
 
-As a backend (:meth:`DaqpQP.solve_blocks`) it specialises on the structure of the
+As a backend (:meth:`DaqpBlocks.solve_blocks`) it specialises on the structure of the
 :class:`~dqcontrol.controllers.problem.BlockQP` it is given, and sets its workspace up
 again whenever that structure changes:
 
 - one block and no general row (the local controller): DAQP's own dense form, the whole
-  ``H`` handed over at every step (:meth:`DaqpQP.solve_dense`);
+  ``H`` handed over at every step (:meth:`DaqpBlocks.solve_dense`);
 - several blocks or general rows (the predictive controllers): a new ``H`` would cost DAQP
   a dense factorisation, cubic in p (n+1), so the QP goes over as the equivalent
-  least-distance problem of ``qp_ldp.py``, whose ``H`` never changes; the problem as it is
-  where a block is not positive definite.
+  least-distance problem (:mod:`~dqcontrol.controllers.backends.least_distance`), whose
+  ``H`` never changes; the problem as it is where a block is not positive definite.
 """
 
 from __future__ import annotations
@@ -29,13 +29,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from dqcontrol._compiled import compiled
+from dqcontrol.controllers.backends.base import refused_bounds
+from dqcontrol.controllers.backends.least_distance import block_ldp, ldp_solution
 from dqcontrol.controllers.problem import BlockQP, Solution
 from dqcontrol.controllers.qp_cost import scatter_blocks, scatter_symmetric
-from dqcontrol.controllers.qp_ldp import block_ldp, ldp_solution
-from dqcontrol.controllers.qp_solver import QPSolution, refused_bounds
 from dqcontrol.errors import ParameterError
 
-__all__ = ["DaqpQP", "daqp_setting_names"]
+__all__ = ["DaqpBlocks", "daqp_setting_names"]
 
 
 @cache
@@ -76,7 +76,7 @@ def bounds_state(lower: np.ndarray, upper: np.ndarray) -> int:
     return state
 
 
-class DaqpQP:
+class DaqpBlocks:
     """DAQP with its structure set once and values updated at every step.
 
     The first ``n`` rows of ``A`` must be the identity (bounds on the variables, as in the
@@ -89,7 +89,8 @@ class DaqpQP:
     optimum as solved.
 
     ``block_size`` declares ``P`` block diagonal with blocks of that size: each solve then
-    hands DAQP the equivalent least-distance problem (``qp_ldp.py``; DAQP's ``H`` stays the
+    hands DAQP the equivalent least-distance problem
+    (:mod:`~dqcontrol.controllers.backends.least_distance`; DAQP's ``H`` stays the
     identity, so a new ``P`` costs no dense refactorisation), and falls back to the
     problem as it is where a block is not positive definite. Both give the same optimum
     (to ~1e-11 here).
@@ -145,7 +146,9 @@ class DaqpQP:
         a_dense = self.a_matrix.toarray()
         nv = self.num_vars
         if not np.array_equal(a_dense[:nv], np.eye(nv)):
-            raise ParameterError("DaqpQP needs A = [I; A_general] (bounds on the variables first)")
+            raise ParameterError(
+                "DaqpBlocks needs A = [I; A_general] (bounds on the variables first)"
+            )
         self._a_general = np.ascontiguousarray(a_dense[nv:])
         pat = self.p_pattern.tocoo()
         self._rows, self._cols = pat.row.astype(np.int64), pat.col.astype(np.int64)
@@ -196,14 +199,14 @@ class DaqpQP:
         lower: np.ndarray,
         upper: np.ndarray,
         warm_x: np.ndarray | None = None,
-    ) -> QPSolution:
+    ) -> Solution:
         """Update the values and solve (warm start: the previous active set)."""
         start = perf_counter()
         if not (lower <= upper).all():  # also catches NaN
             return refused_bounds(lower, upper, start)
         scatter_symmetric(self._h, self._rows, self._cols, p_values)  # compiled
         x, ok, status, iterations = self._solve_h(c, lower, upper)
-        return QPSolution(x, None, ok, status, iterations, perf_counter() - start)
+        return Solution(ok, status, iterations, perf_counter() - start, x)
 
     def _solve_h(
         self, c: np.ndarray, lower: np.ndarray, upper: np.ndarray
@@ -239,8 +242,7 @@ class DaqpQP:
         if self._box:
             state = bounds_state(lower, upper)  # compiled: 0 usable, 1 clamp, -1 refused
             if state < 0:
-                bad = refused_bounds(lower, upper, start)
-                return Solution(False, bad.status, 0, bad.solve_time_s)
+                return refused_bounds(lower, upper, start)
             if state > 0:
                 lower, upper = np.maximum(lower, -1e30), np.minimum(upper, 1e30)
             model = self._model
@@ -269,8 +271,7 @@ class DaqpQP:
                 Solution, (ok, status, iterations, perf_counter() - start, x, None)
             )
         if not (lower <= upper).all():  # also catches NaN
-            bad = refused_bounds(lower, upper, start)
-            return Solution(False, bad.status, 0, bad.solve_time_s)
+            return refused_bounds(lower, upper, start)
         scatter_blocks(self._h, hessian)  # compiled: the diagonal blocks of H
         x, ok, status, iterations = self._solve_h(qp.c, lower, upper)
         return Solution(ok, status, iterations, perf_counter() - start, x)
@@ -309,7 +310,8 @@ class DaqpQP:
         self, h: np.ndarray, c: np.ndarray, lower: np.ndarray, upper: np.ndarray
     ) -> tuple[np.ndarray | None, bool, str, int, float]:
         """:meth:`solve` for a caller that has the whole ``H`` and checked bounds: the
-        single-block form of :meth:`solve_blocks` (no :class:`QPSolution`).
+        single-block form of :meth:`solve_blocks` (a tuple, no
+        :class:`~dqcontrol.controllers.problem.Solution`).
 
         ``h`` is the full symmetric ``H`` (C-contiguous; DAQP keeps it until the next
         update: do not write to it afterwards). The caller guarantees what :meth:`solve`

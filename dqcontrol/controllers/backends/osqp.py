@@ -2,9 +2,9 @@
 (docs/theory.md §6, §7.5).
 
 A QP ``minimize ½ zᵀ P z + cᵀ z  s.t.  l ≤ A z ≤ u`` with a *fixed* sparsity pattern:
-:class:`OsqpQP` sets OSQP up once and afterwards only updates the value arrays (``P``'s
+:class:`OsqpWorkspace` sets OSQP up once and afterwards only updates the value arrays (``P``'s
 upper-triangle values, ``c``, ``l``, ``u``) in place. As a backend
-(:meth:`OsqpQP.solve_blocks`) it takes the structure from the
+(:meth:`OsqpWorkspace.solve_blocks`) it takes the structure from the
 :class:`~dqcontrol.controllers.problem.BlockQP` it is given (block-diagonal ``P``,
 ``A = [I; C]``) and sets OSQP up again whenever that structure changes.
 
@@ -15,7 +15,7 @@ its polish may accept a worse point (osqp/osqp#790); on our problems it failed o
 Exactness (*refinement*, on by default). The controllers' costs are nearly singular in the
 robot's redundant direction (only ``μ ≈ 1e-6`` fixes it), where a first-order method stops
 ~1e-4 rad/s away from the optimum without seeing any residual — the solver noise the thesis
-blamed for jitter. After OSQP converges, :class:`OsqpQP` takes the active set it found
+blamed for jitter. After OSQP converges, :class:`OsqpWorkspace` takes the active set it found
 (rows at a bound with a non-zero multiplier, and equalities), solves that
 equality-constrained KKT system exactly, and keeps the result only if it is primal
 feasible and its multipliers have the right signs (i.e. it *is* the optimum); otherwise it
@@ -26,24 +26,17 @@ keeps OSQP's point. The applied command then matches an independent active-set s
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from dqcontrol.controllers.problem import BlockQP, Solution
+from dqcontrol.controllers.backends.base import Backend, invalid_bounds
+from dqcontrol.controllers.problem import BlockQP, DenseQP, Solution
 from dqcontrol.errors import ParameterError
 
-__all__ = [
-    "DEFAULT_OSQP_SETTINGS",
-    "OsqpQP",
-    "QPSolution",
-    "invalid_bounds",
-    "osqp_setting_names",
-    "refused_bounds",
-]
+__all__ = ["DEFAULT_OSQP_SETTINGS", "OsqpBackend", "OsqpWorkspace", "osqp_setting_names"]
 
 DEFAULT_OSQP_SETTINGS: dict = {
     "eps_abs": 1e-9,
@@ -59,43 +52,6 @@ DEFAULT_OSQP_SETTINGS: dict = {
 }
 
 _SUCCESS = {osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE}
-
-
-@dataclass(frozen=True)
-class QPSolution:
-    """Result of one solve: ``x`` is ``None`` unless ``ok``."""
-
-    x: np.ndarray | None
-    y: np.ndarray | None
-    ok: bool
-    status: str
-    iterations: int
-    solve_time_s: float
-
-
-def invalid_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> QPSolution | None:
-    """A failed :class:`QPSolution` if some row has ``lower > upper`` or a NaN bound.
-
-    Solvers must never see such bounds: OSQP rejects the update (its Python wrapper ignores
-    the return code) and DAQP's ``update`` returns an error code, and both would then solve
-    the *previous* problem again and call it solved.
-    """
-    if (lower <= upper).all():  # False where either side is NaN too
-        return None
-    return refused_bounds(lower, upper, start)
-
-
-def refused_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> QPSolution:
-    """The failed :class:`QPSolution` of bounds that :func:`invalid_bounds` refuses."""
-    rows = np.flatnonzero(~(lower <= upper))
-    return QPSolution(
-        None,
-        None,
-        False,
-        f"invalid_bounds: lower > upper or NaN in rows {rows[:5].tolist()}",
-        0,
-        time.perf_counter() - start,
-    )
 
 
 @cache
@@ -129,7 +85,7 @@ def _check_osqp_settings(settings: dict) -> None:
         ) from None
 
 
-class OsqpQP:
+class OsqpWorkspace:
     """An OSQP problem whose structure is fixed at construction (or by the first
     :meth:`solve_blocks`).
 
@@ -196,8 +152,7 @@ class OsqpQP:
             within = rows[order] * m + cols[order]
             self._gather = (np.arange(p)[:, None] * m * m + within[None, :]).ravel()
             self._structure = key
-        res = self.solve(qp.hessian.ravel()[self._gather], qp.c, qp.lower, qp.upper, qp.warm)
-        return Solution(res.ok, res.status, res.iterations, res.solve_time_s, res.x, res.y)
+        return self.solve(qp.hessian.ravel()[self._gather], qp.c, qp.lower, qp.upper, qp.warm)
 
     @property
     def p_nnz(self) -> int:
@@ -219,7 +174,7 @@ class OsqpQP:
         lower: np.ndarray,
         upper: np.ndarray,
         warm_x: np.ndarray | None = None,
-    ) -> QPSolution:
+    ) -> Solution:
         """Update the values and solve. Never raises for a failed solve: check ``ok``.
 
         With ``hot_start`` (default), the previous step's active set is tried first: one
@@ -236,7 +191,7 @@ class OsqpQP:
             guess = self._kkt(p_values, c, lower, upper, *self._active)
             if guess is not None:
                 self.last_method = "hot_start"
-                return QPSolution(guess, None, True, "solved", 0, time.perf_counter() - start)
+                return Solution(True, "solved", 0, time.perf_counter() - start, guess)
         try:
             if self._solver is None:
                 self._setup(p_values, c, lower, upper)
@@ -250,7 +205,7 @@ class OsqpQP:
         except Exception as exc:  # noqa: BLE001 - a solver failure must not stop the loop
             self._solver = None  # rebuild next time
             self._active = None
-            return QPSolution(None, None, False, f"error: {exc}", 0, time.perf_counter() - start)
+            return Solution(False, f"error: {exc}", 0, time.perf_counter() - start)
         status = res.info.status_val
         ok = status in _SUCCESS and res.x is not None and bool(np.all(np.isfinite(res.x)))
         x = np.array(res.x) if ok else None
@@ -258,13 +213,13 @@ class OsqpQP:
         self._active = None
         if ok and self.refine:
             x = self._refined(x, np.asarray(res.y), p_values, c, lower, upper)
-        return QPSolution(
-            x=x,
-            y=np.array(res.y) if ok else None,
+        return Solution(
             ok=ok,
             status=str(res.info.status),
             iterations=int(res.info.iter),
             solve_time_s=time.perf_counter() - start,
+            x=x,
+            duals=np.array(res.y) if ok else None,
         )
 
     def _refined(self, x, y, p_values, c, lower, upper) -> np.ndarray:
@@ -330,3 +285,45 @@ class OsqpQP:
         """Forget the factorisation, the warm start and the active set."""
         self._solver = None
         self._active = None
+
+
+class OsqpBackend(Backend):
+    """OSQP (ADMM) refined to the exact optimum of the active set it finds: one
+    :class:`OsqpWorkspace` per level ``key`` and sparsity pattern (dense patterns: values
+    change freely), and one for the block-diagonal QPs of :meth:`solve_blocks`, started
+    from the previous plan (:attr:`BlockQP.warm`).
+
+    Args:
+        settings: OSQP settings over :data:`DEFAULT_OSQP_SETTINGS` (and ``refine``,
+            ``hot_start``); unknown ones are refused here.
+    """
+
+    name = "osqp"
+    uses_warm_start = True
+
+    def __init__(self, settings: dict | None = None) -> None:
+        self.settings = dict(settings or {})
+        self._blocks = OsqpWorkspace(settings=self.settings)
+        self._qps: dict = {}
+
+    def reset(self) -> None:
+        """Forget every workspace."""
+        self._blocks.reset()
+        self._qps.clear()
+
+    def solve_blocks(self, qp: BlockQP) -> Solution:
+        """One level with a block-diagonal ``P`` (:meth:`OsqpWorkspace.solve_blocks`)."""
+        return self._blocks.solve_blocks(qp)
+
+    def solve(self, key: object, qp: DenseQP) -> Solution:
+        """Solve level ``key``'s QP with OSQP, refined to the exact active set."""
+        nv = qp.c.size
+        entry = self._qps.get(key)
+        if entry is None or entry[1] != qp.A.shape or not np.array_equal(entry[2], qp.A):
+            pattern = sp.csc_matrix(np.triu(np.ones((nv, nv))))
+            solver = OsqpWorkspace(pattern, sp.csc_matrix(qp.A), self.settings)
+            self._qps[key] = (solver, qp.A.shape, qp.A.copy())
+        solver = self._qps[key][0]
+        rows, cols = np.triu_indices(nv)
+        order = np.lexsort((rows, cols))  # CSC order of the upper triangle
+        return solver.solve(qp.P[rows[order], cols[order]], qp.c, qp.lower, qp.upper)

@@ -1,8 +1,12 @@
-"""DAQP on dense QPs: one workspace per problem (priority level), updated in place each
-step (docs/theory.md §7.5).
+"""DAQP, the default backend: one workspace per QP (priority level), updated in place each
+step, and the paths specialised on the problem's structure (docs/theory.md §6, §7.5).
+
+One level with a block-diagonal ``P`` (the thesis's controllers) goes to
+:class:`~dqcontrol.controllers.backends.daqp_blocks.DaqpBlocks`, whose workspace is set up
+for the blocks' structure once (:meth:`DaqpBackend.solve_blocks`).
 
 A QP with a positive definite ``H`` and sparse general rows is handed to DAQP as the
-equivalent least-distance problem (:func:`~dqcontrol.controllers.qp_ldp.dense_ldp`,
+equivalent least-distance problem (:func:`~dqcontrol.controllers.backends.least_distance.dense_ldp`,
 compiled), so that DAQP's ``H`` stays the identity for the workspace's life: forming
 ``C L⁻ᵀ`` then costs one pass over the non-zeros of ``C``, where DAQP, given the new ``H``,
 would form ``A R⁻¹`` over every entry. With dense rows (a level reduced to the null space
@@ -30,6 +34,9 @@ from scipy.linalg import lapack
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
+from dqcontrol.controllers.backends.base import Backend
+from dqcontrol.controllers.backends.daqp_blocks import DaqpBlocks
+from dqcontrol.controllers.backends.least_distance import dense_ldp, ldp_solution
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.backends.row_identity import carried_set
 from dqcontrol.controllers.backends.state_factor import state_factor
@@ -37,8 +44,14 @@ from dqcontrol.controllers.backends.warm_levels import warm_levels
 from dqcontrol.controllers.cholesky import cholesky_into
 from dqcontrol.controllers.entries import nonzero_entries
 from dqcontrol.controllers.level_objective import dense_hessian
-from dqcontrol.controllers.problem import DenseQP, Inequality, Solution, SplitQP, WarmLevels
-from dqcontrol.controllers.qp_ldp import dense_ldp, ldp_solution
+from dqcontrol.controllers.problem import (
+    BlockQP,
+    DenseQP,
+    Inequality,
+    Solution,
+    SplitQP,
+    WarmLevels,
+)
 from dqcontrol.controllers.reduced import LevelRows, ReducedQP
 from dqcontrol.errors import ParameterError
 
@@ -70,11 +83,12 @@ ACTIVE_SET_CHANGES = 4
 PIVOT_SHARE = 1e-12
 
 
-class DaqpBackend:
-    """Dense DAQP (dual active set), warm-started from the previous active set per key.
+class DaqpBackend(Backend):
+    """DAQP (dual active set), warm-started from the previous active set per key.
 
     Args:
-        settings: DAQP settings over :data:`DEFAULT_DAQP_SETTINGS`.
+        settings: DAQP settings over :data:`DEFAULT_DAQP_SETTINGS` (the block path of
+            :meth:`solve_blocks` takes them over DAQP's own defaults).
         least_distance: hand DAQP the least-distance form of QPs whose Hessian is positive
             definite and whose general rows are sparse (the same optimum, found cheaper);
             ``False`` gives DAQP every QP as it is.
@@ -84,6 +98,7 @@ class DaqpBackend:
     """
 
     name = "daqp"
+    solves_warm_levels = True
 
     def __init__(
         self,
@@ -113,9 +128,11 @@ class DaqpBackend:
         self._kernel_settings: tuple = (None, np.zeros(0))
         self._rows: tuple[Inequality, ...] | None = None  # the present problem's general rows
         self._num_vars = 0  # and its number of variables
+        self._blocks = DaqpBlocks(settings=settings)
 
     def reset(self) -> None:
         """Forget every level's workspace and active set."""
+        self._blocks.reset()
         self._models.clear()
         self._ldp.clear()
         self._active.clear()
@@ -275,6 +292,17 @@ class DaqpBackend:
                        np.empty(size))  # fmt: skip
             self._reduced[key] = buffers
         return buffers
+
+    @property
+    def form(self) -> str:
+        """The form DAQP gets on the block path: ``"dense"`` (one block, no general row:
+        the problem as it is) or ``"least_distance"``."""
+        return self._blocks.form
+
+    def solve_blocks(self, qp: BlockQP) -> Solution:
+        """One level with a block-diagonal ``P``, on the workspace of its structure
+        (:meth:`DaqpBlocks.solve_blocks`)."""
+        return self._blocks.solve_blocks(qp)
 
     def solve(self, key: object, qp: DenseQP) -> Solution:
         """Solve level ``key``'s QP with DAQP (warm start: its previous active set)."""
