@@ -16,7 +16,7 @@ import numpy as np
 
 import dqcontrol
 from dqcontrol.controllers.limits.collision import CollisionLimit
-from dqcontrol.controllers.path_following import PathFollowingController
+from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.dq.algebra import dq_to_se3
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.model.collision import CollisionModel, Sphere

@@ -38,7 +38,7 @@ from dqcontrol.controllers import (
     ProportionalController,
 )
 from dqcontrol.controllers.base import Controller
-from dqcontrol.controllers.path_following import PathFollowingController
+from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory

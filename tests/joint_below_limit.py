@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 
-from dqcontrol.controllers.problem import Bounds, Limit
+from dqcontrol.controllers.core.problem import Bounds
+from dqcontrol.controllers.limits.limit import Limit
 
 
 class KeepJointBelow(Limit):

@@ -18,8 +18,8 @@ from dqcontrol.controllers.backends.active_set import (
     solve_on_active_set,
 )
 from dqcontrol.controllers.backends.daqp import DaqpBackend, _factor
-from dqcontrol.controllers.entries import nonzero_entries
-from dqcontrol.controllers.problem import DenseQP
+from dqcontrol.controllers.core.problem import DenseQP
+from dqcontrol.controllers.linalg.entries import nonzero_entries
 
 
 def _random_qp(rng: np.random.Generator, n: int = 12, rows: int = 10) -> DenseQP:

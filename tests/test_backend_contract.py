@@ -13,7 +13,7 @@ from dqcontrol.controllers.backends import (
     make_backend,
     register_backend,
 )
-from dqcontrol.controllers.problem import DenseQP, Solution
+from dqcontrol.controllers.core.problem import DenseQP, Solution
 from dqcontrol.errors import ParameterError
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.registry import build_controller

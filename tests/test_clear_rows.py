@@ -14,8 +14,8 @@ import pytest
 from dqcontrol.controllers.backends.active_set import SOLVED
 from dqcontrol.controllers.backends.clear_rows import clear_level, row_starts
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
-from dqcontrol.controllers.entries import nonzero_entries
-from dqcontrol.controllers.null_space import null_space
+from dqcontrol.controllers.linalg.entries import nonzero_entries
+from dqcontrol.controllers.linalg.null_space import null_space
 
 NV, NC, TOL = 12, 9, 1e-9
 

@@ -23,7 +23,7 @@ from dqcontrol.controllers import (
 )
 from dqcontrol.controllers.limits.collision import CollisionLimit
 from dqcontrol.controllers.limits.collision_rows import predicted_rows
-from dqcontrol.controllers.path_following import PathFollowingController
+from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.dq.algebra import dq_to_se3
 from dqcontrol.errors import ParameterError
 from dqcontrol.model import LBR4P_Q0

@@ -9,13 +9,13 @@ import pytest
 from test_core_limits import near_limits, numpy_box, numpy_conflict_rule
 from test_core_terms import random_context
 
-from dqcontrol.controllers.assembly import BlockAssembly
-from dqcontrol.controllers.levels import build_problem
+from dqcontrol.controllers.core.block_assembly import BlockAssembly
+from dqcontrol.controllers.core.levels import build_problem
+from dqcontrol.controllers.core.problem import Level
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.command_box import CommandBoxLimit
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
-from dqcontrol.controllers.problem import Level
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.errors import ParameterError
 

@@ -17,8 +17,9 @@ from dqcontrol.controllers import (
     PredictiveController,
     PredictiveNoScalingController,
 )
-from dqcontrol.controllers.path_following import PathFollowingController
-from dqcontrol.controllers.problem import Bounds, Limit
+from dqcontrol.controllers.core.problem import Bounds
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.sim import run_kinematic
 from dqcontrol.trajectories import Circle

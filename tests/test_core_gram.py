@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.gram import frozen, kept
-from dqcontrol.controllers.problem import DecisionLayout, Residual, objective
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual, objective
+from dqcontrol.controllers.linalg.gram import frozen, kept
 
 
 def _layout() -> DecisionLayout:

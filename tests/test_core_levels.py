@@ -12,17 +12,11 @@ from test_core_terms import random_context
 
 from dqcontrol.controllers import LocalController, PredictiveController
 from dqcontrol.controllers.backends import DaqpBackend, OsqpBackend
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.levels import build_problem, held_rows, level_qp, solve_levels
-from dqcontrol.controllers.problem import (
-    Bounds,
-    DecisionLayout,
-    Inequality,
-    Level,
-    Limit,
-    Residual,
-    Term,
-)
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.levels import build_problem, held_rows, level_qp, solve_levels
+from dqcontrol.controllers.core.problem import Bounds, DecisionLayout, Inequality, Level, Residual
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.terms.term import Term
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.trajectories import Circle
 

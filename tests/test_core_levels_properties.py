@@ -15,9 +15,9 @@ from test_core_levels import (
 )
 
 from dqcontrol.controllers.backends import DaqpBackend
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.levels import build_problem, held_rows, level_qp, solve_levels
-from dqcontrol.controllers.problem import DecisionLayout, Level
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.levels import build_problem, held_rows, level_qp, solve_levels
+from dqcontrol.controllers.core.problem import DecisionLayout, Level
 
 
 def _problem(seed: int, joints: int, blocks: int, ranks: tuple[int, ...], tight: bool):

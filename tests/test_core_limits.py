@@ -1,6 +1,6 @@
 """Each limit of the QP core against an independent numpy computation (docs/theory.md §5,
 §7.3), the merge of bounds (the conflict rule), and the fast assembly of a level's QP
-against the problem as :func:`~dqcontrol.controllers.levels.build_problem` writes it."""
+against the problem as :func:`~dqcontrol.controllers.core.levels.build_problem` writes it."""
 
 from __future__ import annotations
 
@@ -8,16 +8,18 @@ import numpy as np
 import pytest
 from test_core_terms import random_context
 
-from dqcontrol.controllers.assembly import BlockAssembly
-from dqcontrol.controllers.levels import build_problem
+from dqcontrol.controllers.core.block_assembly import BlockAssembly
+from dqcontrol.controllers.core.levels import build_problem
+from dqcontrol.controllers.core.problem import Bounds, Inequality, Level, Residual
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.limits.velocity import VelocityLimit
-from dqcontrol.controllers.problem import Bounds, Inequality, Level, Limit, Residual, Term
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.scaling import ScalingTerm
 from dqcontrol.controllers.terms.stall_damping import StallDampingTerm
+from dqcontrol.controllers.terms.term import Term
 from dqcontrol.controllers.terms.tracking import TrackingTerm
 
 
@@ -262,8 +264,8 @@ def test_a_limit_that_changes_its_rows_starts_a_new_structure(lbr4p):
 def test_compiled_braking_and_coupling_constants_are_numpys():
     """The limits' per-step constants from a moving ``a_max``: the braking rows
     ``[a T; 2 a; (a T)²]`` and the coupling steps ``±h_i a_max[i + 1]``, bit for bit."""
-    from dqcontrol.controllers.bounds import braking_constants
-    from dqcontrol.controllers.joint_box import braking_rows
+    from dqcontrol.controllers.core.bounds import braking_constants
+    from dqcontrol.controllers.core.box_rules import braking_rows
     from dqcontrol.controllers.limits.acceleration import coupling_steps
 
     rng = np.random.default_rng(31)

@@ -13,12 +13,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from joint_below_limit import KeepJointBelow
 
+from dqcontrol.controllers.core.problem import Bounds, DecisionLayout, Inequality, Level
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.limits.velocity import VelocityLimit
 from dqcontrol.controllers.prediction import ThesisPrediction, prediction_instants
-from dqcontrol.controllers.problem import Bounds, DecisionLayout, Inequality, Level, Limit
 from dqcontrol.controllers.qp_controller import QPController
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.scaling import ScalingTerm

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, objective
 from dqcontrol.controllers.prediction.thesis import ThesisPrediction
-from dqcontrol.controllers.problem import DecisionLayout, objective
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.scaling import ScalingTerm
 from dqcontrol.controllers.terms.stall_damping import StallDampingTerm

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.entries import nonzero_entries, stacked_entries
-from dqcontrol.controllers.gram import frozen
+from dqcontrol.controllers.linalg.entries import nonzero_entries, stacked_entries
+from dqcontrol.controllers.linalg.gram import frozen
 
 
 @pytest.mark.parametrize("seed", range(8))

@@ -1,13 +1,13 @@
 """The first level's objective with changing dense rows in one compiled call, against
-:func:`~dqcontrol.controllers.problem.objective` on seeded random draws (docs/theory.md
+:func:`~dqcontrol.controllers.core.problem.objective` on seeded random draws (docs/theory.md
 §7.4)."""
 
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.level_objective import level_objective
-from dqcontrol.controllers.problem import DecisionLayout, Residual, objective
+from dqcontrol.controllers.core.objective import level_objective
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual, objective
+from dqcontrol.controllers.linalg.gram import frozen
 
 
 def _layout(joints, blocks):

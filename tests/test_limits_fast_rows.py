@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dqcontrol.controllers.core.problem import DecisionLayout
 from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
     interval_breakpoints,
 )
-from dqcontrol.controllers.problem import DecisionLayout
 from dqcontrol.controllers.terms.progress import ProgressTerm
 
 
@@ -86,7 +86,7 @@ def test_progress_rows_at_the_nominal_and_a_catching_up_reference():
     term = ProgressTerm(layout, s_max=1.2)
     scale = np.sqrt(layout.durations_s * np.arange(3, 0, -1) / 0.5)
     for lag, s_ref in ((0.0, 1.0), (0.05, 1.1)):
-        ctx = type("C", (), {"extras": {"lag_s": lag}})()
+        ctx = type("C", (), {"lag_s": lag})()
         res = term.residual(ctx)
         assert np.array_equal(res.b, -scale * s_ref)
         assert np.array_equal(res.blocks[:, 0, 2], -scale)
@@ -99,14 +99,14 @@ def test_posture_rows_pull_towards_the_reference():
     term = PostureTerm(model.layout, 2.5)
     term.reference = rng.normal(size=pred.q_lin.shape[1])
     for scale in (1.0, 0.0):
-        ctx = type("C", (), {"extras": {"posture_scale": scale}, "prediction": pred})()
+        ctx = type("C", (), {"posture_scale": scale, "prediction": pred})()
         res = term.residual(ctx)
         expected = (2.5 * scale) * (term.reference - pred.q_lin)
         assert np.array_equal(res.b, expected.ravel())
 
 
 def test_merged_bounds_of_scalars_lists_and_arrays_equal_numpys():
-    from dqcontrol.controllers.problem import Bounds, merge_bounds
+    from dqcontrol.controllers.core.problem import Bounds, merge_bounds
 
     layout = DecisionLayout(3, np.array([0.0, 0.1]), np.array([0.1, 0.2]))
     rng = np.random.default_rng(6)

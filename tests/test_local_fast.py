@@ -20,7 +20,7 @@ from dqcontrol.controllers import LocalController, command_box
 from dqcontrol.controllers.backends import DaqpBackend, ForwardingBackend
 from dqcontrol.controllers.backends.daqp_blocks import DaqpBlocks
 from dqcontrol.controllers.base import StepDiagnostics, StepResult
-from dqcontrol.controllers.bounds import _vp_box, braking_constants, intersect_acceleration
+from dqcontrol.controllers.core.bounds import _vp_box, braking_constants, intersect_acceleration
 from dqcontrol.faults.qp_faults import contradictory
 from dqcontrol.model import LBR4P_Q0, RobotModel
 from dqcontrol.trajectories import Circle, Sinusoid

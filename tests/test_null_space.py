@@ -5,7 +5,7 @@ import pytest
 from scipy.linalg import lapack
 
 from dqcontrol.controllers import null_space as null_space_module
-from dqcontrol.controllers.null_space import null_space
+from dqcontrol.controllers.linalg.null_space import null_space
 
 
 @pytest.mark.parametrize(

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.state_rows import state_rows_into
+from dqcontrol.controllers.core.state_rows import state_rows_into
 from dqcontrol.controllers.terms.path_error import (
     PROJECTOR_BASIS,
     PathErrorTerm,

@@ -9,8 +9,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dqcontrol.controllers.backends import DaqpBackend
-from dqcontrol.controllers.levels import held_rows, level_qp, solve_levels
-from dqcontrol.controllers.path_following import PathFollowingController
+from dqcontrol.controllers.core.levels import held_rows, level_qp, solve_levels
+from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.controllers.prediction.consistent import interval_breakpoints, shift_matrix
 from dqcontrol.controllers.terms.path_error import tangent_projectors
 from dqcontrol.dq.algebra import translation
@@ -319,7 +319,7 @@ def test_bad_parameters_name_themselves(lbr4p, kwargs, name):
     ],
 )
 def test_bad_tuning_names_itself(kwargs, name):
-    from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
+    from dqcontrol.controllers.path_following.tuning import PathFollowingTuning
 
     with pytest.raises(ParameterError, match=name):
         PathFollowingTuning(**kwargs)

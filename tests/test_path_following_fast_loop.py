@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dqcontrol.controllers import PathFollowingController
-from dqcontrol.controllers.path_following_tuning import (
+from dqcontrol.controllers.path_following.tuning import (
     RESERVE_REPLANNED_OFTEN,
     RESERVE_REPLANNED_ONCE,
     PathFollowingTuning,

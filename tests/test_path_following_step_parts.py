@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.kinematics_memo import KinematicsMemo
-from dqcontrol.controllers.path_following_kernels import applied_plan, tangent_mismatch
+from dqcontrol.controllers.path_following.kernels import applied_plan, tangent_mismatch
+from dqcontrol.controllers.path_following.kinematics_memo import KinematicsMemo
 from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, tangent_projectors
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.trajectories import Circle

@@ -12,7 +12,7 @@ import pytest
 
 from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import LocalController
-from dqcontrol.controllers.bounds import (
+from dqcontrol.controllers.core.bounds import (
     braking_speed,
     command_box,
     intersect_acceleration,
@@ -171,7 +171,11 @@ def test_compiled_cost_equals_numpy_blocks():
     """``qp_cost.add_task_grams`` (after ``align_signs``) against the plain numpy cost of
     FORMULATION §5 for p instants (flips where ``x_i · x_d,i < 0``, stall damping on the qd
     diagonal), and ``scatter_symmetric`` against fancy indexing."""
-    from dqcontrol.controllers.qp_cost import add_task_grams, align_signs, scatter_symmetric
+    from dqcontrol.controllers.core.task_kernels import (
+        add_task_grams,
+        align_signs,
+        scatter_symmetric,
+    )
 
     rng = np.random.default_rng(5)
     p, n = 10, 7
@@ -218,8 +222,8 @@ def test_vp_boxes_equal_numpy_vp_box_bit_for_bit(braking):
     ``predicted_boxes_into`` on the clipped predictions for the others) against
     ``bounds._vp_box``: random states with joints beyond their limits, per-instant braking
     constants."""
-    from dqcontrol.controllers.bounds import _vp_box, braking_constants
-    from dqcontrol.controllers.joint_box import applied_box_into, predicted_boxes_into
+    from dqcontrol.controllers.core.bounds import _vp_box, braking_constants
+    from dqcontrol.controllers.core.box_rules import applied_box_into, predicted_boxes_into
 
     rng = np.random.default_rng(17 + braking)
     beyond = 0

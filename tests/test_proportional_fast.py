@@ -14,8 +14,8 @@ from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import ProportionalController, command_box
 from dqcontrol.controllers import proportional as prop
 from dqcontrol.controllers.base import StepDiagnostics, StepResult, fast_constructor
-from dqcontrol.controllers.bounds import braking_constants
-from dqcontrol.controllers.joint_box import joint_boxes, joint_constants
+from dqcontrol.controllers.core.bounds import braking_constants
+from dqcontrol.controllers.core.box_rules import joint_boxes, joint_constants
 from dqcontrol.dq import dq_conj, dq_mul
 from dqcontrol.dq.algebra import C8, haminus8
 from dqcontrol.model import LBR4P_Q0, RobotModel

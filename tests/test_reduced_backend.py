@@ -13,10 +13,10 @@ from test_core_levels_properties import _problem
 
 from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.backends.daqp import DaqpBackend
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.levels import solve_levels
-from dqcontrol.controllers.problem import Residual
-from dqcontrol.controllers.reduced import level_rows, objective_in_basis, reduced_objective
+from dqcontrol.controllers.core.levels import solve_levels
+from dqcontrol.controllers.core.problem import Residual
+from dqcontrol.controllers.core.reduced import level_rows, objective_in_basis, reduced_objective
+from dqcontrol.controllers.linalg.gram import frozen
 
 
 class _DenseOnly(Backend):

@@ -5,16 +5,16 @@ import numpy as np
 import pytest
 from test_core_levels_properties import _problem
 
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.levels import reduced_qp
-from dqcontrol.controllers.null_space import null_space
-from dqcontrol.controllers.problem import DecisionLayout, Residual, objective
-from dqcontrol.controllers.reduced import (
+from dqcontrol.controllers.core.levels import reduced_qp
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual, objective
+from dqcontrol.controllers.core.reduced import (
     nonzero_entries,
     reduced_objective,
     rows_in_basis,
     sparse_product,
 )
+from dqcontrol.controllers.linalg.gram import frozen
+from dqcontrol.controllers.linalg.null_space import null_space
 
 
 def _sparse(rng, rows, cols, share):

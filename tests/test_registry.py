@@ -16,7 +16,7 @@ from dqcontrol.controllers import (
     PredictiveNoScalingController,
     ProportionalController,
 )
-from dqcontrol.controllers.path_following import PathFollowingController
+from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.errors import ParameterError
 from dqcontrol.experiments import table1 as t1
 from dqcontrol.experiments import thesis

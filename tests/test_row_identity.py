@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from dqcontrol.controllers.backends.row_identity import carried_set
-from dqcontrol.controllers.problem import Inequality
+from dqcontrol.controllers.core.problem import Inequality
 
 
 def _rows(name: str, count: int, keys=None) -> Inequality:

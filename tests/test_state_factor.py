@@ -20,12 +20,12 @@ from dqcontrol.controllers.backends.state_factor import (
     state_forward,
     state_forward_rows,
 )
-from dqcontrol.controllers.level_objective import dense_hessian, level_objective, state_objective
+from dqcontrol.controllers.core.objective import dense_hessian, level_objective, state_objective
+from dqcontrol.controllers.core.problem import DenseQP, StateHessian
 from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
     interval_breakpoints,
 )
-from dqcontrol.controllers.problem import DenseQP, StateHessian
 
 N = 7
 M = N + 1
@@ -179,7 +179,7 @@ def test_the_path_level_in_the_states_is_the_dense_objective(lbr4p):
 def test_a_level_behind_a_servo_lag_has_no_state_form():
     """Behind a lag a block enters the later states with changing weights: the level's
     objective is the dense one."""
-    from dqcontrol.controllers.problem import Residual, StateRows
+    from dqcontrol.controllers.core.problem import Residual, StateRows
 
     rng = np.random.default_rng(6)
     for lag_s, expected in ((0.0, True), (0.004, False)):

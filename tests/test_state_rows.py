@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.level_objective import level_objective
+from dqcontrol.controllers.core.objective import level_objective
+from dqcontrol.controllers.core.problem import Residual, StateRows, objective
 from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
     interval_breakpoints,
 )
-from dqcontrol.controllers.problem import Residual, StateRows, objective
 
 
 def _dense(states: StateRows) -> np.ndarray:

@@ -5,27 +5,27 @@ any composition of them."""
 
 from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.base import Controller, StepDiagnostics, StepResult
-from dqcontrol.controllers.bounds import Box, command_box, safe_command, velocity_position_box
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.local import LocalController
-from dqcontrol.controllers.path_following import PathFollowingController
-from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
-from dqcontrol.controllers.prediction import integration_matrix, prediction_instants
-from dqcontrol.controllers.predictive import PredictiveController, PredictiveNoScalingController
-from dqcontrol.controllers.problem import (
+from dqcontrol.controllers.core.bounds import Box, command_box, safe_command, velocity_position_box
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import (
     BlockQP,
     Bounds,
     DecisionLayout,
     Inequality,
     Level,
-    Limit,
     Problem,
     Residual,
     Solution,
-    Term,
 )
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.local import LocalController
+from dqcontrol.controllers.path_following.controller import PathFollowingController
+from dqcontrol.controllers.path_following.tuning import PathFollowingTuning
+from dqcontrol.controllers.prediction import integration_matrix, prediction_instants
+from dqcontrol.controllers.predictive import PredictiveController, PredictiveNoScalingController
 from dqcontrol.controllers.proportional import ProportionalController
 from dqcontrol.controllers.qp_controller import QPController
+from dqcontrol.controllers.terms.term import Term
 from dqcontrol.controllers.tracking import QPProblem, TrackingController
 
 __all__ = [

@@ -33,8 +33,8 @@ from dqcontrol.controllers.base import (
     fast_constructor,
     per_joint,
 )
-from dqcontrol.controllers.bounds import braking_constants, command_box
-from dqcontrol.controllers.joint_box import joint_boxes, joint_constants, project
+from dqcontrol.controllers.core.bounds import braking_constants, command_box
+from dqcontrol.controllers.core.box_rules import joint_boxes, joint_constants, project
 from dqcontrol.dq.algebra import _HM8, C8
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -86,9 +86,9 @@ def _clip_to_box(
 ) -> tuple[np.ndarray, bool, tuple[int, ...]]:
     """``command_box(...).project(qd)``, whether it clipped, and the conflict joints.
 
-    The box by the compiled :func:`~dqcontrol.controllers.joint_box.joint_boxes` (the
+    The box by the compiled :func:`~dqcontrol.controllers.core.box_rules.joint_boxes` (the
     floating-point operations of ``bounds.command_box``), ``consts`` from
-    :func:`~dqcontrol.controllers.joint_box.joint_constants` as an ``(n, 6)`` array; where
+    :func:`~dqcontrol.controllers.core.box_rules.joint_constants` as an ``(n, 6)`` array; where
     that kernel declines (a NaN previous command or limit, a bound beyond ±1e30: what a QP
     could not take), ``command_box`` itself. Returns ``qd`` itself (not a copy) when
     nothing is clipped.

@@ -6,13 +6,14 @@ At every step :class:`QPController`
 1. predicts the horizon's states (its :class:`~dqcontrol.controllers.prediction.base.
    PredictionModel`) and evaluates the kinematics there (poses sign-aligned to the
    targets), the acceleration bound and the rest of the
-   :class:`~dqcontrol.controllers.context.StepContext`;
+   :class:`~dqcontrol.controllers.core.context.StepContext`;
 2. builds and solves the QP: with one level whose terms are block diagonal, the
-   :class:`~dqcontrol.controllers.problem.BlockQP` of
-   :class:`~dqcontrol.controllers.assembly.BlockAssembly` goes to the backend's block path
-   (:meth:`~dqcontrol.controllers.backends.base.Backend.solve_blocks`); otherwise the levels
-   are solved lexicographically (:func:`~dqcontrol.controllers.levels.solve_levels`) on the
-   same backend (:attr:`QPController.backend`);
+   :class:`~dqcontrol.controllers.core.problem.BlockQP` of
+   :class:`~dqcontrol.controllers.core.block_assembly.BlockAssembly` goes to the backend's
+   block path (:meth:`~dqcontrol.controllers.backends.base.Backend.solve_blocks`); otherwise
+   the levels are solved lexicographically
+   (:func:`~dqcontrol.controllers.core.levels.solve_levels`) on the same backend
+   (:attr:`QPController.backend`);
 3. if that fails and some limit is relaxable, solves again without the relaxable limits;
    if it still fails, applies the safe fallback (the point of the applied block's bounds
    closest to zero: braking within ``a_max``, ``s = 0``) and says so;
@@ -27,7 +28,6 @@ from time import perf_counter
 
 import numpy as np
 
-from dqcontrol.controllers.assembly import BlockAssembly, overrides
 from dqcontrol.controllers.backends.base import Backend, make_backend
 from dqcontrol.controllers.base import (
     Controller,
@@ -36,12 +36,15 @@ from dqcontrol.controllers.base import (
     fast_constructor,
     per_joint,
 )
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.joint_box import clip_solution
-from dqcontrol.controllers.levels import build_problem, solve_levels
+from dqcontrol.controllers.core.block_assembly import BlockAssembly, overrides
+from dqcontrol.controllers.core.box_rules import clip_solution
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.levels import build_problem, solve_levels
+from dqcontrol.controllers.core.problem import Level, Problem
+from dqcontrol.controllers.core.task_kernels import align_signs, measured_state
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
-from dqcontrol.controllers.problem import Level, Limit, Problem, Term
-from dqcontrol.controllers.qp_cost import align_signs, measured_state
+from dqcontrol.controllers.terms.term import Term
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -355,7 +358,7 @@ class QPController(Controller):
     def last_problem(self) -> Problem:
         """The problem of the last step, as first posed (before any relaxation): every
         level's terms and every limit's rows, by name
-        (:class:`~dqcontrol.controllers.problem.Problem`; it also reads as the first
+        (:class:`~dqcontrol.controllers.core.problem.Problem`; it also reads as the first
         level's dense QP ``P, c, A, lower, upper``)."""
         if self._ctx is None:
             raise ParameterError("no QP has been built yet: call step() first")

@@ -38,16 +38,18 @@ from dqcontrol.controllers.base import (
     check_positive,
     per_joint,
 )
-from dqcontrol.controllers.limits.acceleration import AccelerationLimit as _Acceleration
+from dqcontrol.controllers.core.problem import DecisionLayout, DenseQP, Level
+from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.command_box import CommandBoxLimit
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.prediction.thesis import ThesisPrediction
-from dqcontrol.controllers.problem import DecisionLayout, DenseQP, Level, Limit, Term
 from dqcontrol.controllers.qp_controller import QPController
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.scaling import ScalingTerm
 from dqcontrol.controllers.terms.stall_damping import StallDampingTerm
+from dqcontrol.controllers.terms.term import Term
 from dqcontrol.controllers.terms.tracking import TrackingTerm
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
@@ -55,7 +57,7 @@ from dqcontrol.trajectories import Trajectory
 
 __all__ = [
     "DEFAULT_SOLVER",
-    "AccelerationLimit",
+    "AccelerationSetting",
     "QPProblem",
     "TrackingController",
 ]
@@ -64,7 +66,7 @@ __all__ = [
 QPProblem = DenseQP
 
 #: ``float`` (constant [rad/s²], or one per joint) or ``"dynamics"`` (docs/theory.md §2).
-AccelerationLimit = float | np.ndarray | Literal["dynamics"]
+AccelerationSetting = float | np.ndarray | Literal["dynamics"]
 
 #: How far lower levels may move each held row of a higher level (``priority="strict"``).
 STRICT_TOLERANCE = 1e-7
@@ -145,7 +147,7 @@ class TrackingController(QPController):
             scaling ≻ damping as three levels; needs ``regularization > 0`` and
             ``scaling_weight > 0``).
         extra_terms: more terms, added to the lowest level.
-        extra_limits: more limits (any :class:`~dqcontrol.controllers.problem.Limit`).
+        extra_limits: more limits (any :class:`~dqcontrol.controllers.core.problem.Limit`).
 
     ``q_min``, ``q_max``, ``qd_max``, ``braking_aware``, ``gain_per_s`` and ``task_weight``
     are read at every step; the constant terms (``scaling_weight``, ``regularization``)
@@ -174,7 +176,7 @@ class TrackingController(QPController):
         stall_scaling: float = 0.05,
         stall_delay_s: float = 0.5,
         velocity_limits: float | np.ndarray | None = None,
-        acceleration_limit: AccelerationLimit = 10.0,
+        acceleration_limit: AccelerationSetting = 10.0,
         acceleration_floor: float = 0.5,
         acceleration_cap: float = 50.0,
         braking_aware: bool = True,
@@ -294,7 +296,7 @@ class TrackingController(QPController):
     def _compose_limits(self, layout, period_s: float) -> tuple[Limit, ...]:
         s_min = 0.0 if self.scaling else 1.0
         applied, predicted = self._joint_boxes
-        acceleration = _Acceleration(layout, period_s, np.diff(self.instants_s))
+        acceleration = AccelerationLimit(layout, period_s, np.diff(self.instants_s))
         return (
             CommandBoxLimit(applied, acceleration),
             *((predicted,) if self.p > 1 else ()),

@@ -34,10 +34,10 @@ import numpy as np
 
 from dqcontrol.controllers.backends.base import Backend, ForwardingBackend
 from dqcontrol.controllers.base import Controller
-from dqcontrol.controllers.path_following import PathFollowingController
-from dqcontrol.controllers.problem import BlockQP, DenseQP, Solution, SplitQP, WarmLevels
+from dqcontrol.controllers.core.problem import BlockQP, DenseQP, Solution, SplitQP, WarmLevels
+from dqcontrol.controllers.core.reduced import LevelRows, ReducedQP
+from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.controllers.qp_controller import QPController
-from dqcontrol.controllers.reduced import LevelRows, ReducedQP
 from dqcontrol.errors import ParameterError
 
 __all__ = ["MODES", "ContradictoryBoundsQP", "contradictory"]

@@ -31,7 +31,7 @@ from dqcontrol.controllers.backends.state_factor import (
     state_forward,
     state_forward_rows,
 )
-from dqcontrol.controllers.cholesky import cholesky_into
+from dqcontrol.controllers.linalg.cholesky import cholesky_into
 
 __all__ = ["dense_factor", "solve_on_active_set"]
 
@@ -118,7 +118,7 @@ def solve_on_active_set(
 
     ``factor`` is a factor of ``P`` (the module docstring). ``C`` (row ``n + i`` of ``A``
     is its row ``i``) is ``general``, dense, or where ``sparse`` its non-zero ``entries``
-    (:func:`~dqcontrol.controllers.entries.nonzero_entries`; ``general`` is then not
+    (:func:`~dqcontrol.controllers.linalg.entries.nonzero_entries`; ``general`` is then not
     read): the same sums without their zero terms. The point is the optimum when the KKT
     conditions hold: every row within ``primal_tol`` times its norm (at least 1) of its
     bounds, every multiplier of the right sign to ``dual_tol`` times the largest. Where

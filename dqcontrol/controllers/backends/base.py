@@ -6,9 +6,9 @@ A backend solves the QPs the controllers build. It must implement one method,
 replace by a path specialised on the problem's structure:
 
 - :meth:`Backend.solve_blocks`: one priority level whose ``P`` is block diagonal
-  (:class:`~dqcontrol.controllers.problem.BlockQP`);
+  (:class:`~dqcontrol.controllers.core.problem.BlockQP`);
 - :meth:`Backend.solve_reduced`: a lower level in the null space of the levels above,
-  given as its parts (:class:`~dqcontrol.controllers.reduced.ReducedQP`);
+  given as its parts (:class:`~dqcontrol.controllers.core.reduced.ReducedQP`);
 - :meth:`Backend.solve_warm_levels`: the first levels of a problem of several in one call,
   where their last active sets hold (declared by :attr:`Backend.solves_warm_levels`);
 - :meth:`Backend.set_general_rows`: the names of the rows of the next problem, so that a
@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dqcontrol.controllers.problem import (
+from dqcontrol.controllers.core.problem import (
     BlockQP,
     DenseQP,
     Inequality,
@@ -40,7 +40,7 @@ from dqcontrol.controllers.problem import (
 from dqcontrol.errors import ParameterError
 
 if TYPE_CHECKING:
-    from dqcontrol.controllers.reduced import LevelRows, ReducedQP
+    from dqcontrol.controllers.core.reduced import LevelRows, ReducedQP
 
 __all__ = [
     "DEFAULT_SOLVER",
@@ -64,7 +64,7 @@ class Backend(ABC):
     ``key`` names the QP a call belongs to (a priority level, a reduced level ``(k, dim)``):
     a backend may keep one workspace per key, set up on the first solve and updated
     afterwards; a change of shape sets it up again. No method raises for a failed solve:
-    the :class:`~dqcontrol.controllers.problem.Solution` says so (``ok`` False, ``status``).
+    the :class:`~dqcontrol.controllers.core.problem.Solution` says so (``ok`` False, ``status``).
 
     Attributes:
         name: the name the backend is registered under.
@@ -154,7 +154,7 @@ class ForwardingBackend(Backend):
 
 
 def invalid_bounds(lower: np.ndarray, upper: np.ndarray, start: float) -> Solution | None:
-    """A failed :class:`~dqcontrol.controllers.problem.Solution` if some row has
+    """A failed :class:`~dqcontrol.controllers.core.problem.Solution` if some row has
     ``lower > upper`` or a NaN bound (``start``: when the solve began, ``perf_counter``).
 
     Solvers must never see such bounds: OSQP rejects the update (its Python wrapper ignores

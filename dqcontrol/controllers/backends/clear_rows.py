@@ -9,7 +9,7 @@ basis, the optimum found from them, and checked in ``z`` first, over ``[I; C]`` 
 ``z = point + Z y``: a row well inside its bounds there, by more than rounding can move the
 value the reduced check would compute, passes that check too, and is not formed at all.
 Only the rows near or beyond a bound are formed in the basis, each exactly as
-:func:`~dqcontrol.controllers.reduced.rows_in_basis` forms it, and checked as
+:func:`~dqcontrol.controllers.core.reduced.rows_in_basis` forms it, and checked as
 :func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set` checks it. The
 answer is therefore the one of the full check bit for bit; where a row breaks its bound,
 or a multiplier has the wrong sign, the caller solves the level in full instead (which
@@ -27,8 +27,8 @@ from dqcontrol.controllers.backends.active_set import (
     _worst_multiplier,
     dense_factor,
 )
-from dqcontrol.controllers.cholesky import cholesky_into
-from dqcontrol.controllers.reduced import _entry_rows, _weighted_gram
+from dqcontrol.controllers.core.reduced import _entry_rows, _weighted_gram
+from dqcontrol.controllers.linalg.cholesky import cholesky_into
 
 __all__ = ["clear_level", "row_starts"]
 
@@ -43,7 +43,7 @@ def _row_in_basis(
     line: np.ndarray,
 ) -> float:  # fmt: skip
     """Row ``r`` of ``[I; C]`` times ``basis`` into ``line`` and the row times ``point``,
-    each sum as :func:`~dqcontrol.controllers.reduced.rows_in_basis` forms it."""
+    each sum as :func:`~dqcontrol.controllers.core.reduced.rows_in_basis` forms it."""
     nv, dim = basis.shape
     if r < nv:
         for c in range(dim):
@@ -147,7 +147,7 @@ def _set_rows(
 ) -> np.ndarray:  # fmt: skip
     """The rows ``active`` of the level's QP in ``y`` (``[I; [I; C] Z]``), dense ``(k,
     dim)``, and their bounds into ``qp_lower``/``qp_upper`` (the other entries are not
-    written), each as :func:`~dqcontrol.controllers.reduced.rows_in_basis` forms it."""
+    written), each as :func:`~dqcontrol.controllers.core.reduced.rows_in_basis` forms it."""
     dim = basis.shape[1]
     held = np.zeros((active.shape[0], dim))
     line = np.empty(dim)

@@ -41,10 +41,8 @@ from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_
 from dqcontrol.controllers.backends.row_identity import carried_set
 from dqcontrol.controllers.backends.state_factor import state_factor
 from dqcontrol.controllers.backends.warm_levels import warm_levels
-from dqcontrol.controllers.cholesky import cholesky_into
-from dqcontrol.controllers.entries import nonzero_entries
-from dqcontrol.controllers.level_objective import dense_hessian
-from dqcontrol.controllers.problem import (
+from dqcontrol.controllers.core.objective import dense_hessian
+from dqcontrol.controllers.core.problem import (
     BlockQP,
     DenseQP,
     Inequality,
@@ -52,7 +50,9 @@ from dqcontrol.controllers.problem import (
     SplitQP,
     WarmLevels,
 )
-from dqcontrol.controllers.reduced import LevelRows, ReducedQP
+from dqcontrol.controllers.core.reduced import LevelRows, ReducedQP
+from dqcontrol.controllers.linalg.cholesky import cholesky_into
+from dqcontrol.controllers.linalg.entries import nonzero_entries
 from dqcontrol.errors import ParameterError
 
 __all__ = ["DaqpBackend"]
@@ -249,7 +249,7 @@ class DaqpBackend(Backend):
         return self._kernel_settings[1]
 
     def solve_reduced(self, key: object, qp: ReducedQP) -> tuple[Solution, np.ndarray]:
-        """Solve level ``key`` given as a :class:`~dqcontrol.controllers.reduced.ReducedQP`
+        """Solve level ``key`` given as a :class:`~dqcontrol.controllers.core.reduced.ReducedQP`
         (the answer in ``y``, as :meth:`solve` of its dense QP) and return it with the
         level's held rows in the basis. With a last active set of the same shape (and at
         most :data:`SMALL_FACTOR` variables) the QP is formed and solved on that set in one

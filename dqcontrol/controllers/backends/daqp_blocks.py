@@ -7,7 +7,7 @@ the workspace is set up once (:class:`daqp.Model`) and later steps only update `
 and the bounds, starting from the previous step's active set.
 
 As a backend (:meth:`DaqpBlocks.solve_blocks`) it specialises on the structure of the
-:class:`~dqcontrol.controllers.problem.BlockQP` it is given, and sets its workspace up
+:class:`~dqcontrol.controllers.core.problem.BlockQP` it is given, and sets its workspace up
 again whenever that structure changes:
 
 - one block and no general row (the local controller): DAQP's own dense form, the whole
@@ -31,8 +31,8 @@ import scipy.sparse as sp
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.base import refused_bounds
 from dqcontrol.controllers.backends.least_distance import block_ldp, ldp_solution
-from dqcontrol.controllers.problem import BlockQP, Solution
-from dqcontrol.controllers.qp_cost import scatter_blocks, scatter_symmetric
+from dqcontrol.controllers.core.problem import BlockQP, Solution
+from dqcontrol.controllers.core.task_kernels import scatter_blocks, scatter_symmetric
 from dqcontrol.errors import ParameterError
 
 __all__ = ["DaqpBlocks", "daqp_setting_names"]
@@ -226,7 +226,7 @@ class DaqpBlocks:
         return self._solve(h, c, lo, up)
 
     def solve_blocks(self, qp: BlockQP) -> Solution:
-        """Solve a :class:`~dqcontrol.controllers.problem.BlockQP`, the workspace set up for
+        """Solve a :class:`~dqcontrol.controllers.core.problem.BlockQP`, the workspace set up for
         its structure (one block without general rows: the dense form; otherwise the
         least-distance one). Never raises for a failed solve: the solution says so."""
         start = perf_counter()
@@ -311,7 +311,7 @@ class DaqpBlocks:
     ) -> tuple[np.ndarray | None, bool, str, int, float]:
         """:meth:`solve` for a caller that has the whole ``H`` and checked bounds: the
         single-block form of :meth:`solve_blocks` (a tuple, no
-        :class:`~dqcontrol.controllers.problem.Solution`).
+        :class:`~dqcontrol.controllers.core.problem.Solution`).
 
         ``h`` is the full symmetric ``H`` (C-contiguous; DAQP keeps it until the next
         update: do not write to it afterwards). The caller guarantees what :meth:`solve`

@@ -5,7 +5,7 @@ A QP ``minimize ½ zᵀ P z + cᵀ z  s.t.  l ≤ A z ≤ u`` with a *fixed* spa
 :class:`OsqpWorkspace` sets OSQP up once and afterwards only updates the value arrays (``P``'s
 upper-triangle values, ``c``, ``l``, ``u``) in place. As a backend
 (:meth:`OsqpWorkspace.solve_blocks`) it takes the structure from the
-:class:`~dqcontrol.controllers.problem.BlockQP` it is given (block-diagonal ``P``,
+:class:`~dqcontrol.controllers.core.problem.BlockQP` it is given (block-diagonal ``P``,
 ``A = [I; C]``) and sets OSQP up again whenever that structure changes.
 
 Settings: tolerances 1e-9 absolute/relative, adaptive ρ, no OSQP *polishing*: OSQP 1.x
@@ -33,7 +33,7 @@ import osqp
 import scipy.sparse as sp
 
 from dqcontrol.controllers.backends.base import Backend, invalid_bounds
-from dqcontrol.controllers.problem import BlockQP, DenseQP, Solution
+from dqcontrol.controllers.core.problem import BlockQP, DenseQP, Solution
 from dqcontrol.errors import ParameterError
 
 __all__ = ["DEFAULT_OSQP_SETTINGS", "OsqpBackend", "OsqpWorkspace", "osqp_setting_names"]
@@ -134,7 +134,7 @@ class OsqpWorkspace:
         self._a_dense = self.a_matrix.toarray()
 
     def solve_blocks(self, qp: BlockQP) -> Solution:
-        """Solve a :class:`~dqcontrol.controllers.problem.BlockQP` (OSQP set up for its
+        """Solve a :class:`~dqcontrol.controllers.core.problem.BlockQP` (OSQP set up for its
         structure: ``P``'s stored values are the blocks' upper triangles)."""
         p, m, _ = qp.hessian.shape
         key = (qp.hessian.shape, qp.structure, qp.values)  # OSQP's A is set up with it

@@ -2,8 +2,8 @@
 
 A level reduced to the null space of the levels above is formed in four compiled steps:
 its residual rows in the basis and their Gram matrix
-(:func:`~dqcontrol.controllers.reduced.objective_in_basis`), every limit's rows in the basis
-(:func:`~dqcontrol.controllers.reduced.rows_in_basis`), the Cholesky factor of its Hessian,
+(:func:`~dqcontrol.controllers.core.reduced.objective_in_basis`), every limit's rows in the basis
+(:func:`~dqcontrol.controllers.core.reduced.rows_in_basis`), the Cholesky factor of its Hessian,
 and the solve on the guessed active set with its check
 (:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set`). Here one call
 runs the four in that order with the same kernels, so its answer is theirs bit for bit,
@@ -17,8 +17,8 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import dense_factor, solve_on_active_set
-from dqcontrol.controllers.cholesky import cholesky_into
-from dqcontrol.controllers.reduced import _entry_rows, _rows_in_basis, _weighted_gram
+from dqcontrol.controllers.core.reduced import _entry_rows, _rows_in_basis, _weighted_gram
+from dqcontrol.controllers.linalg.cholesky import cholesky_into
 
 __all__ = ["INVALID_BOUNDS", "NOT_DEFINITE", "reduced_on_active_set"]
 
@@ -49,7 +49,7 @@ def reduced_on_active_set(
     duals: np.ndarray,
 ) -> tuple[int, np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
     """The level of the stacked residual rows (``entries``, ``b``, ``scale``:
-    :class:`~dqcontrol.controllers.reduced.LevelRows`) in ``z = point + basis y``, under
+    :class:`~dqcontrol.controllers.core.reduced.LevelRows`) in ``z = point + basis y``, under
     the rows ``[I; C]`` (``general``: the non-zero entries of ``C``; ``lower``/``upper``
     theirs), solved from the guess ``active``/``at_upper``.
 

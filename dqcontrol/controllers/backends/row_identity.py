@@ -6,7 +6,7 @@ change between steps (a collision pair entering or leaving the influence distanc
 row after them moves, and the indices of the last set name other rows. Each general row is
 therefore named by its limit (the inequality's name and its place among the inequalities of
 that name) and by its key within the limit (:attr:`Inequality.keys
-<dqcontrol.controllers.problem.Inequality>`, or its order where the limit gives none): the
+<dqcontrol.controllers.core.problem.Inequality>`, or its order where the limit gives none): the
 last set is moved to the rows of the same names, and the rows that left are dropped.
 """
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.problem import Inequality
+from dqcontrol.controllers.core.problem import Inequality
 
 __all__ = ["carried_set"]
 

@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.cholesky import cholesky_above
-from dqcontrol.controllers.level_objective import held_from_own_block
+from dqcontrol.controllers.core.objective import held_from_own_block
+from dqcontrol.controllers.linalg.cholesky import cholesky_above
 
 __all__ = [
     "state_backward",

@@ -1,13 +1,13 @@
 """Every priority level solved on its last active set in one compiled call (docs/theory.md
 §7.5).
 
-:func:`~dqcontrol.controllers.levels.solve_levels` solves the first level, narrows the null
+:func:`~dqcontrol.controllers.core.levels.solve_levels` solves the first level, narrows the null
 space of its held rows, solves the next level reduced to it, and so on, each step a
 compiled kernel with Python between them. While every level's active set stays what it was
 at the last step (the usual case in a control loop), :func:`warm_levels` runs the same
 kernels in the same order in one call: the first level on its last set
 (:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set`), each null space
-(:func:`~dqcontrol.controllers.null_space.compiled_null_space`), each lower level
+(:func:`~dqcontrol.controllers.linalg.null_space.compiled_null_space`), each lower level
 (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`). Its
 answers are theirs bit for bit. It stops at the first level that needs more (a set that
 fails its check, a null space for LAPACK, a last set of another size) and says where, so
@@ -22,7 +22,7 @@ from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
 from dqcontrol.controllers.backends.clear_rows import clear_level, row_starts
 from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
-from dqcontrol.controllers.null_space import compiled_null_space
+from dqcontrol.controllers.linalg.null_space import compiled_null_space
 
 __all__ = ["warm_levels"]
 

@@ -18,10 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.joint_box import hard_interval_into
-from dqcontrol.controllers.problem import Bounds, DecisionLayout, Inequality, Limit
+from dqcontrol.controllers.core.box_rules import hard_interval_into
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import Bounds, DecisionLayout, Inequality
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.linalg.gram import frozen
 
 __all__ = ["AccelerationLimit"]
 

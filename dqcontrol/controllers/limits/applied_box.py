@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.joint_box import applied_box_into, braking_rows
-from dqcontrol.controllers.problem import Bounds, DecisionLayout, Limit
+from dqcontrol.controllers.core.box_rules import applied_box_into, braking_rows
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import Bounds, DecisionLayout
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.linalg.gram import frozen
 
 __all__ = ["AppliedCommandBox"]
 

@@ -36,9 +36,10 @@ import math
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import Inequality
 from dqcontrol.controllers.limits.collision_rows import damper_rows, predicted_rows
-from dqcontrol.controllers.problem import Inequality, Limit
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.collision import CollisionModel
 

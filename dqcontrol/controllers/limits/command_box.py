@@ -11,11 +11,11 @@ would take one pass each.
 
 from __future__ import annotations
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.joint_box import command_box_into
+from dqcontrol.controllers.core.box_rules import command_box_into
+from dqcontrol.controllers.core.context import StepContext
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
-from dqcontrol.controllers.problem import Limit
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.errors import ParameterError
 
 __all__ = ["CommandBoxLimit"]

@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.joint_box import applied_box_into, predicted_boxes_into
-from dqcontrol.controllers.problem import Bounds, DecisionLayout, Limit
+from dqcontrol.controllers.core.box_rules import applied_box_into, predicted_boxes_into
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import Bounds, DecisionLayout
+from dqcontrol.controllers.limits.limit import Limit
 
 __all__ = ["JointBoxLimit"]
 

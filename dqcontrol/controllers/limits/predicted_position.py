@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Inequality
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.position_kernels import states_and_terminal_into
-from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
+from dqcontrol.controllers.linalg.gram import frozen
 
 __all__ = ["PredictedPositionLimit"]
 
@@ -118,7 +119,7 @@ class PredictedPositionLimit(Limit):
         """``c[keep]`` and the rows' keys (their indices in ``c``: state and joint), the same
         arrays while ``c`` and ``keep`` are the same. The rows are read-only from the
         second step that reads them: what is derived from read-only rows is kept by their
-        identity (:func:`~dqcontrol.controllers.gram.kept`), worth it for rows that stay,
+        identity (:func:`~dqcontrol.controllers.linalg.gram.kept`), worth it for rows that stay,
         not for rows that change at every step (the terminal rows of a bound ``a_max`` that
         moves with the state), whose derived data is computed at each step instead."""
         mask = keep.tobytes()

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.problem import Bounds, DecisionLayout, Limit
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import Bounds, DecisionLayout
+from dqcontrol.controllers.limits.limit import Limit
 
 __all__ = ["ScalingRange"]
 

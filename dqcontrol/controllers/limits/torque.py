@@ -12,7 +12,7 @@ the plan may use; the rest is left to the joint servos' feedback).
 
 Behind a velocity servo of time constant ``τ_v`` the applied command is not reached over
 ``T`` but approached from the measured velocity at the rate ``(qd_0 - qd_meas)/τ_v``: the
-first block then uses ``h_0 = τ_v`` and the measured velocity (``ctx.extras["qd_measured"]``),
+first block then uses ``h_0 = τ_v`` and the measured velocity (``ctx.qd_now``),
 which bounds the servo's own torque peak after the command changes.
 """
 
@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Inequality
+from dqcontrol.controllers.limits.limit import Limit
 
 __all__ = ["TorqueLimit"]
 
@@ -69,7 +70,7 @@ class TorqueLimit(Limit):
         for i in range(p):
             m, _g = fast.mass_gravity(starts[i])
             if i == 0:
-                velocity = ctx.extras.get("qd_measured", ctx.qd_prev)
+                velocity = ctx.qd_now
             else:
                 assert plan is not None, "the torque limit's prediction carries the plan"
                 velocity = plan[i]
@@ -79,7 +80,7 @@ class TorqueLimit(Limit):
             c[rows, idx[i]] = scaled
             shift = bias.copy()
             if i == 0:
-                shift -= scaled @ ctx.extras.get("qd_measured", ctx.qd_prev)
+                shift -= scaled @ ctx.qd_now
             else:
                 c[rows, idx[i - 1]] = -scaled
             lo[rows] = -self.limit - shift

@@ -19,9 +19,10 @@ import math
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DecisionLayout, Inequality, Limit
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Inequality
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.linalg.gram import frozen
 
 __all__ = ["TrustRegionLimit"]
 

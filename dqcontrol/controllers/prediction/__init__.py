@@ -2,12 +2,12 @@
 
 from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
 from dqcontrol.controllers.prediction.consistent import ConsistentPrediction, interval_breakpoints
-from dqcontrol.controllers.prediction.thesis import ThesisPrediction
-from dqcontrol.controllers.prediction_matrices import (
+from dqcontrol.controllers.prediction.matrices import (
     integration_matrix,
     interpolation_matrix,
     prediction_instants,
 )
+from dqcontrol.controllers.prediction.thesis import ThesisPrediction
 
 __all__ = [
     "ConsistentPrediction",

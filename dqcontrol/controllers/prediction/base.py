@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dqcontrol.controllers.problem import DecisionLayout
+from dqcontrol.controllers.core.problem import DecisionLayout
 
 __all__ = ["Prediction", "PredictionModel"]
 

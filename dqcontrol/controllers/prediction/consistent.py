@@ -24,9 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from dqcontrol.controllers.core.problem import DecisionLayout
 from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
 from dqcontrol.controllers.prediction.consistent_kernels import clip_into, states_into
-from dqcontrol.controllers.problem import DecisionLayout
 from dqcontrol.errors import ParameterError
 
 __all__ = ["ConsistentPrediction", "interval_breakpoints", "shift_matrix"]

@@ -14,9 +14,9 @@ from typing import Literal
 
 import numpy as np
 
+from dqcontrol.controllers.core.problem import DecisionLayout
 from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
-from dqcontrol.controllers.prediction_matrices import integration_matrix, interpolation_matrix
-from dqcontrol.controllers.problem import DecisionLayout
+from dqcontrol.controllers.prediction.matrices import integration_matrix, interpolation_matrix
 
 __all__ = ["ThesisPrediction"]
 

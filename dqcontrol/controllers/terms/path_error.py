@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DecisionLayout, Residual, StateRows, Term
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual, StateRows
+from dqcontrol.controllers.linalg.gram import frozen
 from dqcontrol.controllers.terms.path_error_kernels import path_states_into, projectors_into
+from dqcontrol.controllers.terms.term import Term
 from dqcontrol.dq.algebra import hamiplus8
 
 __all__ = ["PROJECTOR_BASIS", "PathErrorTerm", "tangent_projectors"]

@@ -12,9 +12,10 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.base import check_positive
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual
+from dqcontrol.controllers.linalg.gram import frozen
+from dqcontrol.controllers.terms.term import Term
 
 __all__ = ["PostureTerm"]
 
@@ -22,7 +23,7 @@ __all__ = ["PostureTerm"]
 class PostureTerm(Term):
     """Pull towards ``reference`` (a configuration [rad]; set by the controller at reset).
 
-    ``ctx.extras["posture_scale"]`` (default 1) scales the gain: a controller sets it to 0
+    ``ctx.posture_scale`` (default 1) scales the gain: a controller sets it to 0
     to hold the arm still (the rows then ask for ``qd_i = 0``).
 
     Args:
@@ -45,7 +46,7 @@ class PostureTerm(Term):
     def residual(self, ctx: StepContext) -> Residual:
         """The rows that pull the predicted states towards the posture."""
         ref = ctx.q if self.reference is None else self.reference
-        gain = self.gain_per_s * float(ctx.extras.get("posture_scale", 1.0))
+        gain = self.gain_per_s * float(ctx.posture_scale)
         q_lin = ctx.prediction.q_lin
         b = np.empty(q_lin.size)
         pull_into(ref, q_lin, gain, b)

@@ -13,15 +13,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual
+from dqcontrol.controllers.linalg.gram import frozen
+from dqcontrol.controllers.terms.term import Term
 
 __all__ = ["ProgressTerm"]
 
 
 class ProgressTerm(Term):
-    """Progress rows on ``s``; ``ctx.extras["lag_s"]`` (``t - σ`` [s]) drives catch-up.
+    """Progress rows on ``s``; ``ctx.lag_s`` (``t - σ`` [s]) drives catch-up.
 
     Args:
         layout: the decision layout (intervals).
@@ -52,6 +53,6 @@ class ProgressTerm(Term):
 
     def residual(self, ctx: StepContext) -> Residual:
         """The rows that pull the predicted phase towards the reference timing."""
-        s_ref = self.reference(float(ctx.extras.get("lag_s", 0.0)))
+        s_ref = self.reference(float(ctx.lag_s))
         b = self._nominal_b if s_ref == 1.0 else -self._scale * s_ref
         return Residual(self.name, self.weight, b, blocks=self._blocks)

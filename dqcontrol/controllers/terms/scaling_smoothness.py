@@ -5,15 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual
+from dqcontrol.controllers.linalg.gram import frozen
+from dqcontrol.controllers.terms.term import Term
 
 __all__ = ["ScalingSmoothnessTerm"]
 
 
 class ScalingSmoothnessTerm(Term):
-    """Rows ``s_0 - s_prev`` and ``s_i - s_{i-1}``; ``ctx.extras["s_prev"]`` is the last
+    """Rows ``s_0 - s_prev`` and ``s_i - s_{i-1}``; ``ctx.s_prev`` is the last
     applied scaling (0 before the first step).
 
     Args:
@@ -36,5 +37,5 @@ class ScalingSmoothnessTerm(Term):
     def residual(self, ctx: StepContext) -> Residual:
         """The rows ``s_i - s_(i-1)`` (``s_0``: the applied ``s``)."""
         b = np.zeros(self._a.shape[0])
-        b[0] = float(ctx.extras.get("s_prev", 0.0))
+        b[0] = float(ctx.s_prev)
         return Residual(self.name, self.weight, b, A=self._a)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.cholesky import cholesky_into
+from dqcontrol.controllers.linalg.cholesky import cholesky_into
 
 __all__ = ["clearly_regular"]
 

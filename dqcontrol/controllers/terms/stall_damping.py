@@ -19,9 +19,10 @@ import math
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DecisionLayout, Residual, Term
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual
+from dqcontrol.controllers.linalg.gram import frozen
+from dqcontrol.controllers.terms.term import Term
 
 __all__ = ["StallDampingTerm"]
 

@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.problem import Residual, Term
-from dqcontrol.controllers.qp_cost import add_task_grams, task_matrices
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import Residual
+from dqcontrol.controllers.core.task_kernels import add_task_grams, task_matrices
 from dqcontrol.controllers.terms.path_error import tangent_projectors
+from dqcontrol.controllers.terms.term import Term
 
 __all__ = ["TrackingTerm"]
 

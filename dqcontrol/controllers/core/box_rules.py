@@ -9,7 +9,7 @@ first ones in one pass: :func:`command_box_into`; the generic merge of any limit
 :func:`intersect_into`, :func:`hard_into`); the
 proportional controller's clip takes the applied box of every joint in one call
 (:func:`joint_boxes`, with :func:`joint_constants` saying how far from a limit a joint's
-box is just ``±qd_max``). :mod:`~dqcontrol.controllers.bounds` computes the same numbers
+box is just ``±qd_max``). :mod:`~dqcontrol.controllers.core.bounds` computes the same numbers
 with numpy (the tests' reference, bit for bit). Numba compiles them without fast-math: the
 IEEE operations in the order written; minima and maxima propagate NaN as numpy's do.
 """

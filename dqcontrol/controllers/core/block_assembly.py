@@ -2,18 +2,18 @@
 and the limits (docs/theory.md §7.5).
 
 :class:`BlockAssembly` turns the terms and limits of a one-level controller into a
-:class:`~dqcontrol.controllers.problem.BlockQP`:
+:class:`~dqcontrol.controllers.core.problem.BlockQP`:
 
 - *terms*: the ``constant`` ones are evaluated once into a constant Hessian and linear
   term; at each step the others add their blocks through their fast path
-  (:meth:`~dqcontrol.controllers.problem.Term.add_gram`), or through their rows;
+  (:meth:`~dqcontrol.controllers.core.problem.Term.add_gram`), or through their rows;
 - *limits*: the ``constant`` ones are merged once into a template of the bounds; at each
   step the others tighten a copy of it, soft ones first and hard ones last (the conflict
-  rule), through their fast paths (:meth:`~dqcontrol.controllers.problem.Limit.tighten`,
-  :meth:`~dqcontrol.controllers.problem.Limit.row_bounds`) or through their rows.
+  rule), through their fast paths (:meth:`~dqcontrol.controllers.core.problem.Limit.tighten`,
+  :meth:`~dqcontrol.controllers.core.problem.Limit.row_bounds`) or through their rows.
 
-The numbers are those :func:`~dqcontrol.controllers.levels.build_problem` gives (up to the
-order of floating-point sums); its :class:`~dqcontrol.controllers.problem.Problem` stays the
+The numbers are those :func:`~dqcontrol.controllers.core.levels.build_problem` gives (up to the
+order of floating-point sums); its :class:`~dqcontrol.controllers.core.problem.Problem` stays the
 inspectable definition. The general rows ``C`` keep their structure number while every
 limit gives the same rows; a limit that changes its rows (or becomes active) starts a new
 structure, and the backend sets up again.
@@ -25,9 +25,11 @@ import itertools
 
 import numpy as np
 
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.joint_box import hard_into, intersect_into
-from dqcontrol.controllers.problem import BlockQP, Bounds, Inequality, Limit, Residual, Term
+from dqcontrol.controllers.core.box_rules import hard_into, intersect_into
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.problem import BlockQP, Bounds, Inequality, Residual
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.terms.term import Term
 
 __all__ = ["BlockAssembly", "overrides"]
 

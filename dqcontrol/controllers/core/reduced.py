@@ -7,7 +7,7 @@ level. The level's residuals are stacked once as the non-zero entries of their r
 (:func:`level_rows`; kept while the rows are read-only), so ``A Z`` skips every zero in one
 compiled pass. The general rows of the limits ``C Z`` skip ``C``'s zeros
 too (the coupling of neighbouring intervals, a trust region: a few entries per row); a
-read-only ``C`` gives its non-zero entries once (:func:`~dqcontrol.controllers.gram.kept`).
+read-only ``C`` gives its non-zero entries once (:func:`~dqcontrol.controllers.linalg.gram.kept`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import NamedTuple
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.entries import _nonzero_entries, nonzero_entries
-from dqcontrol.controllers.gram import frozen
-from dqcontrol.controllers.problem import DenseQP, Residual
+from dqcontrol.controllers.core.problem import DenseQP, Residual
+from dqcontrol.controllers.linalg.entries import _nonzero_entries, nonzero_entries
+from dqcontrol.controllers.linalg.gram import frozen
 
 __all__ = [
     "LevelRows",

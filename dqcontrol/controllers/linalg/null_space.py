@@ -10,7 +10,7 @@ Without pivoting, the basis is ``Q`` applied to the last columns of the identity
 the rows reach fewer variables than all (a row of a predictive controller's path level
 depends on the commands up to its instant only), each Householder vector is as short as
 the rows reached so far: a compiled QR that follows that profile
-(:mod:`~dqcontrol.controllers.householder`) does a fraction of the work of a dense one;
+(:mod:`~dqcontrol.controllers.linalg.householder`) does a fraction of the work of a dense one;
 otherwise LAPACK's (``dgeqrf``, ``dormqr``).
 """
 
@@ -20,7 +20,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.householder import applied_q, pivoted_qr, profile_qr
+from dqcontrol.controllers.linalg.householder import applied_q, pivoted_qr, profile_qr
 
 __all__ = ["RANK_TOLERANCE", "compiled_null_space", "null_space"]
 

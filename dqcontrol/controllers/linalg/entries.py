@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.gram import frozen, kept
+from dqcontrol.controllers.linalg.gram import frozen, kept
 
 __all__ = ["nonzero_entries", "stacked_entries"]
 

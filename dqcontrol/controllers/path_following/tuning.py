@@ -22,7 +22,8 @@ RESERVE_REPLANNED_OFTEN = 0.6
 
 @dataclass(frozen=True)
 class PathFollowingTuning:
-    """Expert settings of :class:`~dqcontrol.controllers.path_following.PathFollowingController`.
+    """Expert settings of the path-following controller
+    (:class:`~dqcontrol.controllers.path_following.controller.PathFollowingController`).
 
     Attributes:
         path_tolerance: how far lower levels may move each path-error row from its optimum

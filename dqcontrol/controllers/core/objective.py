@@ -1,15 +1,15 @@
 """The first level's dense objective with each changing dense residual in one compiled call
 (docs/theory.md §7.4).
 
-:func:`~dqcontrol.controllers.problem.objective` adds a residual with changing dense rows
+:func:`~dqcontrol.controllers.core.problem.objective` adds a residual with changing dense rows
 (a path level's error rows, row-weighted) through several numpy operations: the weighted
 rows, their product, its scaled sum into the Hessian, the linear term. Here one compiled
 call does the same sums in the same order (:func:`level_objective`); block-diagonal
 residuals go through the same kernels as there. Rows given through the predicted states
-they read (:class:`~dqcontrol.controllers.problem.StateRows`) are summed from each state's
+they read (:class:`~dqcontrol.controllers.core.problem.StateRows`) are summed from each state's
 small Gram matrix instead: the same products up to rounding, for a fraction of the work. A
 level whose live rows are all read-only (``P`` is then kept), or that has other forms, is
-left to :func:`~dqcontrol.controllers.problem.objective`. A level whose dense part is such
+left to :func:`~dqcontrol.controllers.core.problem.objective`. A level whose dense part is such
 rows, and whose other terms are block-diagonal, is also given without forming ``P``
 (:func:`state_objective`): ``c`` and the parts a backend factorises in the predicted states
 (docs/theory.md §7.5).
@@ -20,14 +20,14 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.gram import (
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual, StateHessian, objective
+from dqcontrol.controllers.linalg.gram import (
     add_diagonal_blocks,
     block_gram,
     frozen,
     kept,
     subtract_block_lin,
 )
-from dqcontrol.controllers.problem import DecisionLayout, Residual, StateHessian, objective
 
 __all__ = ["dense_hessian", "held_from_own_block", "level_objective", "state_objective"]
 
@@ -165,7 +165,7 @@ def _add_state_rows(
     w2: float,
 ) -> None:
     """``p_mat += w2 (W A)ᵀ A`` and ``c -= w2 (W A)ᵀ b`` in place for ``A`` given by its
-    :class:`~dqcontrol.controllers.problem.StateRows`, from each state's ``grams`` and
+    :class:`~dqcontrol.controllers.core.problem.StateRows`, from each state's ``grams`` and
     ``lin`` (:func:`_state_grams`, overwritten): block ``(j, k)`` of ``AᵀA`` is the sum over
     the states of each one's small Gram matrix, scaled by how blocks ``j`` and ``k`` enter
     it."""
@@ -196,7 +196,7 @@ def _changing_dense(r: Residual, nv: int) -> bool:
 
 
 def level_objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
-    """``(P, c)`` of :func:`~dqcontrol.controllers.problem.objective`: the same sums in the
+    """``(P, c)`` of :func:`~dqcontrol.controllers.core.problem.objective`: the same sums in the
     same order, each changing dense residual in one compiled call."""
     live = tuple(r for r in residuals if 2.0 * r.weight != 0.0)
     nv = layout.num_vars
@@ -224,7 +224,7 @@ def state_objective(
     layout: DecisionLayout, residuals: tuple[Residual, ...]
 ) -> tuple[np.ndarray, StateHessian] | None:
     """``(c, states)``: the linear term of :func:`level_objective` and its ``P`` as a
-    :class:`~dqcontrol.controllers.problem.StateHessian`, without forming ``P``
+    :class:`~dqcontrol.controllers.core.problem.StateHessian`, without forming ``P``
     (:func:`dense_hessian` forms it), for a level with one residual with state rows whose
     blocks each enter the states from their own on alike (:func:`held_from_own_block`)
     and every other one block-diagonal over every variable; ``None`` for any other
@@ -311,7 +311,7 @@ def _full_blocks(r: Residual, nv: int) -> bool:
 
 
 def dense_hessian(states: StateHessian) -> np.ndarray:
-    """``P`` of a :class:`~dqcontrol.controllers.problem.StateHessian`, dense."""
+    """``P`` of a :class:`~dqcontrol.controllers.core.problem.StateHessian`, dense."""
     p, m, _ = states.grams.shape
     p_mat = np.zeros((p * m, p * m))
     grams, lin = states.grams.copy(), np.zeros((p, m))

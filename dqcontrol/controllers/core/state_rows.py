@@ -1,5 +1,5 @@
 """Dense rows formed from the rows of each predicted state
-(:class:`~dqcontrol.controllers.problem.StateRows`, docs/theory.md §7.4)."""
+(:class:`~dqcontrol.controllers.core.problem.StateRows`, docs/theory.md §7.4)."""
 
 from __future__ import annotations
 

@@ -16,24 +16,28 @@ A controller's QP at one step is *built* first and *solved* second:
 with its rows and bounds), :class:`BlockQP` the single-level QP with a block-diagonal
 Hessian that the structured backends take, and :class:`Solution` what a backend returned.
 
-Terms and limits may offer a *fast path* beside their rows (:meth:`Term.add_gram`,
-:meth:`Limit.tighten`, :meth:`Limit.row_bounds`): the same numbers written straight into
-the QP's arrays, for the kilohertz loop. Their rows stay the definition
-(:meth:`Term.residual`, :meth:`Limit.rows`): what :class:`Problem` holds and the tests
-check the fast paths against.
+Terms and limits may offer a *fast path* beside their rows
+(:meth:`~dqcontrol.controllers.terms.term.Term.add_gram`,
+:meth:`~dqcontrol.controllers.limits.limit.Limit.tighten`,
+:meth:`~dqcontrol.controllers.limits.limit.Limit.row_bounds`): the same numbers written
+straight into the QP's arrays, for the kilohertz loop. Their rows stay the definition
+(:meth:`~dqcontrol.controllers.terms.term.Term.residual`,
+:meth:`~dqcontrol.controllers.limits.limit.Limit.rows`): what :class:`Problem` holds and the
+tests check the fast paths against.
 """
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cache, cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from dqcontrol.controllers.entries import stacked_entries
-from dqcontrol.controllers.gram import (
+from dqcontrol.controllers.core.box_rules import hard_into, intersect_into
+from dqcontrol.controllers.core.state_rows import state_rows_into
+from dqcontrol.controllers.linalg.entries import stacked_entries
+from dqcontrol.controllers.linalg.gram import (
     add_diagonal_blocks,
     add_scaled,
     block_gram,
@@ -43,12 +47,10 @@ from dqcontrol.controllers.gram import (
     subtract_block_lin,
     subtract_scaled,
 )
-from dqcontrol.controllers.joint_box import hard_into, intersect_into
-from dqcontrol.controllers.state_rows import state_rows_into
 from dqcontrol.errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from dqcontrol.controllers.context import StepContext
+    from dqcontrol.controllers.terms.term import Term
 
 __all__ = [
     "BlockQP",
@@ -58,7 +60,6 @@ __all__ = [
     "DenseQP",
     "Inequality",
     "Level",
-    "Limit",
     "Problem",
     "Residual",
     "Solution",
@@ -66,7 +67,6 @@ __all__ = [
     "StateHessian",
     "StateRows",
     "WarmLevels",
-    "Term",
     "fixed_variables",
     "merge_bounds",
     "objective",
@@ -243,83 +243,6 @@ class Inequality(NamedTuple):
     keys: np.ndarray | None = None
 
 
-class Term(ABC):
-    """A cost term: residual rows with a weight.
-
-    Subclasses set ``name`` and ``weight`` and implement :meth:`residual`. ``constant``
-    terms (rows independent of the step) are evaluated once per layout and cached.
-
-    Optional hooks: :meth:`prepare` (start of every step, before any row is read: a term
-    with memory fixes this step's values there), :meth:`observe` (after every step: the
-    memory's update), :meth:`reset`, and the fast path :meth:`add_gram`.
-    """
-
-    name: str = "term"
-    weight: float = 1.0
-    constant: bool = False
-
-    @abstractmethod
-    def residual(self, ctx: StepContext) -> Residual:
-        """The rows ``A z - b`` of this step."""
-
-    def prepare(self, ctx: StepContext) -> None:  # noqa: B027 - optional hook
-        """Start of a step: fix what :meth:`residual` and :meth:`add_gram` will read."""
-
-    def add_gram(self, ctx: StepContext, hessian: np.ndarray) -> bool:
-        """Fast path of a term whose rows each touch one block and whose ``b`` is zero:
-        add ``2 w Σ_i A_iᵀ A_i`` to the blocks ``hessian`` ``(p, m, m)`` in place (the
-        Hessian of ``w ‖A z‖²``) and return True; False (the default) when not offered,
-        and the caller then uses :meth:`residual`."""
-        return False
-
-    def reset(self) -> None:  # noqa: B027 - optional hook
-        """Forget any memory (called by the controller's reset)."""
-
-    def observe(self, z: np.ndarray | None, s_applied: float) -> None:  # noqa: B027
-        """Called after every step with the solution (``None`` on a fallback)."""
-
-
-class Limit(ABC):
-    """A constraint: rows, or nothing when inactive.
-
-    Subclasses set ``name`` and implement :meth:`rows`, returning :class:`Bounds`,
-    :class:`Inequality`, a tuple of them, or ``None``.
-
-    Class attributes: ``constant`` (the rows never change: evaluated once), ``hard`` (its
-    :class:`Bounds` are hard: merged after every soft bound, with the conflict rule),
-    ``relaxable`` (dropped when the problem is infeasible, to regain feasibility).
-
-    Optional fast paths: :meth:`tighten` (the :class:`Bounds` of this step merged into the
-    variable bounds in place) and :meth:`row_bounds` (the bounds of its
-    :class:`Inequality` rows, whose matrix ``C`` must then be the same at every step).
-    """
-
-    name: str = "limit"
-    constant: bool = False
-    hard: bool = False
-    relaxable: bool = False
-
-    @abstractmethod
-    def rows(self, ctx: StepContext) -> Bounds | Inequality | tuple | None:
-        """This step's rows, or ``None`` when the limit is inactive."""
-
-    def tighten(
-        self, ctx: StepContext, lower: np.ndarray, upper: np.ndarray, conflict: np.ndarray
-    ) -> bool:
-        """Fast path: intersect this step's :class:`Bounds` into ``lower``/``upper``
-        (the variables' entries, in place; hard ones with the conflict rule, marking
-        ``conflict``) exactly as :func:`merge_bounds` would, and return True; False when
-        not offered. A limit that offers it gives :class:`Inequality` rows only with the
-        same matrix at every step (their bounds through :meth:`row_bounds`)."""
-        return False
-
-    def row_bounds(self, ctx: StepContext, lower: np.ndarray, upper: np.ndarray) -> bool:
-        """Fast path: write the bounds of this step's :class:`Inequality` rows (in the
-        order :meth:`rows` gives them) to ``lower``/``upper`` and return True; False when
-        not offered."""
-        return False
-
-
 @dataclass(frozen=True)
 class Level:
     """One priority level: its terms and the tolerance to which lower levels hold them.
@@ -408,8 +331,9 @@ class BlockQP(NamedTuple):
         structure: a number naming the structure (the shapes, ``C``, ``fixed``): a backend
             sets its workspace up for a structure once and only updates values while the
             number stays the same. Whoever builds the QPs gives a new number whenever the
-            structure changes (:class:`~dqcontrol.controllers.assembly.BlockAssembly` draws
-            them from one counter, so numbers are never reused).
+            structure changes
+            (:class:`~dqcontrol.controllers.core.block_assembly.BlockAssembly` draws them
+            from one counter, so numbers are never reused).
         warm: a guess of the solution ``(p m,)`` for solvers that take one, or ``None``.
         values: a number that changes whenever the values of ``C`` change within the same
             structure (same shapes: limits whose rows move with the state, such as a
@@ -483,7 +407,7 @@ class Problem:
     @cached_property
     def general_entries(self) -> np.ndarray:
         """The non-zero entries of ``C``, from each inequality's rows without stacking them
-        (:func:`~dqcontrol.controllers.entries.stacked_entries`)."""
+        (:func:`~dqcontrol.controllers.linalg.entries.stacked_entries`)."""
         return stacked_entries(tuple(g.C for g in self.inequalities))
 
     @cached_property
@@ -537,7 +461,7 @@ class Problem:
 def objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
     """``(P, c)`` with ``½ zᵀ P z + cᵀ z = Σ w ‖A z - b‖²`` up to a constant.
 
-    The products of read-only rows are computed once (:mod:`~dqcontrol.controllers.gram`),
+    The products of read-only rows are computed once (:mod:`~dqcontrol.controllers.linalg.gram`),
     and so is ``P`` itself (read-only then) when every weighted term's rows are read-only;
     the sums are the same, in the same order, at every step."""
     nv = layout.num_vars

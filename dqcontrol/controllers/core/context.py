@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.problem import DecisionLayout
-from dqcontrol.controllers.terms.path_error_kernels import lane_dot
+from dqcontrol.controllers.core.problem import DecisionLayout
+from dqcontrol.controllers.linalg.lanes import lane_dot
 
 if TYPE_CHECKING:  # pragma: no cover
     from dqcontrol.controllers.prediction.base import Prediction
@@ -36,7 +36,12 @@ class StepContext:
         targets: ``x_d(σ̄_i)`` ``(p, 8)``.
         target_derivatives: ``dx_d/dσ(σ̄_i)`` ``(p, 8)``.
         a_max: acceleration bound at each block's linearisation state [rad/s²] ``(p, n)``.
-        extras: values a controller shares with its own terms and limits.
+        s_prev: the time scaling applied at the last step (0 before the first).
+        lag_s: how far the phase is behind the clock, ``t - σ`` [s] (0: on time).
+        posture_scale: the share of the posture gain in force (0 holds the posture term's
+            pull off, e.g. while a task is stalled).
+        qd_measured: the measured joint velocities [rad/s] ``(n,)``, where the controller
+            was given them (``None``: take ``qd_prev``, the command).
     """
 
     robot: RobotModel
@@ -52,7 +57,15 @@ class StepContext:
     targets: np.ndarray
     target_derivatives: np.ndarray
     a_max: np.ndarray
-    extras: dict = field(default_factory=dict)
+    s_prev: float = 0.0
+    lag_s: float = 0.0
+    posture_scale: float = 1.0
+    qd_measured: np.ndarray | None = None
+
+    @property
+    def qd_now(self) -> np.ndarray:
+        """The joint velocities now [rad/s]: measured where given, else the last command."""
+        return self.qd_prev if self.qd_measured is None else self.qd_measured
 
 
 def aligned_kinematics(

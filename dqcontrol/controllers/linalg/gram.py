@@ -1,7 +1,7 @@
 """Products of constant rows, computed once: the Gram matrices of a level's objective and
 the stacked rows of a problem.
 
-:func:`~dqcontrol.controllers.problem.objective` adds ``2 w AᵀA`` of every residual to the
+:func:`~dqcontrol.controllers.core.problem.objective` adds ``2 w AᵀA`` of every residual to the
 Hessian at every step. Rows that never change (a damping's identity blocks, a smoothness
 term's differences, a limit's constant matrix) give the same products at every step: a term
 or limit marks such an array read-only (:func:`frozen`), and a product of read-only arrays

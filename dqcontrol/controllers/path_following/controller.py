@@ -38,37 +38,39 @@ from dqcontrol.controllers.base import (
     fast_constructor,
     per_joint,
 )
-from dqcontrol.controllers.context import StepContext, aligned_kinematics
-from dqcontrol.controllers.kinematics_memo import KinematicsMemo
-from dqcontrol.controllers.levels import LevelsResult, build_problem, solve_levels
+from dqcontrol.controllers.core.context import StepContext, aligned_kinematics
+from dqcontrol.controllers.core.levels import LevelsResult, build_problem, solve_levels
+from dqcontrol.controllers.core.problem import Level, Problem, Residual
+from dqcontrol.controllers.core.state_rows import state_rows_into
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.applied_box import AppliedCommandBox
+from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.phase_end import PhaseEndLimit
 from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.limits.torque import TorqueLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.limits.velocity import VelocityLimit
-from dqcontrol.controllers.path_following_kernels import (
+from dqcontrol.controllers.path_following.kernels import (
     applied_plan,
     count_set,
     tangent_mismatch,
 )
-from dqcontrol.controllers.path_following_tuning import PathFollowingTuning
+from dqcontrol.controllers.path_following.kinematics_memo import KinematicsMemo
+from dqcontrol.controllers.path_following.tuning import PathFollowingTuning
 from dqcontrol.controllers.prediction.base import Prediction
 from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
     interval_breakpoints,
 )
 from dqcontrol.controllers.prediction.distance import max_abs_difference
-from dqcontrol.controllers.problem import Level, Limit, Problem, Residual, Term
-from dqcontrol.controllers.state_rows import state_rows_into
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, PathErrorTerm
 from dqcontrol.controllers.terms.posture import PostureTerm
 from dqcontrol.controllers.terms.progress import ProgressTerm
 from dqcontrol.controllers.terms.scaling_smoothness import ScalingSmoothnessTerm
 from dqcontrol.controllers.terms.singularity_damping import SingularityDampingTerm
+from dqcontrol.controllers.terms.term import Term
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -157,7 +159,7 @@ class PathFollowingController(Controller):
             acceleration reserve): :class:`PathFollowingTuning`, whose defaults are the
             measured choices of docs/theory.md §8.
         extra_terms: more terms, added to the lowest (posture) level.
-        extra_limits: more limits (any :class:`~dqcontrol.controllers.problem.Limit`).
+        extra_limits: more limits (any :class:`~dqcontrol.controllers.core.problem.Limit`).
         solver: a registered backend's name (``"daqp"``, the default, or ``"osqp"``:
             :func:`~dqcontrol.controllers.backends.base.backend_names`);
             ``solver_settings`` for it.
@@ -397,15 +399,13 @@ class PathFollowingController(Controller):
             )
             if self._servo_share < 1.0:
                 a_max = a_max * self._servo_share
-        extras = {
-            "s_prev": self._s_prev,
-            "lag_s": self._steps * self.period_s - self.sigma,
-            "posture_scale": 0.0 if self._stalled() else 1.0,
-            "qd_measured": self.prediction_model.qd_measured,
-        }
         return StepContext(
             self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev,
-            self.sigma, pred, xs, jacs, xd, dxd, a_max, extras,
+            self.sigma, pred, xs, jacs, xd, dxd, a_max,
+            s_prev=self._s_prev,
+            lag_s=self._steps * self.period_s - self.sigma,
+            posture_scale=0.0 if self._stalled() else 1.0,
+            qd_measured=self.prediction_model.qd_measured,
         )  # fmt: skip
 
     def _constant_a_max(self, a_const: np.ndarray, p: int) -> np.ndarray:
@@ -551,7 +551,7 @@ class PathFollowingController(Controller):
 
     def last_problem(self) -> Problem:
         """The problem built at the last step: every level's terms and every limit's rows,
-        by name (:class:`~dqcontrol.controllers.problem.Problem`)."""
+        by name (:class:`~dqcontrol.controllers.core.problem.Problem`)."""
         if self._last is None:
             raise ParameterError("no QP has been built yet: call step() first")
         return self._last

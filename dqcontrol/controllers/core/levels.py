@@ -6,7 +6,7 @@ kept at ``a · z_k`` by the lower levels. For least squares this is exact: the o
 residual of a convex level is unique, so the set of its minimisers is the set of feasible
 points with that residual. The held rows are kept by construction: level ``k + 1`` moves
 only in their null space, ``z = z_k + Z_k y`` with ``Z_k`` an orthonormal basis of the
-null space of every held row so far (:func:`~dqcontrol.controllers.null_space.null_space`,
+null space of every held row so far (:func:`~dqcontrol.controllers.linalg.null_space.null_space`,
 each level narrowing the last basis), so its QP has ``dim Z_k`` variables instead of all.
 Should that reduced level fail (rounding at a degenerate vertex can leave no ``y`` that
 meets the limits to the solver's tolerance), it is solved again over all variables with
@@ -25,20 +25,18 @@ import numpy as np
 
 from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.backends.base import Backend
-from dqcontrol.controllers.context import StepContext
-from dqcontrol.controllers.level_objective import (
+from dqcontrol.controllers.core.context import StepContext
+from dqcontrol.controllers.core.objective import (
     dense_hessian,
     level_objective,
     state_objective,
 )
-from dqcontrol.controllers.null_space import null_space
-from dqcontrol.controllers.problem import (
+from dqcontrol.controllers.core.problem import (
     Bounds,
     BuiltLevel,
     DenseQP,
     Inequality,
     Level,
-    Limit,
     Problem,
     Residual,
     Solution,
@@ -48,7 +46,9 @@ from dqcontrol.controllers.problem import (
     merge_bounds,
     objective,
 )
-from dqcontrol.controllers.reduced import ReducedQP, level_rows
+from dqcontrol.controllers.core.reduced import ReducedQP, level_rows
+from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.linalg.null_space import null_space
 
 __all__ = [
     "LevelsResult",
