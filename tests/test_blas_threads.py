@@ -33,7 +33,8 @@ def test_the_counts_are_restored_when_the_block_raises():
 
 
 def test_a_path_following_step_runs_with_one_thread(lbr4p):
-    from dqcontrol.controllers import PathFollowingController, levels
+    from dqcontrol.controllers import PathFollowingController
+    from dqcontrol.controllers.core import levels
     from dqcontrol.model import LBR4P_Q0
     from dqcontrol.trajectories import Circle
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.linalg import lapack
 
-from dqcontrol.controllers import null_space as null_space_module
+from dqcontrol.controllers.linalg import null_space as null_space_module  # the module
 from dqcontrol.controllers.linalg.null_space import null_space
 
 
