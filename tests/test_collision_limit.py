@@ -419,10 +419,10 @@ def test_moving_rows_refresh_the_backend_like_a_new_setup(robot):
     b.reset(q)
     refreshed = 0
     for _ in range(150):
-        before = a.qp._structure
+        before = a.backend._blocks._structure
         ra = a.step(q)
-        refreshed += a.qp._structure == before and a.last_problem().C.shape[0] > 0
-        b.qp._structure = None  # force a new setup
+        refreshed += a.backend._blocks._structure == before and a.last_problem().C.shape[0] > 0
+        b.backend._blocks._structure = None  # force a new setup
         rb = b.step(q)
         np.testing.assert_allclose(ra.qd_command, rb.qd_command, rtol=0, atol=1e-12)
         assert ra.s == pytest.approx(rb.s, abs=1e-12)
