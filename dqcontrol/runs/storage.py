@@ -157,24 +157,46 @@ def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, Path]:
     return npz_path, json_path
 
 
-def load_run(path: str | os.PathLike) -> tuple[RunLog, dict]:
-    """Load a run saved by :func:`save_run`.
+def run_paths(path: str | os.PathLike) -> tuple[Path, Path, Path]:
+    """``(json, npz, mcap)`` paths of the run at ``path`` (its ``.json``, ``.npz``,
+    ``.mcap`` or their common stem); none of them need exist."""
+    p = Path(path)
+    stem = p.with_suffix("") if p.suffix in (".json", ".npz", ".mcap") else p
+    return tuple(stem.with_name(stem.name + ext) for ext in (".json", ".npz", ".mcap"))  # type: ignore[return-value]
 
-    ``path`` is the ``.json``, the ``.npz`` or their common stem. Returns the
-    :class:`RunLog` (with its ``meta``) and the ``.json`` record (``meta``, ``metrics``,
-    ``interrupted``, ``note`` …).
+
+def load_run(path: str | os.PathLike, max_samples: int | None = None) -> tuple[RunLog, dict]:
+    """Load a run saved by :func:`save_run` or streamed by a loop (``.mcap``).
+
+    ``path`` is the ``.json``, the ``.npz``, the ``.mcap`` or their common stem. A
+    ``.json`` that names its arrays (``npz``) is read with them; an ``.mcap`` given
+    directly, or one with no ``.json`` beside it (a run cut short), is read alone
+    (:func:`~dqcontrol.runs.streamed_run.load_streamed`). Returns the
+    :class:`RunLog` (with its ``meta``) and the run record (``meta``, ``metrics``,
+    ``interrupted``, ``note`` …; for a streamed run also ``complete``: ``False`` when the
+    file was cut short).
+
+    Args:
+        path: the run.
+        max_samples: a streamed run keeps every k-th sample so that at most this many
+            are loaded (for display); ``None`` (and any ``.npz`` run): all of them.
 
     Raises:
-        FileNotFoundError: the ``.json`` or its ``.npz`` is missing.
-        ParameterError: the ``.json`` is not a dqcontrol run.
+        FileNotFoundError: no such run.
+        ParameterError: the file is not a dqcontrol run.
     """
-    p = Path(path)
-    stem = p.with_suffix("") if p.suffix in (".json", ".npz") else p
-    json_path = stem.with_name(stem.name + ".json")
+    from dqcontrol.runs.streamed_run import load_streamed
+
+    json_path, npz_path, mcap_path = run_paths(path)
+    if Path(path).suffix == ".mcap" or (mcap_path.is_file() and not json_path.is_file()):
+        return load_streamed(mcap_path, max_samples)
     record = json.loads(json_path.read_text(encoding="utf-8"))
     if not isinstance(record, dict) or record.get("format") != RUN_FORMAT:
         raise ParameterError(f"{json_path} is not a dqcontrol run file (format {RUN_FORMAT!r})")
-    npz_path = json_path.with_name(record.get("npz") or stem.name + ".npz")
+    if not record.get("npz") and record.get("log"):
+        log, streamed = load_streamed(json_path.with_name(record["log"]), max_samples)
+        return log, {**streamed, **record, "complete": streamed["complete"]}
+    npz_path = json_path.with_name(record.get("npz") or npz_path.name)
     with np.load(npz_path, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
     log = RunLog.from_arrays(arrays, record.get("meta") or {})

@@ -26,10 +26,12 @@ from __future__ import annotations
 import contextlib
 import copy
 import gc
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -38,7 +40,10 @@ from dqcontrol.controllers.base import Controller, StepResult, check_positive
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
 from dqcontrol.runs.log import LogRecorder, RunLog
+from dqcontrol.runs.mcap_log import RunLogWriteError
 from dqcontrol.runs.metrics import Metrics, compute_metrics
+from dqcontrol.runs.stream import DEFAULT_CHUNK_S, StreamRecorder
+from dqcontrol.runs.streamed_run import end_streamed
 from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
 
@@ -61,8 +66,12 @@ class RunResult:
     note: str = ""
     #: why the run was cut short: ``""`` (it was not), ``"user"`` (Ctrl-C),
     #: ``"simulation"`` (the driver or simulator failed; the note says how), ``"stale"``
-    #: (no fresh measurement) or ``"deadline"`` (a step missed its period in wall-clock mode).
+    #: (no fresh measurement), ``"deadline"`` (a step missed its period in wall-clock mode)
+    #: or ``"log"`` (the streamed run log could not be written).
     reason: str = ""
+    #: the streamed run log (``run_loop(log_file=...)``); ``log`` then holds only the
+    #: samples of its last block(s), the file all of them (:func:`~dqcontrol.runs.load_run`).
+    log_file: Path | None = None
 
 
 def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:
@@ -178,6 +187,8 @@ def run_loop(
     stale_periods: int = 3,
     brake: bool = True,
     warm_up: bool = True,
+    log_file: str | os.PathLike | None = None,
+    log_chunk_s: float = DEFAULT_CHUNK_S,
 ) -> RunResult:
     """Run ``controller`` against ``driver`` until ``σ ≥ T_tot``, ``max_time_s`` or the watchdog.
 
@@ -203,6 +214,11 @@ def run_loop(
             been renewed for this many periods.
         brake: after the run, ramp the command to zero within the acceleration limit, hold.
         warm_up: step a copy of the controller once before the first command.
+        log_file: stream the run log to this ``.mcap`` file as the run goes (blocks of
+            ``log_chunk_s`` of samples, written off the control thread; docs/run_logs.md):
+            memory stays bounded, a crash keeps every block written, and the result's
+            ``log`` holds only the last samples. ``None``: the whole log in memory.
+        log_chunk_s: longest stretch of samples [s] per block of the streamed log.
 
     Returns:
         :class:`RunResult`; Ctrl-C, a driver error, a stale measurement or a missed deadline
@@ -213,12 +229,15 @@ def run_loop(
 
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
+        RunLogWriteError: ``log_file`` cannot be created (before any command); a write
+            failing later stops the run instead (``reason = "log"``, the arm braked).
         ParameterError: bad ``max_time_s``/``stale_periods``; ``q0`` for a driver without
             ``reset``.
     """
     order = _JointOrder(driver.joint_names, tuple(controller.robot.joint_names))
     num = _sample_count(controller, max_time_s, stale_periods)
-    run = _started(controller, driver, order, q0, realtime, warm_up, meta)
+    logging = (log_file, log_chunk_s)
+    run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
     with _young_gc_only(run.clock.realtime), single_blas_thread():
         run.clock.restart()
         run.loop(num, stale_periods, on_sample, on_progress)
@@ -226,14 +245,23 @@ def run_loop(
     return _result(controller, driver, run.rec, stop, run)
 
 
-def _started(controller, driver, order, q0, realtime: bool, warm_up: bool, meta) -> _Samples:
+def _started(
+    controller, driver, order, q0, realtime: bool, warm_up: bool, meta, logging
+) -> _Samples:
     """The run at its first measurement: the controller reset there (and warmed up on a
-    copy where ``warm_up``), its log opened and its clock set."""
+    copy where ``warm_up``), its log opened (streamed to ``logging[0]`` in blocks of
+    ``logging[1]`` seconds, unless ``None``) and its clock set."""
     robot = controller.robot
     meas = _first_measurement(driver, robot, q0, order)
     q, _qd = order.to_model(meas)
     controller.reset(q)
-    rec = LogRecorder(robot.nq, _run_info(driver, controller, order.names, q, warm_up, meta))
+    info = _run_info(driver, controller, order.names, q, warm_up, meta)
+    log_file, chunk_s = logging
+    rec: LogRecorder | StreamRecorder
+    if log_file is None:
+        rec = LogRecorder(robot.nq, info)
+    else:
+        rec = StreamRecorder(log_file, robot.nq, controller.period_s, info, chunk_s=chunk_s)
     clock = _Clock(controller.period_s, bool(realtime))
     return _Samples(controller, driver, order, rec, clock, meas)
 
@@ -336,6 +364,8 @@ class _Samples:
             self._loop(num, stale_periods, on_sample, on_progress)
         except KeyboardInterrupt:
             self._stop("user", f"interrupted by the user after {len(self.rec)} samples")
+        except RunLogWriteError as exc:
+            self._stop("log", f"stopped after {len(self.rec)} samples: {exc}")
         except DQControlError as exc:
             self._stop("simulation", f"simulation stopped after {len(self.rec)} samples: {exc}")
 
@@ -378,19 +408,39 @@ class _Samples:
                 return
 
 
-def _result(controller, driver, rec: LogRecorder, stop: dict, run: _Samples) -> RunResult:
+def _result(controller, driver, rec, stop: dict, run: _Samples) -> RunResult:
     """The run's log (with ``stop``, the driver's report and the note) and its metrics."""
-    log = rec.finish()
-    log.meta["stop"] = stop
+    rec.meta["stop"] = stop
     report = getattr(driver, "report", None)
     if callable(report):  # the driver's own counters (e.g. the bridge's rejected packets)
-        log.meta["driver_report"] = report()
+        rec.meta["driver_report"] = report()
     if run.note:
-        log.meta["note"] = run.note
+        rec.meta["note"] = run.note
+    if isinstance(rec, StreamRecorder):
+        return _streamed_result(controller, rec, run)
+    log = rec.finish()
     metrics = compute_metrics(
         log, controller.trajectory, bounds_of(controller, log.q), controller.period_s
     )
     return RunResult(log, metrics, run.interrupted, run.note, run.reason)
+
+
+def _streamed_result(controller, rec: StreamRecorder, run: _Samples) -> RunResult:
+    """The result of a streamed run: metrics from its file, then its end record; a log
+    that cannot be finished makes the run interrupted (``reason = "log"``)."""
+    window, metrics, failure = end_streamed(
+        rec, controller.trajectory, lambda q: bounds_of(controller, q), controller.period_s,
+        (run.interrupted, run.note),
+    )  # fmt: skip
+    interrupted, note, reason = run.interrupted, run.note, run.reason
+    if failure:
+        interrupted, reason = True, reason or "log"
+        note = note if failure in note else f"{note}; {failure}" if note else failure
+    if metrics is None:
+        metrics = compute_metrics(
+            window, controller.trajectory, bounds_of(controller, window.q), controller.period_s
+        )
+    return RunResult(window, metrics, interrupted, note, reason, rec.path)
 
 
 def _brake_and_hold(driver, command, rate, to_driver, clock: _Clock) -> int:
