@@ -129,32 +129,40 @@ def _check_name(name: str) -> str:
     return name
 
 
-def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, Path]:
+def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, ...]:
     """Save a :class:`~dqcontrol.sim.kinematic.RunResult` as ``folder/name.npz`` + ``.json``.
 
     Both files are written atomically (the ``.npz`` first). Existing files of the same name
-    are replaced. Returns ``(npz_path, json_path)``.
+    are replaced. Returns ``(npz_path, json_path)``. A streamed run (``result.log_file``)
+    is named in the ``.json`` (``"log"``); if ``result.log`` holds only every k-th of its
+    samples (``result.log_stride > 1``) no ``.npz`` is written: ``(json_path,)``.
     """
     name = _check_name(name)
     folder = Path(folder)
     log: RunLog = result.log
-    buffer = io.BytesIO()
-    arrays: dict[str, Any] = log.arrays()  # as keywords, which numpy's stubs type narrowly
-    np.savez_compressed(buffer, **arrays)
-    npz_path = atomic_write_bytes(folder / f"{name}.npz", buffer.getvalue())
+    streamed = getattr(result, "log_file", None)
+    written: list[Path] = []
+    if getattr(result, "log_stride", 1) == 1:
+        buffer = io.BytesIO()
+        arrays: dict[str, Any] = log.arrays()  # as keywords, which numpy's stubs type narrowly
+        np.savez_compressed(buffer, **arrays)
+        written.append(atomic_write_bytes(folder / f"{name}.npz", buffer.getvalue()))
     record = {
         "format": RUN_FORMAT,
         "version": _VERSION,
         "name": name,
-        "npz": npz_path.name,
+        "npz": written[0].name if written else None,
         "meta": jsonable(log.meta),
         "metrics": jsonable(result.metrics.as_dict()),
         "interrupted": bool(result.interrupted),
         "note": str(result.note),
     }
+    if streamed is not None:
+        log_path = Path(streamed)
+        same = log_path.parent.resolve() == folder.resolve()
+        record["log"] = log_path.name if same else str(log_path.resolve())
     text = json.dumps(record, indent=2, allow_nan=False) + "\n"
-    json_path = atomic_write_text(folder / f"{name}.json", text)
-    return npz_path, json_path
+    return (*written, atomic_write_text(folder / f"{name}.json", text))
 
 
 def run_paths(path: str | os.PathLike) -> tuple[Path, Path, Path]:
@@ -194,7 +202,7 @@ def load_run(path: str | os.PathLike, max_samples: int | None = None) -> tuple[R
     if not isinstance(record, dict) or record.get("format") != RUN_FORMAT:
         raise ParameterError(f"{json_path} is not a dqcontrol run file (format {RUN_FORMAT!r})")
     if not record.get("npz") and record.get("log"):
-        log, streamed = load_streamed(json_path.with_name(record["log"]), max_samples)
+        log, streamed = load_streamed(json_path.parent / record["log"], max_samples)
         return log, {**streamed, **record, "complete": streamed["complete"]}
     npz_path = json_path.with_name(record.get("npz") or npz_path.name)
     with np.load(npz_path, allow_pickle=False) as data:

@@ -72,6 +72,9 @@ class RunResult:
     #: the streamed run log (``run_loop(log_file=...)``); ``log`` then holds only the
     #: samples of its last block(s), the file all of them (:func:`~dqcontrol.runs.load_run`).
     log_file: Path | None = None
+    #: ``log`` holds every ``log_stride``-th sample of ``log_file`` (a long run loaded for
+    #: display); 1: every sample (or no file).
+    log_stride: int = 1
 
 
 def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:
