@@ -15,10 +15,10 @@ __all__ = ["DISPLAY_SAMPLES", "register"]
 DISPLAY_SAMPLES = 100_000
 
 _DESCRIPTION = """\
-Replay a run saved by 'dqcontrol run' (its .npz, .json or streamed .mcap log): by default in the live Meshcat
-viewer (a local server; the URL is printed), where the browser plays the motion with the
-reference path, the end-effector trace and the target frame, and loops it. With --html and
---figures it (re)writes the self-contained HTML replay and the figures of the run, without
+Replay a run saved by 'dqcontrol run' (its .npz, .json or streamed .mcap log): by default
+in the live Meshcat viewer (a local server; the URL is printed), where the browser plays
+the motion with the reference path, the end-effector trace and the target frame, and loops
+it. With --html and --figures it (re)writes the self-contained HTML replay and the figures of the run, without
 a server unless --viewer is also given. A streamed log cut short (the process was killed)
 is read up to its last complete chunk and reported as such; a long run is decimated for
 display."""
@@ -39,9 +39,7 @@ def register(subparsers) -> None:
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument(
-        "run", metavar="RUN", help="a saved run: its .npz, .json, .mcap or their stem"
-    )
+    p.add_argument("run", metavar="RUN", help="a saved run: its .npz, .json, .mcap or their stem")
     p.add_argument(
         "--viewer",
         action=argparse.BooleanOptionalAction,
@@ -143,9 +141,7 @@ def _load_log(json_path: Path):
     if record.get("complete") is False:
         print(f"dqcontrol view: {json_path.name} is incomplete: {record['note']}", file=sys.stderr)
     if record.get("stride", 1) > 1:
-        print(
-            f"{record['samples']} samples, every {record['stride']}th shown", flush=True
-        )
+        print(f"{record['samples']} samples, every {record['stride']}th shown", flush=True)
     if len(log) == 0:
         raise ParameterError(f"the run {json_path} has no samples")
     return log

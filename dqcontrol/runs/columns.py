@@ -75,6 +75,7 @@ class SampleBlock:
 
     @property
     def full(self) -> bool:
+        """Whether every row holds a sample."""
         return self.count >= self.capacity
 
     def clear(self) -> None:
@@ -139,7 +140,9 @@ def encode_block(block: SampleBlock) -> bytes:
     }
     head = json.dumps(header, separators=(",", ":")).encode("utf-8")
     parts = [struct.pack("<I", len(head)), head]
-    parts += [np.ascontiguousarray(block.columns[name][:k]).tobytes() for name, _, _ in block.layout]
+    parts += [
+        np.ascontiguousarray(block.columns[name][:k]).tobytes() for name, _, _ in block.layout
+    ]
     return b"".join(parts)
 
 
@@ -161,7 +164,9 @@ def decode_block(data: bytes | memoryview) -> dict[str, np.ndarray]:
             dtype = np.dtype(dt)
             num = count * max(int(cols), 1)
             arr = np.frombuffer(view, dtype=dtype, count=num, offset=offset)
-            out[name] = arr.reshape((count, int(cols)) if cols else count).astype(dtype.newbyteorder("="))
+            out[name] = arr.reshape((count, int(cols)) if cols else count).astype(
+                dtype.newbyteorder("=")
+            )
             offset += num * dtype.itemsize
     except (ValueError, KeyError, TypeError, struct.error) as exc:
         raise ParameterError(f"not a dqcontrol sample block: {exc}") from None

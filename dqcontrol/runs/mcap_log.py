@@ -76,7 +76,11 @@ class McapRunWriter:
             self._writer.start(profile="", library="dqcontrol")
             self._writer.add_metadata(
                 "dqcontrol.run",
-                {"format": RUN_FORMAT, "version": STREAM_VERSION, "meta": _json_bytes(meta).decode()},
+                {
+                    "format": RUN_FORMAT,
+                    "version": STREAM_VERSION,
+                    "meta": _json_bytes(meta).decode(),
+                },
             )
             run_schema = self._writer.register_schema(
                 "dqcontrol.RunRecord", "jsonschema", b'{"type": "object"}'

@@ -61,7 +61,8 @@ class _Pass:
     def __init__(self, trajectory: Trajectory, bounds_for, period_s: float) -> None:
         self.trajectory, self.bounds_for, self.period_s = trajectory, bounds_for, period_s
         self.totals = _Totals()
-        self.samples, self.end = 0, None
+        self.samples = 0
+        self.end: int | None = None
         self.prev_command: np.ndarray | None = None
         self.nan_seen = False
         self.last_sigma_next = 0.0
@@ -101,7 +102,11 @@ class _Pass:
         pose, target = b["pose"], b["target"]
         errors = {
             "err": np.linalg.norm(target - pose, axis=1),
-            **dict(zip(("terr", "rerr"), (np.asarray(e) for e in pose_error(pose, target)), strict=True)),
+            **dict(
+                zip(
+                    ("terr", "rerr"), (np.asarray(e) for e in pose_error(pose, target)), strict=True
+                )
+            ),
             "dev": np.asarray(self.trajectory.path_deviation(translation(pose))),
         }
         for name, values in errors.items():

@@ -38,8 +38,10 @@ def end_streamed(
 
     Args:
         rec: the run's recorder (its ``meta`` complete: stop record, driver report, note).
-        trajectory, bounds_for, period_s: as :func:`~dqcontrol.runs.stream_metrics.
-            streamed_metrics`.
+        trajectory: the anchored trajectory the controller used.
+        bounds_for: the bounds for a block's joint positions (as
+            :func:`~dqcontrol.runs.stream_metrics.streamed_metrics`).
+        period_s: the control period T [s].
         status: ``(interrupted, note)`` of the run.
 
     Returns:
@@ -87,9 +89,7 @@ def _stride(samples: int, max_samples: int | None) -> int:
     return int(math.ceil(samples / max_samples))
 
 
-def load_streamed(
-    path: str | os.PathLike, max_samples: int | None = None
-) -> tuple[RunLog, dict]:
+def load_streamed(path: str | os.PathLike, max_samples: int | None = None) -> tuple[RunLog, dict]:
     """A streamed run's log and record (see the module docstring).
 
     Args:
