@@ -19,9 +19,9 @@ Replay a run saved by 'dqcontrol run' (its .npz, .json or streamed .mcap log): b
 in the live Meshcat viewer (a local server; the URL is printed), where the browser plays
 the motion with the reference path, the end-effector trace and the target frame, and loops
 it. With --html and --figures it (re)writes the self-contained HTML replay and the figures
-of the run, without a server unless --viewer is also given. A streamed log cut short (the process was killed)
-is read up to its last complete chunk and reported as such; a long run is decimated for
-display."""
+of the run, without a server unless --viewer is also given. A streamed log cut short (the
+process was killed) is read up to its last complete chunk and reported as such; a long run
+is decimated for display."""
 
 _EPILOG = """\
 examples:
