@@ -208,3 +208,21 @@ def test_view_reads_a_streamed_run_and_flags_a_cut(lbr4p, tmp_path, capsys):
     assert list((tmp_path / "v").glob("cut_*.png"))
     err = capsys.readouterr().err
     assert "cut.mcap is incomplete" in err and "run.mcap" not in err
+
+
+def test_a_newer_cut_log_is_not_taken_for_the_run_saved_before(lbr4p, tmp_path):
+    """A run that crashed after an earlier one was saved under the same name is read from
+    its own (newer, incomplete) log."""
+    import os
+
+    earlier = run_kinematic(LocalController(lbr4p, Circle(0.3), 0.05), LBR4P_Q0)
+    save_run(earlier, tmp_path, "local")
+    _, streamed = _streamed(lbr4p, tmp_path / "full.mcap", 0.3)
+    data = streamed.log_file.read_bytes()
+    cut = tmp_path / "local.mcap"
+    cut.write_bytes(data[: len(data) - 200])
+    stamp = (tmp_path / "local.json").stat().st_mtime_ns + 10**9
+    os.utime(cut, ns=(stamp, stamp))
+    for path in (tmp_path / "local", tmp_path / "local.json"):
+        _, record = load_run(path)
+        assert record["complete"] is False

@@ -108,17 +108,13 @@ def _main(args: argparse.Namespace) -> int:
 def _check_options(args: argparse.Namespace) -> tuple[Path, str, bool]:
     """The saved run's ``.json``, its name, and whether to open the live viewer; parser
     error (exit 2) for a missing run, a negative ``--hold`` or nothing to do."""
-    from dqcontrol.runs.storage import run_paths
+    from dqcontrol.runs.storage import run_file, run_paths
 
     parser = args._parser
-    json_path, _npz, mcap_path = run_paths(args.run)
-    if Path(args.run).suffix == ".mcap" or not json_path.is_file():
-        json_path = mcap_path
+    json_path = run_file(args.run)
     if not json_path.is_file():
-        parser.error(
-            f"RUN: no saved run at {args.run!r} (expected {json_path.with_suffix('.json')} or "
-            f"{mcap_path})"
-        )
+        expected, _npz, mcap_path = run_paths(args.run)
+        parser.error(f"RUN: no saved run at {args.run!r} (expected {expected} or {mcap_path})")
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     viewer_on = args.viewer if args.viewer is not None else not (args.html or args.figures)

@@ -36,6 +36,8 @@ __all__ = [
     "atomic_write_text",
     "jsonable",
     "load_run",
+    "run_file",
+    "run_paths",
     "save_run",
 ]
 
@@ -173,12 +175,24 @@ def run_paths(path: str | os.PathLike) -> tuple[Path, Path, Path]:
     return tuple(stem.with_name(stem.name + ext) for ext in (".json", ".npz", ".mcap"))  # type: ignore[return-value]
 
 
+def run_file(path: str | os.PathLike) -> Path:
+    """The file that holds the run at ``path``: its ``.json``, unless ``path`` is an
+    ``.mcap`` or the stem's ``.mcap`` is newer than its ``.json`` (or has none): a streamed
+    run that has not ended, never mistaken for an earlier run saved under the same name."""
+    json_path, _npz, mcap_path = run_paths(path)
+    if Path(path).suffix == ".mcap" or not json_path.is_file():
+        return mcap_path if mcap_path.is_file() or not json_path.exists() else json_path
+    if mcap_path.is_file() and mcap_path.stat().st_mtime_ns > json_path.stat().st_mtime_ns:
+        return mcap_path
+    return json_path
+
+
 def load_run(path: str | os.PathLike, max_samples: int | None = None) -> tuple[RunLog, dict]:
     """Load a run saved by :func:`save_run` or streamed by a loop (``.mcap``).
 
-    ``path`` is the ``.json``, the ``.npz``, the ``.mcap`` or their common stem. A
-    ``.json`` that names its arrays (``npz``) is read with them; an ``.mcap`` given
-    directly, or one with no ``.json`` beside it (a run cut short), is read alone
+    ``path`` is the ``.json``, the ``.npz``, the ``.mcap`` or their common stem
+    (:func:`run_file` says which is read). A ``.json`` is read with its arrays (``npz``,
+    else its streamed ``log``), an ``.mcap`` alone
     (:func:`~dqcontrol.runs.streamed_run.load_streamed`). Returns the
     :class:`RunLog` (with its ``meta``) and the run record (``meta``, ``metrics``,
     ``interrupted``, ``note`` …; for a streamed run also ``complete``: ``False`` when the
@@ -195,16 +209,16 @@ def load_run(path: str | os.PathLike, max_samples: int | None = None) -> tuple[R
     """
     from dqcontrol.runs.streamed_run import load_streamed
 
-    json_path, npz_path, mcap_path = run_paths(path)
-    if Path(path).suffix == ".mcap" or (mcap_path.is_file() and not json_path.is_file()):
-        return load_streamed(mcap_path, max_samples)
+    json_path = run_file(path)
+    if json_path.suffix == ".mcap":
+        return load_streamed(json_path, max_samples)
     record = json.loads(json_path.read_text(encoding="utf-8"))
     if not isinstance(record, dict) or record.get("format") != RUN_FORMAT:
         raise ParameterError(f"{json_path} is not a dqcontrol run file (format {RUN_FORMAT!r})")
     if not record.get("npz") and record.get("log"):
         log, streamed = load_streamed(json_path.parent / record["log"], max_samples)
         return log, {**streamed, **record, "complete": streamed["complete"]}
-    npz_path = json_path.with_name(record.get("npz") or npz_path.name)
+    npz_path = json_path.with_name(record.get("npz") or json_path.stem + ".npz")
     with np.load(npz_path, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
     log = RunLog.from_arrays(arrays, record.get("meta") or {})

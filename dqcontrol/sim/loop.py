@@ -23,6 +23,7 @@ after the last logged sample: the log and the metrics are those of the task.
 
 from __future__ import annotations
 
+import array
 import contextlib
 import copy
 import gc
@@ -105,15 +106,16 @@ class _Clock:
     ``start + k T`` and must end by ``start + (k + 1) T``, its deadline.
 
     ``lateness_s``: end of each sample's work minus its deadline (> 0: missed);
-    ``jitter_s``: start of each sample after the first minus its scheduled start.
+    ``jitter_s``: start of each sample after the first minus its scheduled start (packed
+    float arrays: 8 bytes a sample).
     """
 
     def __init__(self, period_s: float, realtime: bool) -> None:
         self.period_s, self.realtime = period_s, realtime
         self.start = time.perf_counter()
         self.k = 0
-        self.lateness_s: list[float] = []
-        self.jitter_s: list[float] = []
+        self.lateness_s = array.array("d")
+        self.jitter_s = array.array("d")
 
     def restart(self) -> None:
         self.start, self.k = time.perf_counter(), 0
