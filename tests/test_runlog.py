@@ -226,3 +226,24 @@ def test_a_newer_cut_log_is_not_taken_for_the_run_saved_before(lbr4p, tmp_path):
     for path in (tmp_path / "local", tmp_path / "local.json"):
         _, record = load_run(path)
         assert record["complete"] is False
+
+
+class _BrokenDriver(KinematicDriver):
+    """A driver whose 120th read raises an error no loop expects."""
+
+    reads = 0
+
+    def read(self):
+        self.reads += 1
+        if self.reads == 120:
+            raise RuntimeError("driver bug")
+        return super().read()
+
+
+def test_an_unexpected_error_leaves_the_samples_before_it_flagged(lbr4p, tmp_path):
+    controller = LocalController(lbr4p, Circle(3.0), 0.01)
+    with pytest.raises(RuntimeError, match="driver bug"):
+        run_loop(controller, _BrokenDriver(lbr4p, 0.01), q0=LBR4P_Q0,
+                 log_file=tmp_path / "r.mcap", log_chunk_s=0.5)  # fmt: skip
+    log, record = load_run(tmp_path / "r.mcap")
+    assert not record["complete"] and len(log) == 118  # the first read is the start

@@ -26,6 +26,7 @@ from typing import IO
 
 import numpy as np
 
+from dqcontrol import __version__
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.columns import BLOCK_LAYOUT, decode_block
 
@@ -73,7 +74,7 @@ class McapRunWriter:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._file: IO[bytes] = open(self.path, "wb")  # noqa: SIM115 - closed in close()
             self._writer = Writer(self._file, compression=CompressionType.ZSTD)
-            self._writer.start(profile="", library="dqcontrol")
+            self._writer.start(profile="", library=f"dqcontrol {__version__}")
             self._writer.add_metadata(
                 "dqcontrol.run",
                 {
@@ -92,6 +93,8 @@ class McapRunWriter:
             self._add(self._run_channel, 0, _json_bytes({"kind": "start", "meta": meta}))
             self._sync()
         except OSError as exc:
+            if hasattr(self, "_file"):
+                self._file.close()
             raise _write_failure(self.path, exc) from None
         self._queue: queue.Queue[tuple[int, bytes] | None] = queue.Queue()
         self._thread = threading.Thread(target=self._drain, name="dqcontrol-runlog", daemon=True)

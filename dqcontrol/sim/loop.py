@@ -243,11 +243,25 @@ def run_loop(
     num = _sample_count(controller, max_time_s, stale_periods)
     logging = (log_file, log_chunk_s)
     run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
-    with _young_gc_only(run.clock.realtime), single_blas_thread():
-        run.clock.restart()
-        run.loop(num, stale_periods, on_sample, on_progress)
-    stop = _stop_and_brake(run, brake)
+    try:
+        with _young_gc_only(run.clock.realtime), single_blas_thread():
+            run.clock.restart()
+            run.loop(num, stale_periods, on_sample, on_progress)
+        stop = _stop_and_brake(run, brake)
+    except BaseException:
+        _abandon(run.rec)
+        raise
     return _result(controller, driver, run.rec, stop, run)
+
+
+def _abandon(rec) -> None:
+    """A run ended by an unexpected exception: a streamed log gets its last samples but
+    no end record (it reads as cut short); its own write errors are left to the first."""
+    if isinstance(rec, StreamRecorder):
+        try:
+            rec.close(None)
+        except RunLogWriteError:
+            pass
 
 
 def _started(
