@@ -7,7 +7,9 @@ Layout of a run's ``.mcap`` (docs/run_logs.md):
   when the run ends normally, ``{"kind": "end", "meta", "metrics", "interrupted", "note",
   "samples"}`` last;
 * channel ``/dqcontrol/samples``: one message per block of samples
-  (:func:`~dqcontrol.runs.columns.encode_block`), each flushed as its own MCAP chunk.
+  (:func:`~dqcontrol.runs.columns.encode_block`), each flushed as its own MCAP chunk;
+* channel ``/dqcontrol/preview`` (JSON, optional): every k-th sample, for viewers
+  (:mod:`dqcontrol.runs.preview`), in the chunk of its block.
 
 A file cut short (SIGKILL, power cut) has no end record and no MCAP footer; the reader
 keeps every complete chunk before the cut and flags the run incomplete.
@@ -29,6 +31,7 @@ import numpy as np
 from dqcontrol import __version__
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.columns import BLOCK_LAYOUT, decode_block
+from dqcontrol.runs.preview import PREVIEW_SCHEMA, preview_messages
 
 __all__ = ["McapRunWriter", "RunLogWriteError", "StreamedRun", "read_streamed"]
 
@@ -36,6 +39,7 @@ __all__ = ["McapRunWriter", "RunLogWriteError", "StreamedRun", "read_streamed"]
 RUN_FORMAT = "dqcontrol-run"
 STREAM_VERSION = "2"
 SAMPLES_TOPIC = "/dqcontrol/samples"
+PREVIEW_TOPIC = "/dqcontrol/preview"
 RUN_TOPIC = "/dqcontrol/run"
 
 
@@ -60,15 +64,20 @@ class McapRunWriter:
     """Writes a run's ``.mcap``: blocks go through a queue to a writer thread, which adds
     each as one message, flushes it as a complete chunk and (``fsync``) syncs the file.
 
-    The first failed write is kept in :attr:`error`; :meth:`put_block` raises it.
+    With ``preview_stride`` k > 0 it also publishes every k-th sample as JSON
+    (:mod:`dqcontrol.runs.preview`). The first failed write is kept in :attr:`error`;
+    :meth:`put_block` raises it.
     """
 
-    def __init__(self, path: str | os.PathLike, meta: dict, *, fsync: bool = True) -> None:
+    def __init__(
+        self, path: str | os.PathLike, meta: dict, *, fsync: bool = True, preview_stride: int = 0
+    ) -> None:
         from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
         self.fsync = fsync
-        self._sequence = 0
+        self.preview_stride = preview_stride
+        self._sequence = self._written = 0
         self.error: RunLogWriteError | None = None
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -90,6 +99,12 @@ class McapRunWriter:
             self._sample_channel = self._writer.register_channel(
                 SAMPLES_TOPIC, BLOCK_LAYOUT, 0, {"layout": BLOCK_LAYOUT}
             )
+            preview_schema = self._writer.register_schema(
+                "dqcontrol.Sample", "jsonschema", json.dumps(PREVIEW_SCHEMA).encode("utf-8")
+            )
+            self._preview_channel = self._writer.register_channel(
+                PREVIEW_TOPIC, "json", preview_schema
+            )
             self._add(self._run_channel, 0, _json_bytes({"kind": "start", "meta": meta}))
             self._sync()
         except OSError as exc:
@@ -100,10 +115,20 @@ class McapRunWriter:
         self._thread = threading.Thread(target=self._drain, name="dqcontrol-runlog", daemon=True)
         self._thread.start()
 
-    def _add(self, channel: int, time_ns: int, data: bytes) -> None:
+    def _add(self, channel: int, time_ns: int, data: bytes, flush: bool = True) -> None:
         self._sequence += 1
         self._writer.add_message(channel, time_ns, data, time_ns, self._sequence)
-        self._writer.flush()
+        if flush:
+            self._writer.flush()
+
+    def _add_block(self, time_ns: int, data: bytes) -> None:
+        """The block's preview messages (if any) and the block, as one flushed chunk."""
+        arrays = decode_block(data) if self.preview_stride else None
+        if arrays is not None:
+            for preview_ns, message in preview_messages(arrays, self._written, self.preview_stride):
+                self._add(self._preview_channel, preview_ns, message, flush=False)
+            self._written += len(arrays["t_s"])
+        self._add(self._sample_channel, time_ns, data)
 
     def _sync(self) -> None:
         self._file.flush()
@@ -119,7 +144,7 @@ class McapRunWriter:
             if self.error is not None:
                 continue
             try:
-                self._add(self._sample_channel, *item)
+                self._add_block(*item)
                 self._sync()
             except (OSError, ValueError) as exc:
                 self.error = _write_failure(self.path, exc)

@@ -21,6 +21,7 @@ from dqcontrol.errors import ParameterError
 from dqcontrol.runs.columns import SampleBlock, concat_arrays, encode_block
 from dqcontrol.runs.log import RunLog
 from dqcontrol.runs.mcap_log import McapRunWriter
+from dqcontrol.runs.preview import preview_stride
 
 __all__ = ["DEFAULT_CHUNK_S", "StreamRecorder"]
 
@@ -45,6 +46,8 @@ class StreamRecorder:
         meta: the run's description, written at the start of the file.
         chunk_s: longest stretch of samples in one block [s].
         fsync: sync the file after every block (survives a power cut, not only a crash).
+        preview: also publish about 50 samples a second as JSON for viewers such as
+            Foxglove (:mod:`dqcontrol.runs.preview`), written by the writer thread.
 
     Raises:
         RunLogWriteError: the file cannot be created.
@@ -59,6 +62,7 @@ class StreamRecorder:
         *,
         chunk_s: float = DEFAULT_CHUNK_S,
         fsync: bool = True,
+        preview: bool = True,
     ) -> None:
         capacity = block_capacity(period_s, chunk_s)
         self.n = num_joints
@@ -66,7 +70,8 @@ class StreamRecorder:
         self._current = SampleBlock(num_joints, capacity)
         self._previous = SampleBlock(num_joints, capacity)
         self._done = 0  # samples handed to the writer
-        self.writer = McapRunWriter(path, self.meta, fsync=fsync)
+        stride = preview_stride(period_s) if preview else 0
+        self.writer = McapRunWriter(path, self.meta, fsync=fsync, preview_stride=stride)
         self.path = self.writer.path
 
     def __len__(self) -> int:
