@@ -247,3 +247,25 @@ def test_an_unexpected_error_leaves_the_samples_before_it_flagged(lbr4p, tmp_pat
                  log_file=tmp_path / "r.mcap", log_chunk_s=0.5)  # fmt: skip
     log, record = load_run(tmp_path / "r.mcap")
     assert not record["complete"] and len(log) == 118  # the first read is the start
+
+
+def test_the_file_is_plain_mcap_with_a_json_preview(lbr4p, tmp_path):
+    """Any MCAP reader opens the file: its summary, the run records and the preview."""
+    import json
+
+    from mcap.reader import make_reader
+
+    _, streamed = _streamed(lbr4p, tmp_path / "run.mcap")
+    log, _ = load_run(streamed.log_file)
+    with open(streamed.log_file, "rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        assert summary is not None
+        topics = {c.topic: summary.statistics.channel_message_counts[i]
+                  for i, c in summary.channels.items()}  # fmt: skip
+        previews = [json.loads(m.data) for _, _, m in reader.iter_messages(["/dqcontrol/preview"])]
+    assert topics["/dqcontrol/run"] == 2 and topics["/dqcontrol/samples"] == 2
+    stride = 2  # 50 Hz at T = 0.01 s
+    assert len(previews) == len(log.t_s[::stride])
+    np.testing.assert_array_equal([p["t_s"] for p in previews], log.t_s[::stride])
+    np.testing.assert_array_equal(previews[3]["q"], log.q[3 * stride])
