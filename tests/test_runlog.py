@@ -75,9 +75,11 @@ def test_exact_medians_without_keeping_the_values(lbr4p, tmp_path, monkeypatch):
 def test_selection_finds_every_rank_with_negative_values():
     rng = np.random.default_rng(7)
     values = np.concatenate((rng.normal(size=300), [0.0, -0.0, 1e-300, -5.0, 5.0, 5.0]))
-    blocks = np.array_split(values, 7)
-    for rank in (0, 1, 150, 305):
-        assert stream_metrics._select(lambda: iter(blocks), rank) == np.sort(values)[rank]
+    blocks = [{"v": part, "w": -part} for part in np.array_split(values, 7)]
+    ranks = (0, 1, 150, 305)
+    wanted = [(name, rank) for name in ("v", "w") for rank in ranks]
+    found = stream_metrics._select(lambda: iter(blocks), wanted)
+    assert found == [*np.sort(values)[list(ranks)], *np.sort(-values)[list(ranks)]]
 
 
 def test_a_long_run_loads_decimated_for_display(lbr4p, tmp_path):

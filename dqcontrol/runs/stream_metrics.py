@@ -5,8 +5,8 @@
 without holding the whole log: sums, counts and maxima in one pass; the two medians (solve
 and step time) from the values kept in that pass up to :data:`MEDIAN_KEEP` samples, else by
 an exact selection over the bit patterns of the values (four more passes over the blocks,
-16 bits each). Sums are taken block by block, so the means may differ from the in-memory
-ones by rounding (far below 1e-12 relative).
+16 bits each, for both medians at once). Sums are taken block by block, so the means may
+differ from the in-memory ones by rounding (far below 1e-12 relative).
 """
 
 from __future__ import annotations
@@ -68,6 +68,7 @@ class _Pass:
         self.last_sigma_next = 0.0
         self.exec_time = float("nan")
         self.kept: dict[str, list[np.ndarray]] | None = {name: [] for name in _TIMING}
+        self.timing_nan = dict.fromkeys(_TIMING, False)
 
     def add(self, block: dict[str, np.ndarray]) -> None:
         count = len(block["t_s"])
@@ -150,6 +151,8 @@ class _Pass:
         t.torque_peak = float(np.maximum(t.torque_peak, np.max(np.abs(b["torque_peak"]))))
 
     def _keep_timing(self, b: dict[str, np.ndarray]) -> None:
+        for name in _TIMING:
+            self.timing_nan[name] = self.timing_nan[name] or bool(np.isnan(b[name]).any())
         if self.kept is None:
             return
         if self.totals.task > MEDIAN_KEEP:
@@ -171,45 +174,55 @@ def _from_key(key: int) -> float:
     return float(np.array([bits], dtype=np.uint64).view(np.float64)[0])
 
 
-def _select(columns: Callable[[], Iterator[np.ndarray]], rank: int) -> float:
-    """The ``rank``-th smallest value (0-based) of the concatenated ``columns()``, exactly,
-    in four passes of 16 bits of the order keys."""
-    prefix, left = 0, rank
+def _select(
+    columns: Callable[[], Iterator[dict[str, np.ndarray]]], wanted: list[tuple[str, int]]
+) -> list[float]:
+    """For each ``(name, rank)`` of ``wanted``, the ``rank``-th smallest value (0-based) of
+    column ``name`` over the blocks of ``columns()``, exactly: all of them together in four
+    passes, each fixing 16 more bits of the order keys."""
+    prefixes, left = [0] * len(wanted), [rank for _, rank in wanted]
     for shift in (48, 32, 16, 0):
-        counts = np.zeros(1 << 16, dtype=np.int64)
-        for values in columns():
-            keys = _order_keys(values)
-            if shift < 48:
-                keys = keys[(keys >> np.uint64(shift + 16)) == np.uint64(prefix)]
-            digits = ((keys >> np.uint64(shift)) & np.uint64(0xFFFF)).astype(np.int64)
-            counts += np.bincount(digits, minlength=1 << 16)
-        cumulative = np.cumsum(counts)
-        digit = int(np.searchsorted(cumulative, left, side="right"))
-        left -= int(cumulative[digit - 1]) if digit else 0
-        prefix = (prefix << 16) | digit
-    return _from_key(prefix)
+        counts = np.zeros((len(wanted), 1 << 16), dtype=np.int64)
+        for block in columns():
+            keys_of = {name: _order_keys(block[name]) for name in {n for n, _ in wanted}}
+            for i, (name, _) in enumerate(wanted):
+                keys = keys_of[name]
+                if shift < 48:
+                    keys = keys[(keys >> np.uint64(shift + 16)) == np.uint64(prefixes[i])]
+                digits = ((keys >> np.uint64(shift)) & np.uint64(0xFFFF)).astype(np.int64)
+                counts[i] += np.bincount(digits, minlength=1 << 16)
+        for i in range(len(wanted)):
+            cumulative = np.cumsum(counts[i])
+            digit = int(np.searchsorted(cumulative, left[i], side="right"))
+            left[i] -= int(cumulative[digit - 1]) if digit else 0
+            prefixes[i] = (prefixes[i] << 16) | digit
+    return [_from_key(p) for p in prefixes]
 
 
-def _median(one_pass: _Pass, blocks: Blocks, name: str) -> float:
-    """The median of ``name`` over the task's samples (NaN if none, or if one is NaN)."""
+def _medians(one_pass: _Pass, blocks: Blocks) -> dict[str, float]:
+    """The medians of the timing columns over the task's samples (NaN if there are none,
+    or if one is NaN), from the values kept or by :func:`_select`."""
     count = one_pass.totals.task
     if not count:
-        return float("nan")
+        return dict.fromkeys(_TIMING, float("nan"))
     if one_pass.kept is not None:
-        return float(np.median(np.concatenate(one_pass.kept[name])))
+        return {name: float(np.median(np.concatenate(one_pass.kept[name]))) for name in _TIMING}
 
-    def columns() -> Iterator[np.ndarray]:
+    def columns() -> Iterator[dict[str, np.ndarray]]:
         seen = 0
         for block in blocks():
-            take = min(len(block[name]), count - seen)
+            take = min(len(block["t_s"]), count - seen)
             if take > 0:
-                yield np.asarray(block[name][:take], dtype=float)
+                yield {name: np.asarray(block[name][:take], dtype=float) for name in _TIMING}
             seen += take
 
-    if any(np.isnan(v).any() for v in columns()):
-        return float("nan")
-    low, high = _select(columns, (count - 1) // 2), _select(columns, count // 2)
-    return float(np.mean([low, high]))
+    names = [name for name in _TIMING if not one_pass.timing_nan[name]]
+    wanted = [(name, rank) for name in names for rank in ((count - 1) // 2, count // 2)]
+    values = _select(columns, wanted) if wanted else []
+    out = dict.fromkeys(_TIMING, float("nan"))
+    for i, name in enumerate(names):
+        out[name] = float(np.mean(values[2 * i : 2 * i + 2]))
+    return out
 
 
 def streamed_metrics(
@@ -234,6 +247,7 @@ def streamed_metrics(
         one.add(block)
     t, duration = one.totals, trajectory.duration
     completed = one.end is not None
+    medians = _medians(one, blocks)
     torque_ok = t.torque_values > 0 and t.torque_finite
     return Metrics(
         completed=completed,
@@ -263,6 +277,6 @@ def streamed_metrics(
         fallbacks=t.counts["fallback"],
         relaxed_steps=t.counts["relaxed"],
         nan_seen=one.nan_seen,
-        solve_time_median_s=_median(one, blocks, "solve_time_s"),
-        step_time_median_s=_median(one, blocks, "step_time_s"),
+        solve_time_median_s=medians["solve_time_s"],
+        step_time_median_s=medians["step_time_s"],
     )
