@@ -833,7 +833,6 @@ def bench_run_log(samples: int = 20_000, period_s: float = 0.001) -> dict:
         rec = StreamRecorder(Path(folder) / "bench.mcap", robot.nq, period_s, {"bench": True})
         streamed = timed(rec)
         rec.close({"meta": rec.meta})
-        size = (Path(folder) / "bench.mcap").stat().st_size
     memory = timed(LogRecorder(robot.nq))
     return {
         "samples": samples,
@@ -841,8 +840,6 @@ def bench_run_log(samples: int = 20_000, period_s: float = 0.001) -> dict:
         "p99_us": float(np.percentile(streamed, 99)),
         "max_us": float(streamed.max()),
         "in_memory_median_us": float(np.median(memory)),
-        "bytes_per_sample": size / samples,
-        "gb_per_hour_at_1khz": size / samples * 3.6e6 / 1e9,
     }
 
 
@@ -854,9 +851,7 @@ def _run_log_lines(res: dict | None) -> list[str]:
         "",
         f"streamed run log ({res['samples']} samples at 1 kHz): record median "
         f"{res['median_us']:.2f} µs, p99 {res['p99_us']:.2f} µs, max {res['max_us']:.0f} µs "
-        f"(block hand-off); in memory {res['in_memory_median_us']:.2f} µs; "
-        f"{res['bytes_per_sample']:.0f} B/sample on disk ({res['gb_per_hour_at_1khz']:.2f} GB "
-        "per hour at 1 kHz)",
+        f"(block hand-off); in memory {res['in_memory_median_us']:.2f} µs",
     ]
 
 
