@@ -851,7 +851,7 @@ def _run_log_lines(res: dict | None) -> list[str]:
         "",
         f"streamed run log ({res['samples']} samples at 1 kHz): record median "
         f"{res['median_us']:.2f} µs, p99 {res['p99_us']:.2f} µs, max {res['max_us']:.0f} µs "
-        f"(block hand-off); in memory {res['in_memory_median_us']:.2f} µs",
+        f"(block hand-offs and host noise); in memory {res['in_memory_median_us']:.2f} µs",
     ]
 
 
