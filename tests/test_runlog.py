@@ -276,3 +276,17 @@ def test_the_file_is_plain_mcap_with_a_json_preview(lbr4p, tmp_path):
     assert len(previews) == len(log.t_s[::stride])
     np.testing.assert_array_equal([p["t_s"] for p in previews], log.t_s[::stride])
     np.testing.assert_array_equal(previews[3]["q"], log.q[3 * stride])
+
+
+def test_a_long_streamed_run_is_saved_without_npz(lbr4p, tmp_path, monkeypatch):
+    """Past FULL_LOAD_SAMPLES the CLI keeps a decimated log: the .json then names the .mcap."""
+    from dqcontrol.cli import run_output
+
+    monkeypatch.setattr(run_output, "FULL_LOAD_SAMPLES", 20)
+    _, streamed = _streamed(lbr4p, tmp_path / "long.mcap")
+    shown = run_output.loaded_result(streamed)
+    assert shown.log_stride > 1 and len(shown.log) <= 21
+    (js,) = save_run(shown, tmp_path, "long")
+    log, record = load_run(js)
+    assert record["npz"] is None and record["log"] == "long.mcap" and record["complete"]
+    assert len(log) == record["samples"] > 100
