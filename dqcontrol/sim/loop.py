@@ -201,41 +201,34 @@ def run_loop(
         controller: any controller; its ``robot.joint_names`` are the model's joints.
         driver: a :class:`~dqcontrol.sim.driver.JointDriver`; its joints are mapped to the
             model's by name.
-        q0: start configuration [rad] in the *model's* joint order; the driver must then be
-            simulated (have ``reset``). ``None``: start where the driver's first
-            measurement is.
+        q0: start [rad] in the *model's* joint order (the driver must then have ``reset``);
+            ``None``: where the driver's first measurement is.
         max_time_s: stop after this time [s] of the loop (default ``10 T_tot + 1 s``).
         meta: added to the log's ``meta`` (after ``simulator``, ``controller``,
             ``period_s``, the driver's own entries and ``joint_names``).
         on_sample: ``f(k, driver, result)`` after each sample.
         on_progress: ``f(σ_next, T_tot)`` [s] after each sample (e.g. a progress bar).
-        realtime: pace the loop on the wall clock: sample k starts at ``start + k T``
-            (a sleep, then the last :data:`SPIN_S` polling the clock) and must end by
-            ``start + (k + 1) T``; one that ends later stops the run
-            (``reason = "deadline"``). The garbage collector meanwhile sees only the
-            objects made during the run (``gc.freeze``). Otherwise the loop runs as fast as
-            the driver answers (simulated time).
-        stale_periods: the run stops (``reason = "stale"``) when the measurement has not
-            been renewed for this many periods.
+        realtime: sample k starts at ``start + k T`` on the wall clock (sleep, then poll
+            :data:`SPIN_S`); ending after ``start + (k + 1) T`` stops the run (``"deadline"``);
+            the GC sees only the run's objects (``gc.freeze``). Else: as fast as it answers.
+        stale_periods: stop (``reason = "stale"``) after this many periods with no new
+            measurement.
         brake: after the run, ramp the command to zero within the acceleration limit, hold.
         warm_up: step a copy of the controller once before the first command.
-        log_file: stream the run log to this ``.mcap`` file as the run goes (blocks of
-            ``log_chunk_s`` of samples, written off the control thread; docs/run_logs.md):
-            memory stays bounded, a crash keeps every block written, and the result's
-            ``log`` holds only the last samples. ``None``: the whole log in memory.
-        log_chunk_s: longest stretch of samples [s] per block of the streamed log.
+        log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md); the
+            result's ``log`` then holds only the last samples. ``None``: all in memory.
+        log_chunk_s: longest stretch of samples [s] in one block of ``log_file``.
 
     Returns:
-        :class:`RunResult`; Ctrl-C, a driver error, a stale measurement or a missed deadline
-        keep the samples done (``interrupted=True``, a ``note``); ``meta["stop"]`` says why
-        it ended, how long it braked and, on the wall clock, the lateness, start jitter and
-        missed deadlines [ms] (:meth:`_Clock.report`); ``meta["driver_report"]`` has the
-        driver's counters.
+        :class:`RunResult`; Ctrl-C, a driver or log error and the watchdog keep the samples
+        done (``interrupted=True``, a ``note``); ``meta["stop"]`` says why it ended, how long
+        it braked and the wall clock's timing [ms] (:meth:`_Clock.report`);
+        ``meta["driver_report"]`` has the driver's counters.
 
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
-        RunLogWriteError: ``log_file`` cannot be created (before any command); a write
-            failing later stops the run instead (``reason = "log"``, the arm braked).
+        RunLogWriteError: ``log_file`` cannot be created (a later write error stops the
+            run: ``reason = "log"``, the arm braked).
         ParameterError: bad ``max_time_s``/``stale_periods``; ``q0`` for a driver without
             ``reset``.
     """
@@ -243,25 +236,24 @@ def run_loop(
     num = _sample_count(controller, max_time_s, stale_periods)
     logging = (log_file, log_chunk_s)
     run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
+    stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
+    return _result(controller, driver, run.rec, stop, run)
+
+
+def _samples_then_brake(run: _Samples, num, stale_periods, on_sample, on_progress, brake) -> dict:
+    """The run's samples on its clock, then the brake; ``meta["stop"]``. An exception that
+    leaves it closes a streamed log without its end record (it then reads as cut short;
+    the log's own write errors give way to that exception)."""
     try:
         with _young_gc_only(run.clock.realtime), single_blas_thread():
             run.clock.restart()
             run.loop(num, stale_periods, on_sample, on_progress)
-        stop = _stop_and_brake(run, brake)
+        return _stop_and_brake(run, brake)
     except BaseException:
-        _abandon(run.rec)
+        if isinstance(run.rec, StreamRecorder):
+            with contextlib.suppress(RunLogWriteError):
+                run.rec.close(None)
         raise
-    return _result(controller, driver, run.rec, stop, run)
-
-
-def _abandon(rec) -> None:
-    """A run ended by an unexpected exception: a streamed log gets its last samples but
-    no end record (it reads as cut short); its own write errors are left to the first."""
-    if isinstance(rec, StreamRecorder):
-        try:
-            rec.close(None)
-        except RunLogWriteError:
-            pass
 
 
 def _started(
