@@ -35,6 +35,7 @@ from dqcontrol.cli.run_output import (
     TABLE_LEGEND,
     collision_report,
     hold_viewer,
+    loaded_result,
     metrics_table,
     progress_bar,
     progress_callback,
@@ -148,9 +149,10 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
     return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
 
 
-def run_connected(args, controller, q0, meta: dict, on_progress):
+def run_connected(args, controller, q0, meta: dict, on_progress, log_file=None):
     """One run against the sim-server at ``args.connect`` (:class:`~dqcontrol.sim.bridge.
-    BridgeDriver` and :func:`~dqcontrol.sim.loop.run_loop`)."""
+    BridgeDriver` and :func:`~dqcontrol.sim.loop.run_loop`), its log streamed to
+    ``log_file`` (``None``: kept in memory)."""
     from dqcontrol.errors import ParameterError
     from dqcontrol.sim.bridge import BridgeDriver
     from dqcontrol.sim.loop import run_loop
@@ -164,7 +166,7 @@ def run_connected(args, controller, q0, meta: dict, on_progress):
             )
         return run_loop(
             controller, driver, q0=q0, meta=meta, on_progress=on_progress,
-            realtime=args.realtime,
+            realtime=args.realtime, log_file=log_file,
         )  # fmt: skip
     finally:
         driver.close()
@@ -287,10 +289,10 @@ def _main(args: argparse.Namespace) -> int:
     viewer = _open_viewer(args, robot, q0)
     try:
         runs = [
-            _run_controller(label, args, robot, q0, robot_meta, velocity, viewer)
+            _run_controller(label, args, robot, q0, robot_meta, velocity, viewer, out)
             for label in args.controllers
         ]
-        written = write_results(runs, robot, out, args, name)
+        written = _write_results(runs, robot, out, args, name)
         _print_summary(args, name, robot, runs)
         print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
         _replay_last(viewer, runs, args)
@@ -298,6 +300,23 @@ def _main(args: argparse.Namespace) -> int:
         if viewer is not None:
             viewer.close()
     return _exit_code(runs)
+
+
+def _write_results(runs, robot, out: Path, args, name: str) -> list[Path]:
+    """:func:`~dqcontrol.cli.run_output.write_results`, a failed write (full disk, a folder
+    not writable) reported as a :class:`~dqcontrol.errors.DQControlError` (exit 1)."""
+    from dqcontrol.errors import DQControlError
+
+    try:
+        return write_results(runs, robot, out, args, name)
+    except OSError as exc:
+        for label, result, _ in runs:
+            if result.note:
+                print(f"{label}: {result.note}", file=sys.stderr)
+        raise DQControlError(
+            f"cannot write the results to {out}/: {exc} (free disk space or choose a "
+            "writable --out)"
+        ) from None
 
 
 def _open_viewer(args: argparse.Namespace, robot, q0):
@@ -312,9 +331,12 @@ def _open_viewer(args: argparse.Namespace, robot, q0):
     return viewer
 
 
-def _run_controller(label: str, args, robot, q0, robot_meta: dict, velocity, viewer) -> tuple:
-    """Build the controller ``label`` on a fresh trajectory and run it with a progress bar;
-    its run's note, if any, goes to stderr.
+def _run_controller(
+    label: str, args, robot, q0, robot_meta: dict, velocity, viewer, out: Path
+) -> tuple:
+    """Build the controller ``label`` on a fresh trajectory and run it with a progress bar,
+    its log streamed to ``out/<label>.mcap`` (then loaded back, decimated if long:
+    :func:`~dqcontrol.cli.run_output.loaded_result`); its run's note, if any, goes to stderr.
 
     Returns:
         ``(label, RunResult, the controller's anchored trajectory)``.
@@ -325,7 +347,7 @@ def _run_controller(label: str, args, robot, q0, robot_meta: dict, velocity, vie
     bar = progress_bar(f"{label:>12}", args.duration, show_progress(args))
     on_progress = progress_callback(bar)
     try:
-        result = _simulate(args, controller, q0, meta, viewer, on_progress)
+        result = _simulate(args, controller, q0, meta, viewer, on_progress, out / f"{label}.mcap")
     finally:
         bar.close()
     if result.note:
@@ -369,21 +391,24 @@ def _run_meta(args, label: str, controller, q0, velocity, task_meta: dict) -> di
     return meta
 
 
-def _simulate(args, controller, q0, meta: dict, viewer, on_progress):
-    """One run of ``controller``: against the sim-server with ``--connect``, else in MuJoCo
-    (the viewer follows it live) or the kinematic loop (the viewer plays it afterwards)."""
+def _simulate(args, controller, q0, meta: dict, viewer, on_progress, log_file: Path):
+    """One run of ``controller``, its log streamed to ``log_file``: against the sim-server
+    with ``--connect``, else in MuJoCo (the viewer follows it live) or the kinematic loop
+    (the viewer plays it afterwards)."""
     from dqcontrol.sim import run_kinematic, run_mujoco
 
     collision = args._collision
     if args.connect:
-        return run_connected(args, controller, q0, meta, on_progress)
+        return loaded_result(run_connected(args, controller, q0, meta, on_progress, log_file))
     if args.simulator == "mujoco":
         on_sample = viewer.follow(controller, speed=args.speed) if viewer else None
-        return run_mujoco(
+        return loaded_result(run_mujoco(
             controller, q0, meta=meta, on_sample=on_sample, on_progress=on_progress,
-            obstacles=collision.obstacles if collision is not None else (),
-        )  # fmt: skip
-    result = run_kinematic(controller, q0, meta=meta, on_progress=on_progress)
+            obstacles=collision.obstacles if collision is not None else (), log_file=log_file,
+        ))  # fmt: skip
+    result = loaded_result(
+        run_kinematic(controller, q0, meta=meta, on_progress=on_progress, log_file=log_file)
+    )
     if viewer is not None:
         viewer.play(
             result.log,

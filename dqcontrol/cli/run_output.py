@@ -18,6 +18,7 @@ __all__ = [
     "TABLE_LEGEND",
     "collision_report",
     "hold_viewer",
+    "loaded_result",
     "metrics_table",
     "progress_bar",
     "progress_callback",
@@ -141,6 +142,29 @@ def hold_viewer(viewer, hold: float | None) -> None:
 
 
 # ---------------------------------------------------------------------- the result files
+#: A streamed run up to this many samples is loaded whole (and saved as ``.npz`` too);
+#: a longer one is loaded decimated to about this many, for the figures and the replay.
+FULL_LOAD_SAMPLES = 100_000
+
+
+def loaded_result(result):
+    """``result`` with its streamed log loaded back from its file (every sample up to
+    :data:`FULL_LOAD_SAMPLES`, else every k-th: ``log_stride = k``); unchanged when it has no
+    file or the file cannot be read (then its ``log`` stays the last samples)."""
+    import dataclasses
+
+    from dqcontrol.errors import DQControlError
+    from dqcontrol.runs.storage import load_run
+
+    if result.log_file is None or result.log_stride != 1:
+        return result
+    try:
+        log, record = load_run(result.log_file, max_samples=FULL_LOAD_SAMPLES)
+    except (OSError, DQControlError):
+        return result
+    return dataclasses.replace(result, log=log, log_stride=int(record["stride"]))
+
+
 def write_results(runs, robot, out: Path, args: argparse.Namespace, name: str) -> list[Path]:
     """Save each run that has samples, its figures and its replay, and the comparison figure
     of two or more, to ``out`` with a progress bar; ``name`` is the robot's label in the

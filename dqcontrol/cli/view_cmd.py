@@ -9,14 +9,19 @@ from pathlib import Path
 
 from dqcontrol.cli.common import NO_BARS_HELP, add_out_option, add_progress_option
 
-__all__ = ["register"]
+__all__ = ["DISPLAY_SAMPLES", "register"]
+
+#: A longer streamed run is decimated to about this many samples for display.
+DISPLAY_SAMPLES = 100_000
 
 _DESCRIPTION = """\
-Replay a run saved by 'dqcontrol run' (its .npz or .json): by default in the live Meshcat
-viewer (a local server; the URL is printed), where the browser plays the motion with the
-reference path, the end-effector trace and the target frame, and loops it. With --html and
---figures it (re)writes the self-contained HTML replay and the figures of the run, without
-a server unless --viewer is also given."""
+Replay a run saved by 'dqcontrol run' (its .npz, .json or streamed .mcap log): by default
+in the live Meshcat viewer (a local server; the URL is printed), where the browser plays
+the motion with the reference path, the end-effector trace and the target frame, and loops
+it. With --html and --figures it (re)writes the self-contained HTML replay and the figures
+of the run, without a server unless --viewer is also given. A streamed log cut short (the
+process was killed) is read up to its last complete chunk and reported as such; a long run
+is decimated for display."""
 
 _EPILOG = """\
 examples:
@@ -34,7 +39,7 @@ def register(subparsers) -> None:
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("run", metavar="RUN", help="a saved run: its .npz, its .json or their stem")
+    p.add_argument("run", metavar="RUN", help="a saved run: its .npz, .json, .mcap or their stem")
     p.add_argument(
         "--viewer",
         action=argparse.BooleanOptionalAction,
@@ -103,30 +108,36 @@ def _main(args: argparse.Namespace) -> int:
 def _check_options(args: argparse.Namespace) -> tuple[Path, str, bool]:
     """The saved run's ``.json``, its name, and whether to open the live viewer; parser
     error (exit 2) for a missing run, a negative ``--hold`` or nothing to do."""
+    from dqcontrol.runs.storage import run_file, run_paths
+
     parser = args._parser
-    path = Path(args.run)
-    stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
-    json_path = stem.with_name(stem.name + ".json")
+    json_path = run_file(args.run)
     if not json_path.is_file():
-        parser.error(f"RUN: no saved run at {args.run!r} (expected {json_path})")
+        expected, _npz, mcap_path = run_paths(args.run)
+        parser.error(f"RUN: no saved run at {args.run!r} (expected {expected} or {mcap_path})")
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     viewer_on = args.viewer if args.viewer is not None else not (args.html or args.figures)
     if not (viewer_on or args.html or args.figures):
         parser.error("nothing to do: give --viewer, --html or --figures")
-    return json_path, stem.name, viewer_on
+    return json_path, json_path.stem, viewer_on
 
 
 def _load_log(json_path: Path):
-    """The log of the saved run; :class:`~dqcontrol.errors.ParameterError` if it cannot be
-    read or has no samples."""
+    """The log of the saved run (decimated to :data:`DISPLAY_SAMPLES` if longer), a line
+    on stderr if it was cut short; :class:`~dqcontrol.errors.ParameterError` if it cannot
+    be read or has no samples."""
     from dqcontrol.errors import ParameterError
     from dqcontrol.runs.storage import load_run
 
     try:
-        log, record = load_run(json_path)
+        log, record = load_run(json_path, max_samples=DISPLAY_SAMPLES)
     except (OSError, ValueError) as exc:
         raise ParameterError(f"cannot read the run {json_path}: {exc}") from None
+    if record.get("complete") is False:
+        print(f"dqcontrol view: {json_path.name} is incomplete: {record['note']}", file=sys.stderr)
+    if record.get("stride", 1) > 1:
+        print(f"{record['samples']} samples, every {record['stride']}th shown", flush=True)
     if len(log) == 0:
         raise ParameterError(f"the run {json_path} has no samples")
     return log

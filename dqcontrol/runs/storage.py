@@ -36,6 +36,8 @@ __all__ = [
     "atomic_write_text",
     "jsonable",
     "load_run",
+    "run_file",
+    "run_paths",
     "save_run",
 ]
 
@@ -129,52 +131,94 @@ def _check_name(name: str) -> str:
     return name
 
 
-def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, Path]:
+def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, ...]:
     """Save a :class:`~dqcontrol.sim.kinematic.RunResult` as ``folder/name.npz`` + ``.json``.
 
     Both files are written atomically (the ``.npz`` first). Existing files of the same name
-    are replaced. Returns ``(npz_path, json_path)``.
+    are replaced. Returns ``(npz_path, json_path)``. A streamed run (``result.log_file``)
+    is named in the ``.json`` (``"log"``); if ``result.log`` holds only every k-th of its
+    samples (``result.log_stride > 1``) no ``.npz`` is written: ``(json_path,)``.
     """
     name = _check_name(name)
     folder = Path(folder)
     log: RunLog = result.log
-    buffer = io.BytesIO()
-    arrays: dict[str, Any] = log.arrays()  # as keywords, which numpy's stubs type narrowly
-    np.savez_compressed(buffer, **arrays)
-    npz_path = atomic_write_bytes(folder / f"{name}.npz", buffer.getvalue())
+    streamed = getattr(result, "log_file", None)
+    written: list[Path] = []
+    if getattr(result, "log_stride", 1) == 1:
+        buffer = io.BytesIO()
+        arrays: dict[str, Any] = log.arrays()  # as keywords, which numpy's stubs type narrowly
+        np.savez_compressed(buffer, **arrays)
+        written.append(atomic_write_bytes(folder / f"{name}.npz", buffer.getvalue()))
     record = {
         "format": RUN_FORMAT,
         "version": _VERSION,
         "name": name,
-        "npz": npz_path.name,
+        "npz": written[0].name if written else None,
         "meta": jsonable(log.meta),
         "metrics": jsonable(result.metrics.as_dict()),
         "interrupted": bool(result.interrupted),
         "note": str(result.note),
     }
+    if streamed is not None:
+        log_path = Path(streamed)
+        same = log_path.parent.resolve() == folder.resolve()
+        record["log"] = log_path.name if same else str(log_path.resolve())
     text = json.dumps(record, indent=2, allow_nan=False) + "\n"
-    json_path = atomic_write_text(folder / f"{name}.json", text)
-    return npz_path, json_path
+    return (*written, atomic_write_text(folder / f"{name}.json", text))
 
 
-def load_run(path: str | os.PathLike) -> tuple[RunLog, dict]:
-    """Load a run saved by :func:`save_run`.
+def run_paths(path: str | os.PathLike) -> tuple[Path, Path, Path]:
+    """``(json, npz, mcap)`` paths of the run at ``path`` (its ``.json``, ``.npz``,
+    ``.mcap`` or their common stem); none of them need exist."""
+    p = Path(path)
+    stem = p.with_suffix("") if p.suffix in (".json", ".npz", ".mcap") else p
+    return tuple(stem.with_name(stem.name + ext) for ext in (".json", ".npz", ".mcap"))  # type: ignore[return-value]
 
-    ``path`` is the ``.json``, the ``.npz`` or their common stem. Returns the
-    :class:`RunLog` (with its ``meta``) and the ``.json`` record (``meta``, ``metrics``,
-    ``interrupted``, ``note`` …).
+
+def run_file(path: str | os.PathLike) -> Path:
+    """The file that holds the run at ``path``: its ``.json``, unless ``path`` is an
+    ``.mcap`` or the stem's ``.mcap`` is newer than its ``.json`` (or has none): a streamed
+    run that has not ended, never mistaken for an earlier run saved under the same name."""
+    json_path, _npz, mcap_path = run_paths(path)
+    if Path(path).suffix == ".mcap" or not json_path.is_file():
+        return mcap_path if mcap_path.is_file() or not json_path.exists() else json_path
+    if mcap_path.is_file() and mcap_path.stat().st_mtime_ns > json_path.stat().st_mtime_ns:
+        return mcap_path
+    return json_path
+
+
+def load_run(path: str | os.PathLike, max_samples: int | None = None) -> tuple[RunLog, dict]:
+    """Load a run saved by :func:`save_run` or streamed by a loop (``.mcap``).
+
+    ``path`` is the ``.json``, the ``.npz``, the ``.mcap`` or their common stem
+    (:func:`run_file` says which is read). A ``.json`` is read with its arrays (``npz``,
+    else its streamed ``log``), an ``.mcap`` alone
+    (:func:`~dqcontrol.runs.streamed_run.load_streamed`). Returns the
+    :class:`RunLog` (with its ``meta``) and the run record (``meta``, ``metrics``,
+    ``interrupted``, ``note`` …; for a streamed run also ``complete``: ``False`` when the
+    file was cut short).
+
+    Args:
+        path: the run.
+        max_samples: a streamed run keeps every k-th sample so that at most this many
+            are loaded (for display); ``None`` (and any ``.npz`` run): all of them.
 
     Raises:
-        FileNotFoundError: the ``.json`` or its ``.npz`` is missing.
-        ParameterError: the ``.json`` is not a dqcontrol run.
+        FileNotFoundError: no such run.
+        ParameterError: the file is not a dqcontrol run.
     """
-    p = Path(path)
-    stem = p.with_suffix("") if p.suffix in (".json", ".npz") else p
-    json_path = stem.with_name(stem.name + ".json")
+    from dqcontrol.runs.streamed_run import load_streamed
+
+    json_path = run_file(path)
+    if json_path.suffix == ".mcap":
+        return load_streamed(json_path, max_samples)
     record = json.loads(json_path.read_text(encoding="utf-8"))
     if not isinstance(record, dict) or record.get("format") != RUN_FORMAT:
         raise ParameterError(f"{json_path} is not a dqcontrol run file (format {RUN_FORMAT!r})")
-    npz_path = json_path.with_name(record.get("npz") or stem.name + ".npz")
+    if not record.get("npz") and record.get("log"):
+        log, streamed = load_streamed(json_path.parent / record["log"], max_samples)
+        return log, {**streamed, **record, "complete": streamed["complete"]}
+    npz_path = json_path.with_name(record.get("npz") or json_path.stem + ".npz")
     with np.load(npz_path, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
     log = RunLog.from_arrays(arrays, record.get("meta") or {})

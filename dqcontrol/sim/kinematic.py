@@ -8,6 +8,7 @@ produces the same :class:`~dqcontrol.runs.log.RunLog` and metrics as the MuJoCo 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 
 import numpy as np
@@ -27,6 +28,7 @@ def run_kinematic(
     meta: dict | None = None,
     on_progress: Callable[[float, float], None] | None = None,
     brake: bool = False,
+    log_file: str | os.PathLike | None = None,
 ) -> RunResult:
     """Run ``controller`` from ``q0`` [rad] until ``σ ≥ T_tot`` or ``max_time_s`` [s].
 
@@ -34,7 +36,8 @@ def run_kinematic(
     and never finish; the run then stops and reports ``completed = False``).
     ``on_progress(σ_next, T_tot)`` is called after each sample; ``brake``: as
     :func:`~dqcontrol.sim.loop.run_loop` (off: the arm is left in the state the last
-    command led to).
+    command led to); ``log_file``: stream the log to this ``.mcap`` (as
+    :func:`~dqcontrol.sim.loop.run_loop`).
     """
     driver = KinematicDriver(controller.robot, controller.period_s)
     return run_loop(
@@ -45,4 +48,5 @@ def run_kinematic(
         meta=meta,
         on_progress=on_progress,
         brake=brake,
+        log_file=log_file,
     )

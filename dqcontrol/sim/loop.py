@@ -23,13 +23,16 @@ after the last logged sample: the log and the metrics are those of the task.
 
 from __future__ import annotations
 
+import array
 import contextlib
 import copy
 import gc
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -38,7 +41,10 @@ from dqcontrol.controllers.base import Controller, StepResult, check_positive
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
 from dqcontrol.runs.log import LogRecorder, RunLog
+from dqcontrol.runs.mcap_log import RunLogWriteError
 from dqcontrol.runs.metrics import Metrics, compute_metrics
+from dqcontrol.runs.stream import DEFAULT_CHUNK_S, StreamRecorder
+from dqcontrol.runs.streamed_run import end_streamed
 from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
 
@@ -61,8 +67,15 @@ class RunResult:
     note: str = ""
     #: why the run was cut short: ``""`` (it was not), ``"user"`` (Ctrl-C),
     #: ``"simulation"`` (the driver or simulator failed; the note says how), ``"stale"``
-    #: (no fresh measurement) or ``"deadline"`` (a step missed its period in wall-clock mode).
+    #: (no fresh measurement), ``"deadline"`` (a step missed its period in wall-clock mode)
+    #: or ``"log"`` (the streamed run log could not be written).
     reason: str = ""
+    #: the streamed run log (``run_loop(log_file=...)``); ``log`` then holds only the
+    #: samples of its last block(s), the file all of them (:func:`~dqcontrol.runs.load_run`).
+    log_file: Path | None = None
+    #: ``log`` holds every ``log_stride``-th sample of ``log_file`` (a long run loaded for
+    #: display); 1: every sample (or no file).
+    log_stride: int = 1
 
 
 def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:
@@ -93,15 +106,16 @@ class _Clock:
     ``start + k T`` and must end by ``start + (k + 1) T``, its deadline.
 
     ``lateness_s``: end of each sample's work minus its deadline (> 0: missed);
-    ``jitter_s``: start of each sample after the first minus its scheduled start.
+    ``jitter_s``: start of each sample after the first minus its scheduled start (packed
+    float arrays: 8 bytes a sample).
     """
 
     def __init__(self, period_s: float, realtime: bool) -> None:
         self.period_s, self.realtime = period_s, realtime
         self.start = time.perf_counter()
         self.k = 0
-        self.lateness_s: list[float] = []
-        self.jitter_s: list[float] = []
+        self.lateness_s = array.array("d")
+        self.jitter_s = array.array("d")
 
     def restart(self) -> None:
         self.start, self.k = time.perf_counter(), 0
@@ -178,6 +192,8 @@ def run_loop(
     stale_periods: int = 3,
     brake: bool = True,
     warm_up: bool = True,
+    log_file: str | os.PathLike | None = None,
+    log_chunk_s: float = DEFAULT_CHUNK_S,
 ) -> RunResult:
     """Run ``controller`` against ``driver`` until ``σ ≥ T_tot``, ``max_time_s`` or the watchdog.
 
@@ -185,55 +201,78 @@ def run_loop(
         controller: any controller; its ``robot.joint_names`` are the model's joints.
         driver: a :class:`~dqcontrol.sim.driver.JointDriver`; its joints are mapped to the
             model's by name.
-        q0: start configuration [rad] in the *model's* joint order; the driver must then be
-            simulated (have ``reset``). ``None``: start where the driver's first
-            measurement is.
+        q0: start [rad] in the *model's* joint order (the driver must then have ``reset``);
+            ``None``: where the driver's first measurement is.
         max_time_s: stop after this time [s] of the loop (default ``10 T_tot + 1 s``).
         meta: added to the log's ``meta`` (after ``simulator``, ``controller``,
             ``period_s``, the driver's own entries and ``joint_names``).
         on_sample: ``f(k, driver, result)`` after each sample.
         on_progress: ``f(σ_next, T_tot)`` [s] after each sample (e.g. a progress bar).
-        realtime: pace the loop on the wall clock: sample k starts at ``start + k T``
-            (a sleep, then the last :data:`SPIN_S` polling the clock) and must end by
-            ``start + (k + 1) T``; one that ends later stops the run
-            (``reason = "deadline"``). The garbage collector meanwhile sees only the
-            objects made during the run (``gc.freeze``). Otherwise the loop runs as fast as
-            the driver answers (simulated time).
-        stale_periods: the run stops (``reason = "stale"``) when the measurement has not
-            been renewed for this many periods.
+        realtime: sample k starts at ``start + k T`` on the wall clock (sleep, then poll
+            :data:`SPIN_S`); ending after ``start + (k + 1) T`` stops the run (``"deadline"``);
+            the GC sees only the run's objects (``gc.freeze``). Else: as fast as it answers.
+        stale_periods: stop (``reason = "stale"``) after this many periods with no new
+            measurement.
         brake: after the run, ramp the command to zero within the acceleration limit, hold.
         warm_up: step a copy of the controller once before the first command.
+        log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md); the
+            result's ``log`` then holds only the last samples. ``None``: all in memory.
+        log_chunk_s: longest stretch of samples [s] in one block of ``log_file``.
 
     Returns:
-        :class:`RunResult`; Ctrl-C, a driver error, a stale measurement or a missed deadline
-        keep the samples done (``interrupted=True``, a ``note``); ``meta["stop"]`` says why
-        it ended, how long it braked and, on the wall clock, the lateness, start jitter and
-        missed deadlines [ms] (:meth:`_Clock.report`); ``meta["driver_report"]`` has the
-        driver's counters.
+        :class:`RunResult`; Ctrl-C, a driver or log error and the watchdog keep the samples
+        done (``interrupted=True``, a ``note``); ``meta["stop"]`` says why it ended, how long
+        it braked and the wall clock's timing [ms] (:meth:`_Clock.report`);
+        ``meta["driver_report"]`` has the driver's counters.
 
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
+        RunLogWriteError: ``log_file`` cannot be created (a later write error stops the
+            run: ``reason = "log"``, the arm braked).
         ParameterError: bad ``max_time_s``/``stale_periods``; ``q0`` for a driver without
             ``reset``.
     """
     order = _JointOrder(driver.joint_names, tuple(controller.robot.joint_names))
     num = _sample_count(controller, max_time_s, stale_periods)
-    run = _started(controller, driver, order, q0, realtime, warm_up, meta)
-    with _young_gc_only(run.clock.realtime), single_blas_thread():
-        run.clock.restart()
-        run.loop(num, stale_periods, on_sample, on_progress)
-    stop = _stop_and_brake(run, brake)
+    logging = (log_file, log_chunk_s)
+    run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
+    stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
     return _result(controller, driver, run.rec, stop, run)
 
 
-def _started(controller, driver, order, q0, realtime: bool, warm_up: bool, meta) -> _Samples:
+def _samples_then_brake(run: _Samples, num, stale_periods, on_sample, on_progress, brake) -> dict:
+    """The run's samples on its clock, then the brake; ``meta["stop"]``. An exception that
+    leaves it closes a streamed log without its end record (it then reads as cut short;
+    the log's own write errors give way to that exception)."""
+    try:
+        with _young_gc_only(run.clock.realtime), single_blas_thread():
+            run.clock.restart()
+            run.loop(num, stale_periods, on_sample, on_progress)
+        return _stop_and_brake(run, brake)
+    except BaseException:
+        if isinstance(run.rec, StreamRecorder):
+            with contextlib.suppress(RunLogWriteError):
+                run.rec.close(None)
+        raise
+
+
+def _started(
+    controller, driver, order, q0, realtime: bool, warm_up: bool, meta, logging
+) -> _Samples:
     """The run at its first measurement: the controller reset there (and warmed up on a
-    copy where ``warm_up``), its log opened and its clock set."""
+    copy where ``warm_up``), its log opened (streamed to ``logging[0]`` in blocks of
+    ``logging[1]`` seconds, unless ``None``) and its clock set."""
     robot = controller.robot
     meas = _first_measurement(driver, robot, q0, order)
     q, _qd = order.to_model(meas)
     controller.reset(q)
-    rec = LogRecorder(robot.nq, _run_info(driver, controller, order.names, q, warm_up, meta))
+    info = _run_info(driver, controller, order.names, q, warm_up, meta)
+    log_file, chunk_s = logging
+    rec: LogRecorder | StreamRecorder
+    if log_file is None:
+        rec = LogRecorder(robot.nq, info)
+    else:
+        rec = StreamRecorder(log_file, robot.nq, controller.period_s, info, chunk_s=chunk_s)
     clock = _Clock(controller.period_s, bool(realtime))
     return _Samples(controller, driver, order, rec, clock, meas)
 
@@ -336,6 +375,8 @@ class _Samples:
             self._loop(num, stale_periods, on_sample, on_progress)
         except KeyboardInterrupt:
             self._stop("user", f"interrupted by the user after {len(self.rec)} samples")
+        except RunLogWriteError as exc:
+            self._stop("log", f"stopped after {len(self.rec)} samples: {exc}")
         except DQControlError as exc:
             self._stop("simulation", f"simulation stopped after {len(self.rec)} samples: {exc}")
 
@@ -378,19 +419,39 @@ class _Samples:
                 return
 
 
-def _result(controller, driver, rec: LogRecorder, stop: dict, run: _Samples) -> RunResult:
+def _result(controller, driver, rec, stop: dict, run: _Samples) -> RunResult:
     """The run's log (with ``stop``, the driver's report and the note) and its metrics."""
-    log = rec.finish()
-    log.meta["stop"] = stop
+    rec.meta["stop"] = stop
     report = getattr(driver, "report", None)
     if callable(report):  # the driver's own counters (e.g. the bridge's rejected packets)
-        log.meta["driver_report"] = report()
+        rec.meta["driver_report"] = report()
     if run.note:
-        log.meta["note"] = run.note
+        rec.meta["note"] = run.note
+    if isinstance(rec, StreamRecorder):
+        return _streamed_result(controller, rec, run)
+    log = rec.finish()
     metrics = compute_metrics(
         log, controller.trajectory, bounds_of(controller, log.q), controller.period_s
     )
     return RunResult(log, metrics, run.interrupted, run.note, run.reason)
+
+
+def _streamed_result(controller, rec: StreamRecorder, run: _Samples) -> RunResult:
+    """The result of a streamed run: metrics from its file, then its end record; a log
+    that cannot be finished makes the run interrupted (``reason = "log"``)."""
+    window, metrics, failure = end_streamed(
+        rec, controller.trajectory, lambda q: bounds_of(controller, q), controller.period_s,
+        (run.interrupted, run.note),
+    )  # fmt: skip
+    interrupted, note, reason = run.interrupted, run.note, run.reason
+    if failure:
+        interrupted, reason = True, reason or "log"
+        note = note if failure in note else f"{note}; {failure}" if note else failure
+    if metrics is None:
+        metrics = compute_metrics(
+            window, controller.trajectory, bounds_of(controller, window.q), controller.period_s
+        )
+    return RunResult(window, metrics, interrupted, note, reason, rec.path)
 
 
 def _brake_and_hold(driver, command, rate, to_driver, clock: _Clock) -> int:

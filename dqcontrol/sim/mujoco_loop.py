@@ -9,6 +9,7 @@ The log and metrics are those of the kinematic loop.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 
 import numpy as np
@@ -31,6 +32,7 @@ def run_mujoco(
     on_sample=None,
     on_progress: Callable[[float, float], None] | None = None,
     brake: bool = False,
+    log_file: str | os.PathLike | None = None,
     **sim_options,
 ) -> RunResult:
     """Run ``controller`` in MuJoCo from ``q0`` until ``σ ≥ T_tot`` or ``max_time_s``.
@@ -48,6 +50,7 @@ def run_mujoco(
         on_progress: optional callback ``f(σ_next, T_tot)`` [s] after each sample.
         brake: as :func:`~dqcontrol.sim.loop.run_loop` (off: the simulation is left in the
             state the last command led to).
+        log_file: stream the log to this ``.mcap`` (as :func:`~dqcontrol.sim.loop.run_loop`).
         **sim_options: keyword arguments of :class:`~dqcontrol.sim.MujocoSimulation`.
 
     Ctrl-C or a simulation failure stops the run and keeps the completed samples
@@ -71,4 +74,5 @@ def run_mujoco(
         on_sample=follow,
         on_progress=on_progress,
         brake=brake,
+        log_file=log_file,
     )
