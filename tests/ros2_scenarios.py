@@ -181,7 +181,9 @@ def circle_with_bad_states(out: Path, probe: Probe) -> dict:
 def path_task(out: Path, probe: Probe) -> dict:
     from nav_msgs.msg import Path as PathMsg
 
-    sim, control = _sim(out), _control(out, task="path")
+    # the position interface: the control node integrates, the robot differentiates
+    sim = _sim(out, command_interface="position")
+    control = _control(out, task="path", command_interface="position")
     pub = probe.node.create_publisher(PathMsg, "/dqcontrol_control/path", 10)
     msg = _path_message(out)
     probe.wait_for(lambda: pub.get_subscription_count() > 0)

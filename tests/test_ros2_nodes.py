@@ -30,7 +30,7 @@ from dqcontrol.runs.storage import load_run
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "tests" / "ros2_scenarios.py"
 PERIOD_S = 0.01
-STEPPED = ("circle_with_bad_states", "path_task", "stale", "stop_service", "sim_killed")
+STEPPED = ("circle_with_bad_states", "path_task", "stale", "stop_service", "sim_killed", "demo")
 #: A scenario still running after this long [s] is stuck.
 HANG_TIMEOUT_S = 240.0
 #: In the namespace: the loopback up, discovery on this host only, then the command.
@@ -61,9 +61,13 @@ def namespace_problem() -> str | None:
 
 
 def start_in_namespace(scenario: str, out: Path) -> subprocess.Popen:
-    """``tests/ros2_scenarios.py scenario out`` in a namespace of its own."""
-    cmd = ["unshare", "-n", "bash", "-c", _IN_NAMESPACE, sys.executable, str(SCRIPT),
-           scenario, str(out)]  # fmt: skip
+    """``tests/ros2_scenarios.py scenario out`` in a namespace of its own (``demo``: the
+    page's example, ``demos/ros2_bridge.py --short``)."""
+    if scenario == "demo":
+        args = [str(ROOT / "demos" / "ros2_bridge.py"), "--short"]
+    else:
+        args = [str(SCRIPT), scenario, str(out)]
+    cmd = ["unshare", "-n", "bash", "-c", _IN_NAMESPACE, sys.executable, *args]
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -73,8 +77,10 @@ def finish(proc: subprocess.Popen, out: Path) -> dict:
     except subprocess.TimeoutExpired:
         proc.kill()
         stdout, stderr = proc.communicate()
-    logs = "\n".join(f"--- {p.name}\n{p.read_text()[-3000:]}" for p in sorted(out.glob("*.log")))
-    assert proc.returncode == 0 and stdout.strip(), f"{stdout}\n{stderr[-3000:]}\n{logs}"
+    logs = "\n".join(f"--- {p.name}\n{p.read_text()}" for p in sorted(out.glob("*.log")))
+    assert proc.returncode == 0 and stdout.strip(), f"{stdout}\n{stderr[-3000:]}\n{logs[-3000:]}"
+    if not out.exists():  # the demo: its printed summary
+        return {"stdout": stdout, "stderr": stderr}
     result = json.loads(stdout.strip().splitlines()[-1])
     result["out"], result["logs"] = out, logs
     return result
@@ -91,7 +97,21 @@ def namespace():
 def stepped(namespace, tmp_path_factory) -> dict[str, dict]:
     base = tmp_path_factory.mktemp("ros2")
     procs = {name: start_in_namespace(name, base / name) for name in STEPPED}
-    return {name: finish(proc, base / name) for name, proc in procs.items()}
+    results = {}
+    for name, proc in procs.items():
+        try:
+            results[name] = finish(proc, base / name)
+        except AssertionError as exc:  # that scenario's test fails with it, not the others
+            results[name] = {"error": str(exc)}
+    return results
+
+
+def scenario(stepped: dict, name: str) -> dict:
+    """What scenario ``name`` saw (the test fails with its error if it failed)."""
+    got = stepped[name]
+    if "error" in got:
+        pytest.fail(f"scenario {name} failed: {got['error']}")
+    return got
 
 
 def _reference(robot, trajectory):
@@ -113,7 +133,7 @@ def _assert_same_run(log, ref) -> None:
 def test_stepped_circle_equals_the_in_process_run_and_ignores_bad_joint_states(stepped, lbr4p):
     from dqcontrol.trajectories import Circle
 
-    got = stepped["circle_with_bad_states"]
+    got = scenario(stepped, "circle_with_bad_states")
     assert got["control"] == 0 and got["sim"] == 0, got["logs"]
     log, record = load_run(got["out"] / "run")
     ref = _reference(lbr4p, Circle(2.0))
@@ -129,9 +149,10 @@ def test_stepped_circle_equals_the_in_process_run_and_ignores_bad_joint_states(s
 
 
 def test_stepped_path_task_equals_the_in_process_run_and_meets_the_path_goals(stepped, lbr4p):
+    # over the position interface: targets q + T u in, (target - last target) / T applied
     from dqcontrol.ros2.paths import trajectory_from_poses
 
-    got = stepped["path_task"]
+    got = scenario(stepped, "path_task")
     assert got["control"] == 0, got["logs"]
     path = json.loads((got["out"] / "path.json").read_text())
     start = lbr4p.pose(LBR4P_Q0)
@@ -143,10 +164,11 @@ def test_stepped_path_task_equals_the_in_process_run_and_meets_the_path_goals(st
     _assert_same_run(log, _reference(lbr4p, trajectory))
     metrics = record["metrics"]
     assert metrics["completed"] and metrics["path_deviation_max_m"] <= 5e-4, metrics
+    assert log.meta["command_interface"] == "position"
 
 
 def test_stale_joint_states_stop_the_task_then_hold(stepped):
-    got = stepped["stale"]
+    got = scenario(stepped, "stale")
     log, record = load_run(got["out"] / "run")
     sim = json.loads((got["out"] / "sim.json").read_text())
     assert log.meta["stop"]["reason"] == "stale" and got["control"] == 1
@@ -159,7 +181,7 @@ def test_stop_service_brings_the_arm_to_rest_on_the_path(stepped, lbr4p):
     from dqcontrol.dq.algebra import translation
     from dqcontrol.trajectories import Circle
 
-    got = stepped["stop_service"]
+    got = scenario(stepped, "stop_service")
     assert got["answer"][0] is True, got
     log, _record = load_run(got["out"] / "run")
     sim = json.loads((got["out"] / "sim.json").read_text())
@@ -173,7 +195,7 @@ def test_stop_service_brings_the_arm_to_rest_on_the_path(stepped, lbr4p):
 
 
 def test_killed_sim_ends_the_commands_and_the_node_says_so(stepped):
-    got = stepped["sim_killed"]
+    got = scenario(stepped, "sim_killed")
     assert got["commands_after_kill"] == 0
     assert "has left (the robot's node stopped): no more commands" in got["logs"]
     log, _record = load_run(got["out"] / "run")
@@ -232,3 +254,8 @@ def test_wall_clock_at_100_hz_completes_and_reports_jitter(namespace, tmp_path):
     assert stop["reason"] == "end" and stop["missed_deadlines"] == 0, report
     assert record["metrics"]["completed"] and got["control"] == 0, got["logs"]
     assert stop["jitter_max_ms"] >= 0.0 and len(log) >= 200  # 2 s at 100 Hz
+
+
+def test_the_pages_example_runs_the_circle_over_ros2(stepped):
+    got = scenario(stepped, "demo")
+    assert "completed=True" in got["stdout"], got

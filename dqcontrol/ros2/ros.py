@@ -20,14 +20,15 @@ def require_ros() -> SimpleNamespace:
     """The modules the nodes use: rclpy and the messages, as attributes of one namespace.
 
     Returns:
-        ``rclpy`` and the ``msg``/``srv`` modules: ``sensor``, ``std``, ``std_srvs``,
+        ``rclpy`` (with ``rclpy.executors``, ``rclpy.qos``, ``rclpy.signals`` imported)
+        and the ``msg``/``srv`` modules: ``sensor``, ``std``, ``std_srvs``,
         ``geometry``, ``nav``, ``visualization``, ``diagnostic``.
 
     Raises:
         MissingExtraError: one of them does not import; the message names the ``[ros2]``
             extra and how to install it.
     """
-    for module in EXTRAS["ros2"]:
+    for module in (*EXTRAS["ros2"], "rclpy.executors", "rclpy.qos", "rclpy.signals"):
         require(module, extra="ros2", purpose=PURPOSE)
     return SimpleNamespace(
         rclpy=require("rclpy", extra="ros2", purpose=PURPOSE),
