@@ -285,7 +285,7 @@ class ControlNode:
         line = (
             f"{phase}: {why or 'the task completed'}; {len(result.log)} samples, path "
             f"deviation max {m.path_deviation_max_m * 1e3:.3f} mm, rejected joint states "
-            f"{dict(self.driver.rejected) or 'none'}"
+            f"{dict(self.driver.rejected) or 'none'}{_timing(result.log.meta['stop'])}"
         )
         {OK: self._log.info, WARN: self._log.warning, ERROR: self._log.error}[level](line)
         sigma = float(result.log.sigma[-1]) if len(result.log) else 0.0
@@ -299,6 +299,17 @@ class ControlNode:
             target = Path(self.params.save_run)
             name = target.name if len(self.results) == 1 else f"{target.name}_{len(self.results)}"
             save_run(result, target.parent, name)
+
+
+def _timing(stop: dict) -> str:
+    """Wall clock: the start jitter and the late commands, for the task's log line."""
+    if "jitter_p99_ms" not in stop:
+        return ""
+    return (
+        f"; start jitter median {stop['jitter_median_ms']:.3f} / p99 "
+        f"{stop['jitter_p99_ms']:.3f} / max {stop['jitter_max_ms']:.3f} ms, late commands "
+        f"{stop['missed_deadlines']}"
+    )
 
 
 def _outcome(result: RunResult, stop_requested: bool) -> tuple[str, str, int]:
