@@ -23,6 +23,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 PERIOD_S = 0.01
+#: Stepped: how long a command waits for its state [s]; a loaded host can hold an answer
+#: back for a second, and a command without its answer is a stale sample, not the same run.
+STATE_TIMEOUT_S = 5.0
 #: Longest wait for a node process [s] (a hang, not a timing requirement).
 PROCESS_TIMEOUT_S = 180.0
 
@@ -65,7 +68,8 @@ def _sim(out: Path, mode: str = "stepped", **extra) -> subprocess.Popen:
 def _control(out: Path, mode: str = "stepped", **extra) -> subprocess.Popen:
     params = {
         "mode": mode, "period_s": PERIOD_S, "ee_frame": "lbr4p_flange", "exit_when_done": True,
-        "save_run": str(out / "run"), "status_every": 10, **extra,
+        "save_run": str(out / "run"), "status_every": 10, "state_timeout_s": STATE_TIMEOUT_S,
+        **extra,
     }  # fmt: skip
     return _dqcontrol("control", params, out, "control")
 
