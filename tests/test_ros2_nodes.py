@@ -259,3 +259,21 @@ def test_wall_clock_at_100_hz_completes_and_reports_jitter(namespace, tmp_path):
 def test_the_pages_example_runs_the_circle_over_ros2(stepped):
     got = scenario(stepped, "demo")
     assert "completed=True" in got["stdout"], got
+
+
+@pytest.mark.parametrize(
+    ("node", "params", "message"),
+    [
+        ("control", ["ee_frame:=lbr4p_flange", "period_s:=-0.01"], "parameter 'period_s' must"),
+        ("sim", ["mode:=fast"], "parameter 'mode' must be one of 'wall', 'stepped', got 'fast'"),
+    ],
+)
+def test_a_bad_parameter_stops_the_node_with_one_line(namespace, node, params, message):
+    code = "from dqcontrol.cli import main; raise SystemExit(main())"
+    args = [arg for p in params for arg in ("-p", p)]
+    cmd = ["unshare", "-n", "bash", "-c", _IN_NAMESPACE, sys.executable, "-c", code, "ros2",
+           node, "--ros-args", *args]  # fmt: skip
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 1 and len(lines) == 1, proc.stderr
+    assert lines[0].startswith(f"dqcontrol ros2: error: {message}")

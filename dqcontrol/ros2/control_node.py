@@ -249,13 +249,22 @@ class ControlNode:
     def _reporting(self, controller: Controller, reports: queue.SimpleQueue) -> None:
         """The reporting thread: ``~/status`` and the markers of the samples handed over,
         until ``None``."""
-        qd_max = np.asarray(getattr(controller, "qd_max", controller.robot.limits.qd_max))
+        qd_max = getattr(controller, "qd_max", None)
+        if qd_max is None or np.shape(qd_max) != (controller.robot.nq,):
+            qd_max = controller.robot.limits.qd_max
+        failed = False
         while (item := reports.get()) is not None:
             k, q, result = item
-            if k == 0:
-                points = controller.trajectory.path_positions(400)
-                self._markers.publish(marker_path(self.ros, self.frame, points, self._now()))
-            self._publish_sample(controller, q, result, qd_max)
+            try:
+                if k == 0:
+                    points = controller.trajectory.path_positions(400)
+                    stamp = self._now()
+                    self._markers.publish(marker_path(self.ros, self.frame, points, stamp))
+                self._publish_sample(controller, q, result, np.asarray(qd_max, dtype=float))
+            except Exception as exc:  # noqa: BLE001 - reporting never stops the control
+                if not failed:
+                    self._log.error(f"~/status: {type(exc).__name__}: {exc}")
+                failed = True
 
     def _publish_sample(self, controller, q: np.ndarray, result: StepResult, qd_max) -> None:
         q = q if self._perm is None else q[self._perm]
