@@ -222,6 +222,13 @@ def stop_service(out: Path, probe: Probe) -> dict:
     }  # fmt: skip
 
 
+def shutdown(out: Path, probe: Probe) -> dict:
+    sim, control = _sim(out), _control(out)
+    probe.wait_for(lambda: probe.sigma() > 0.5)
+    code = _finish(control, signal.SIGTERM)
+    return {"control": code, "sim": _finish(sim, signal.SIGINT)}
+
+
 def sim_killed(out: Path, probe: Probe) -> dict:
     sim, control = _sim(out), _control(out)
     probe.wait_for(lambda: probe.sigma() > 0.5)
@@ -241,7 +248,7 @@ def wall_clock(out: Path, probe: Probe) -> dict:
 
 
 SCENARIOS = {f.__name__: f for f in (circle_with_bad_states, path_task, stale, stop_service,
-                                     sim_killed, wall_clock)}  # fmt: skip
+                                     shutdown, sim_killed, wall_clock)}  # fmt: skip
 
 
 def main() -> None:

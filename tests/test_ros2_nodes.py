@@ -30,7 +30,15 @@ from dqcontrol.runs.storage import load_run
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "tests" / "ros2_scenarios.py"
 PERIOD_S = 0.01
-STEPPED = ("circle_with_bad_states", "path_task", "stale", "stop_service", "sim_killed", "demo")
+STEPPED = (
+    "circle_with_bad_states",
+    "path_task",
+    "stale",
+    "stop_service",
+    "shutdown",
+    "sim_killed",
+    "demo",
+)
 #: A scenario still running after this long [s] is stuck.
 HANG_TIMEOUT_S = 240.0
 #: In the namespace: the loopback up, discovery on this host only, then the command.
@@ -192,6 +200,15 @@ def test_stop_service_brings_the_arm_to_rest_on_the_path(stepped, lbr4p):
     rest = translation(lbr4p.pose(np.array(sim["q"])))
     assert circle.path_deviation(rest) < 5e-3  # today's brake: joint by joint, not along
     assert "stop requested on ~/stop" in got["statuses"][-1]["stop_reason"]
+
+
+def test_shutdown_mid_task_brakes_then_holds(stepped):
+    got = scenario(stepped, "shutdown")
+    log, _record = load_run(got["out"] / "run")
+    sim = json.loads((got["out"] / "sim.json").read_text())
+    assert log.meta["stop"]["reason"] == "user" and log.sigma[-1] < 1.99
+    assert sim["last_velocity"] == [0.0] * 7
+    assert got["statuses"][-1]["stop_reason"].startswith("shutdown")
 
 
 def test_killed_sim_ends_the_commands_and_the_node_says_so(stepped):
