@@ -173,6 +173,7 @@ def test_stepped_path_task_equals_the_in_process_run_and_meets_the_path_goals(st
     metrics = record["metrics"]
     assert metrics["completed"] and metrics["path_deviation_max_m"] <= 5e-4, metrics
     assert log.meta["command_interface"] == "position"
+    assert log.meta["driver_report"]["commands"] >= len(log)
 
 
 def test_stale_joint_states_stop_the_task_then_hold(stepped):

@@ -47,6 +47,14 @@ class StopRequested(KeyboardInterrupt):  # noqa: N818 - the loop's own stop sign
     the task as on Ctrl-C (brake, then hold)."""
 
 
+class _PositionCommands(VelocityFromPosition):
+    """Position targets ``q_target += T u`` over the ROS 2 driver, with its counters."""
+
+    def report(self) -> dict:
+        """The ROS 2 driver's counters (:meth:`Ros2JointDriver.report`)."""
+        return self.inner.report()  # type: ignore[attr-defined]
+
+
 class ControlNode:
     """A controller as a ROS 2 node (module docstring).
 
@@ -191,7 +199,7 @@ class ControlNode:
         controller = self.build(trajectory)
         driver: Any = self.driver
         if p.command_interface == "position":
-            driver = VelocityFromPosition(self.driver, p.period_s)
+            driver = _PositionCommands(self.driver, p.period_s)
         if p.mode == "wall":
             self._warm(controller)
         self._stop.clear()
