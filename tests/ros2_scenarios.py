@@ -201,7 +201,8 @@ def path_task(out: Path, probe: Probe) -> dict:
 
 
 def stale(out: Path, probe: Probe) -> dict:
-    sim, control = _sim(out, mute_after=60), _control(out)
+    urdf = ROOT / "dqcontrol" / "robots" / "lbr4p" / "lbr4p.urdf"  # the robot from a file
+    sim, control = _sim(out, mute_after=60), _control(out, robot_description_file=str(urdf))
     code = _finish(control)
     time.sleep(0.2)
     return {"control": code, "sim": _finish(sim, signal.SIGINT)}

@@ -177,6 +177,7 @@ def test_stepped_path_task_equals_the_in_process_run_and_meets_the_path_goals(st
 
 
 def test_stale_joint_states_stop_the_task_then_hold(stepped):
+    # this control node reads its robot from the URDF file (robot_description_file)
     got = scenario(stepped, "stale")
     log, record = load_run(got["out"] / "run")
     sim = json.loads((got["out"] / "sim.json").read_text())
