@@ -6,7 +6,10 @@ loop need. The rest comes with an extra:
 - ``sim``: MuJoCo, for :class:`~dqcontrol.sim.MujocoSimulation` and everything that steps
   physics (``dqcontrol run --simulator mujoco``, the default, and ``dqcontrol sim-server``);
 - ``viz``: Meshcat and matplotlib, for the viewer, the HTML replays and the figures;
-- ``dask``: Dask distributed, for ``dqcontrol table1 --scheduler``.
+- ``dask``: Dask distributed, for ``dqcontrol table1 --scheduler``;
+- ``ros2``: the ROS 2 client library (rclpy) and the message packages, for
+  :mod:`dqcontrol.ros2` and ``dqcontrol ros2`` (a sourced ROS 2 installation provides them
+  too).
 
 A module of dqcontrol that needs one of them imports it through :func:`require` (or
 :func:`lazy_module`, which defers the import to the first use, or catches the
@@ -30,6 +33,16 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "sim": ("mujoco",),
     "viz": ("meshcat", "matplotlib"),
     "dask": ("dask", "distributed"),
+    "ros2": (
+        "rclpy",
+        "sensor_msgs",
+        "std_msgs",
+        "std_srvs",
+        "geometry_msgs",
+        "nav_msgs",
+        "visualization_msgs",
+        "diagnostic_msgs",
+    ),
 }
 
 
