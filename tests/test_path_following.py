@@ -107,7 +107,7 @@ def test_linearised_path_error_matches_finite_differences(lbr4p):
     c2 = _controller(lbr4p, Sinusoid(4.0))
     c2.reset(LBR4P_Q0)
     _advance(lbr4p, c2, q0, 8)
-    ctx = c2._context(q, c2.prediction_model.at(q, sigma, pred.warm_qd, pred.warm_s))
+    ctx = c2._context_at(q, c2.prediction_model.at(q, sigma, pred.warm_qd, pred.warm_s))
     lin = PathErrorLinear(ctx)
     lin_a = lin.dense(ctx.layout)
     h = 1e-6

@@ -32,7 +32,7 @@ def _controller(robot, period_s: float, trajectory=None, **kwargs) -> PathFollow
 def _row_weights(ctrl: PathFollowingController, term: PathErrorTerm) -> np.ndarray:
     ctrl.reset(LBR4P_Q0)
     pred = ctrl.prediction_model.predict(LBR4P_Q0, 0.0)
-    return term.residual(ctrl._context(LBR4P_Q0, pred)).row_weights[::6]
+    return term.residual(ctrl._context_at(LBR4P_Q0, pred)).row_weights[::6]
 
 
 @pytest.mark.parametrize("period_s", [0.001, 0.05])
@@ -118,3 +118,19 @@ def test_at_1khz_a_tight_constant_bound_keeps_the_path(lbr4p):
     assert default.completed and default.path_deviation_max_m <= 0.1e-3
     slow_loop = PathFollowingTuning(acceleration_reserve=RESERVE_REPLANNED_ONCE)
     assert metrics(slow_loop, 1.0).path_deviation_max_m > 0.1e-3
+
+
+def test_last_problem_is_the_problem_solved_with_its_remedy(lbr4p):
+    """Where the predicted position rows had to be dropped, the problem the step solved, and
+    that ``last_problem`` gives, has none; where they were kept, it has them."""
+    for gap_rad, kept in ((0.3, True), (0.0, False)):
+        ctrl = _controller(lbr4p, 0.01, tuning=PathFollowingTuning(position_slack_rad=1e-3))
+        q0 = LBR4P_Q0.copy()
+        q0[0] = ctrl.q_max[0] - gap_rad
+        qd0 = np.zeros(7)
+        qd0[0] = 1.0
+        ctrl.reset(q0, qd0)
+        result = ctrl.step(q0, qd0)
+        names = {g.name for g in ctrl.last_problem().inequalities}
+        assert ("predicted_position" in names) == kept, (gap_rad, names)
+        assert result.diagnostics.relaxed == (not kept)

@@ -1,34 +1,38 @@
 """A controller composed on the QP core: prediction, priority levels, limits, backend
 (docs/theory.md §7).
 
-At every step :class:`QPController`
+Every QP controller steps through one pipeline (:meth:`QPController._step`):
 
-1. predicts the horizon's states (its :class:`~dqcontrol.controllers.prediction.base.
-   PredictionModel`) and evaluates the kinematics there (poses sign-aligned to the
-   targets), the acceleration bound and the rest of the
-   :class:`~dqcontrol.controllers.core.context.StepContext`;
-2. builds and solves the QP: with one level whose terms are block diagonal, the
-   :class:`~dqcontrol.controllers.core.problem.BlockQP` of
-   :class:`~dqcontrol.controllers.core.block_assembly.BlockAssembly` goes to the backend's
-   block path (:meth:`~dqcontrol.controllers.backends.base.Backend.solve_blocks`); otherwise
-   the levels are solved lexicographically
-   (:func:`~dqcontrol.controllers.core.levels.solve_levels`) on the same backend
-   (:attr:`QPController.backend`);
-3. if that fails and some limit is relaxable, solves again without the relaxable limits;
-   if it still fails, applies the safe fallback (the point of the applied block's bounds
-   closest to zero: braking within ``a_max``, ``s = 0``) and says so;
-4. applies the first block's command clipped to its bounds and remembers the plan.
+1. the step context: the horizon's predicted states (its :class:`~dqcontrol.controllers.
+   prediction.base.PredictionModel`), the kinematics there (poses sign-aligned to the
+   targets), the acceleration bound (:meth:`QPController._step_context`);
+2. the problem: the levels of terms and the limits at that context, a
+   :class:`~dqcontrol.controllers.core.step_problem.StepProblem`, handed whole to the
+   backend (:meth:`~dqcontrol.controllers.backends.base.Backend.solve_problem`), which
+   solves it in the form its structure allows (one block-diagonal level, or the levels
+   lexicographically);
+3. the remedies: where the first level is infeasible, the problem again with the
+   controller's remedies in turn (:meth:`QPController._remedies`: without the relaxable
+   limits by default), the first that regains feasibility kept;
+4. the result: the first block's command clipped to its bounds and the plan remembered,
+   or, where nothing was feasible, the safe fallback (the point of the applied block's
+   bounds closest to zero: braking within ``a_max``, ``s = 0``), and the diagnostics
+   saying which (:meth:`QPController._finish`).
 
-It never raises from inside a step because a QP failed (docs/theory.md §5).
+A controller is a composition — prediction, levels, limits, backend, remedies — and the
+hooks a controller may give: its context, its remedies, more rounds of the solve
+(:meth:`QPController._solve`), what it keeps after a step. It never raises from inside a
+step because a QP failed (docs/theory.md §5).
 """
 
 from __future__ import annotations
 
 from time import perf_counter
+from typing import NamedTuple
 
 import numpy as np
 
-from dqcontrol.controllers.backends.base import Backend, make_backend
+from dqcontrol.controllers.backends.base import Backend, check_backend_name, make_backend
 from dqcontrol.controllers.base import (
     Controller,
     StepDiagnostics,
@@ -39,8 +43,9 @@ from dqcontrol.controllers.base import (
 from dqcontrol.controllers.core.block_assembly import BlockAssembly, overrides
 from dqcontrol.controllers.core.box_rules import clip_solution
 from dqcontrol.controllers.core.context import StepContext
-from dqcontrol.controllers.core.levels import build_problem, solve_levels
+from dqcontrol.controllers.core.levels import LevelsResult
 from dqcontrol.controllers.core.problem import Level, Problem
+from dqcontrol.controllers.core.step_problem import StepProblem
 from dqcontrol.controllers.core.task_kernels import align_signs, measured_state
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.prediction.base import Prediction, PredictionModel
@@ -49,9 +54,34 @@ from dqcontrol.errors import ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
-__all__ = ["QPController"]
+__all__ = ["QPController", "Remedy", "Solved"]
 
 _RELAXED = "predicted position bounds dropped to regain feasibility"
+_NO_REMEDY = ""
+_new_solved = tuple.__new__  # a NamedTuple from all its fields, at a 1 kHz step's cost
+
+
+class Remedy(NamedTuple):
+    """A way to regain feasibility when the first level is infeasible: the problem again
+    with other limits (``name`` is what the diagnostics report, ``message`` says it)."""
+
+    name: str
+    limits: tuple[Limit, ...]
+    message: str
+
+
+class Solved(NamedTuple):
+    """One step's solve: the problem kept (the one solved, its remedy applied), its
+    result, the remedy's name (``""``: none), and the solver's work over every attempt
+    and round."""
+
+    problem: StepProblem
+    result: LevelsResult
+    remedy: str
+    iterations: int
+    solve_time_s: float
+    rounds: int = 1
+    levels_time_s: float = 0.0
 
 
 class QPController(Controller):
@@ -118,7 +148,7 @@ class QPController(Controller):
         self.levels = tuple(levels)
         self.limits = tuple(limits)
         self.s_max = float(s_max)
-        self.solver = "daqp" if solver is None else solver
+        self.solver = check_backend_name(solver)
         self._solver_settings = solver_settings
         terms = [t for lev in self.levels for t in lev.terms]
         self._prepare = tuple(t.prepare for t in terms if overrides(t, Term, "prepare"))
@@ -133,9 +163,16 @@ class QPController(Controller):
         self._constant_acceleration = self._acceleration_is_constant()
         self._s_at = self.n if self._scaled() else -1  # where the applied s is, if solved
         self._fast = self.robot.fast
-        self._conflict = np.zeros(self.layout.num_vars, dtype=bool)
-        self._level_note = ""
+        if not overrides(self, QPController, "_step_context"):  # bound: one call less a step
+            self._step_context = self._measured_context if self._one_block else self._context  # type: ignore[method-assign]
+        #: The levels of the next step (a controller may change them with its state).
+        self._levels_now = self.levels
+        #: The pose now and its target, as the step reports them (set with the context).
+        self._reported: tuple[np.ndarray, np.ndarray] = (np.zeros(8), np.zeros(8))
+        self._remedy_list = self._remedies()
+        self._remedy_messages = {r.name: r.message for r in self._remedy_list}
         self._ctx: StepContext | None = None
+        self._last: StepProblem | None = None
         self._cache: dict = {}
         self._new_diag = fast_constructor(StepDiagnostics, status="solved")
         self._new_result = fast_constructor(
@@ -150,6 +187,7 @@ class QPController(Controller):
             term.reset()
         self.backend.reset()
         self._ctx = None
+        self._last = None
 
     @property
     def qp(self) -> Backend:
@@ -171,7 +209,7 @@ class QPController(Controller):
         return type(self)._acceleration is QPController._acceleration
 
     # ------------------------------------------------------------------ one step
-    def _context(self, q: np.ndarray) -> StepContext:
+    def _context(self, q: np.ndarray, qd: np.ndarray | None = None) -> StepContext:
         """The step context: prediction, aligned kinematics, ``a_max`` (one object, reused)."""
         sigma = self.sigma
         pred = self.prediction_model.predict(q, sigma)
@@ -179,6 +217,7 @@ class QPController(Controller):
         xd, dxd = self.trajectory.targets(pred.sigma_lin)
         align_signs(xs, jacs, xd)
         a_max = self._acceleration(pred.q_lin)
+        self._reported = (xs[0], xd[0])
         ctx = self._ctx
         if ctx is None:
             ctx = self._ctx = StepContext(
@@ -198,7 +237,7 @@ class QPController(Controller):
         ctx.a_max = a_max
         return ctx
 
-    def _measured_context(self, q: np.ndarray) -> StepContext:
+    def _measured_context(self, q: np.ndarray, qd: np.ndarray | None = None) -> StepContext:
         """One block: no prediction, the state is the measured one. The context's arrays
         stay the same objects from step to step (views of one buffer), refilled by one
         compiled call; the fresh pose and target pair are kept for the result."""
@@ -215,7 +254,7 @@ class QPController(Controller):
         ctx.sigma = sigma
         if not self._constant_acceleration:
             ctx.a_max = self._acceleration(ctx.prediction.q_lin)
-        self._pose_target = (x, pair[0])
+        self._reported = (x, pair[0])
         return ctx
 
     def _one_block_context(self, q: np.ndarray, sigma: float) -> StepContext:
@@ -243,60 +282,70 @@ class QPController(Controller):
             warm[:, n] = pred.warm_s
         return warm.ravel()
 
-    def _solve_levels(self, ctx: StepContext) -> tuple:
-        """``(solution, lower, upper, conflict, relaxed)`` by the lexicographic levels."""
-        problem = build_problem(ctx, self.levels, self.limits, self._cache)
-        result = solve_levels(problem, self.backend)
-        relaxed = False
-        if result.failed_level == 0 and any(lim.relaxable for lim in self.limits):
-            kept = tuple(lim for lim in self.limits if not lim.relaxable)
-            again = solve_levels(build_problem(ctx, self.levels, kept, self._cache), self.backend)
-            if again.failed_level != 0:
-                result, relaxed = again, True
-        sol = result.solution
-        if result.failed_level is not None and result.failed_level > 0:
-            failed = result.per_level[result.failed_level]
-            self._level_note = (
-                f"level {result.failed_level + 1} failed ({failed.status}); the higher "
-                "levels' optimum kept"
-            )
-        self._conflict = problem.conflict
-        return sol, problem.lower, problem.upper, bool(problem.conflict[: self.n].any()), relaxed
-
+    # ------------------------------------------------------------------ the pipeline
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        """The one pipeline: context, problem, backend, remedies, result."""
         start = perf_counter()
-        ctx = self._measured_context(q) if self._one_block else self._context(q)
+        ctx = self._step_context(q, qd)
         for prepare in self._prepare:
             prepare(ctx)
-        assembly = self._assembly
-        if assembly is not None:  # one level: its BlockQP, solved by the block backend
-            qp = assembly.build(ctx, False, self._warm(ctx) if self._warm_starts else None)
-            if qp is not None:
-                backend = self.backend
-                sol = backend.solve_blocks(qp)
-                relaxed = False
-                if not sol.ok and assembly.relaxable:  # again without the relaxable limits
-                    relaxed_qp = assembly.build(ctx, relaxed=True)
-                    if relaxed_qp is not None:
-                        sol = backend.solve_blocks(relaxed_qp)
-                        relaxed = sol.ok
-                out = (sol, qp.lower, qp.upper, assembly.has_conflict, relaxed)
-                return self._finish(ctx, out, start)
-            self._assembly = None  # not block diagonal: the levels' dense path from now on
-        return self._finish(ctx, self._solve_levels(ctx), start)
+        return self._finish(self._solve(ctx), start)
 
-    def _finish(self, ctx: StepContext, out: tuple, start: float) -> StepResult:
-        """Apply the solution (clipped to the applied block's bounds) or the fallback;
-        ``out`` is ``(solution, lower, upper, conflict, relaxed)``."""
-        sol, lower, upper, clash, relaxed = out
+    def _step_context(self, q: np.ndarray, qd: np.ndarray | None) -> StepContext:
+        """The step context at the measured ``q`` (``qd``: the measured velocities, where
+        given)."""
+        return self._measured_context(q) if self._one_block else self._context(q)
+
+    def _remedies(self) -> tuple[Remedy, ...]:
+        """The remedies of an infeasible first level, in order: here, without the
+        relaxable limits (the thesis's predicted boxes), where there are any."""
+        kept = tuple(lim for lim in self.limits if not lim.relaxable)
+        if len(kept) == len(self.limits):
+            return ()
+        return (Remedy("dropped", kept, _RELAXED),)
+
+    def _solve(self, ctx: StepContext) -> Solved:
+        """The step's problem through the backend; where its first level is infeasible,
+        again with each remedy in turn, the first that regains feasibility kept (else the
+        problem as first posed)."""
+        levels = self._levels_now
+        assembly = self._assembly
+        warm = self._warm(ctx) if self._warm_starts and assembly is not None else None
+        first = StepProblem(ctx, levels, self.limits, self._cache, assembly, False, warm)
+        result = self.backend.solve_problem(first)
+        kept, outcome, remedy, spent = first, result, _NO_REMEDY, result.time_s
+        if result.failed_level == 0:
+            for name, limits, _ in self._remedy_list:
+                retry = StepProblem(ctx, levels, limits, self._cache, assembly, True)
+                again = self.backend.solve_problem(retry)
+                spent += again.time_s
+                if again.failed_level != 0:
+                    kept, outcome, remedy = retry, again, name
+                    break
+        if assembly is not None and not first.block_diagonal:
+            self._assembly = None  # the levels' form from now on
+        work = (outcome.iterations, outcome.solve_time_s, 1, spent)
+        return _new_solved(Solved, (kept, outcome, remedy, *work))
+
+    def _finish(self, solved: Solved, start: float) -> StepResult:
+        """Apply the solution (the first block clipped to its bounds) or the fallback,
+        remember the plan, and give the result."""
+        problem, result = solved.problem, solved.result
         n = self.n
-        if sol.ok:
+        lower, upper = problem.lower, problem.upper
+        assert lower is not None and upper is not None, "a solved problem was built"
+        sol = result.solution
+        if result.failed_level != 0:  # the first level solved
             z = sol.x
-            # the applied command clipped to its bounds in place; s as solved, within [0, s_max]
+            assert z is not None, "a solved level has its solution"
+            # the applied command clipped to its bounds in place; s within [0, s_max]
             s_now = clip_solution(z, lower, upper, n, self._s_at, self.s_max)
             qd_cmd = z[:n]
-            message = _RELAXED if relaxed else self._level_note
-            self._level_note = ""
+            message = (
+                ""
+                if solved.remedy == "" and result.failed_level is None
+                else (self._solved_message(solved))
+            )
         else:
             z = None
             qd_cmd = np.minimum(np.maximum(np.zeros(n), lower[:n]), upper[:n])  # fallback
@@ -307,30 +356,31 @@ class QPController(Controller):
             horizon_qd, horizon_s = self._commit(z, qd_cmd, s_now)
         for observe in self._observe:
             observe(z, s_now)
-        conflict = self._conflict_joints() if clash else ()
+        conflict = problem.conflict_joints(n) if problem.has_conflict else ()
         diag = self._new_diag(
-            status=sol.status, iterations=sol.iterations, solve_time_s=sol.solve_time_s,
-            step_time_s=perf_counter() - start, fallback=z is None, relaxed=relaxed,
-            conflict_joints=conflict, message=message,
+            status=sol.status, iterations=solved.iterations, solve_time_s=solved.solve_time_s,
+            step_time_s=perf_counter() - start, fallback=z is None,
+            relaxed=bool(solved.remedy), conflict_joints=conflict, message=message,
+            linearisations=solved.rounds, levels_time_s=solved.levels_time_s,
         )  # fmt: skip
+        self._last = problem
+        pose, target = self._reported
         sigma = self.sigma
-        if self._one_block:  # no horizon to report
-            pose, target = self._pose_target
-            return self._new_result(
-                qd_command=qd_cmd, s=s_now, sigma=sigma,
-                sigma_next=sigma + self.period_s * s_now, pose=pose, target=target,
-                diagnostics=diag,
-            )  # fmt: skip
         return self._new_result(
             qd_command=qd_cmd, s=s_now, sigma=sigma, sigma_next=sigma + self.period_s * s_now,
-            pose=ctx.poses[0], target=ctx.targets[0], diagnostics=diag,
-            horizon_qd=horizon_qd, horizon_s=horizon_s,
+            pose=pose, target=target, diagnostics=diag, horizon_qd=horizon_qd,
+            horizon_s=horizon_s,
         )  # fmt: skip
 
-    def _conflict_joints(self) -> tuple[int, ...]:
-        """The joints whose hard bound won a conflict at this step."""
-        mask = self._assembly.conflict if self._assembly is not None else self._conflict
-        return tuple(np.flatnonzero(mask[: self.n]).tolist())
+    def _solved_message(self, solved: Solved) -> str:
+        """What the diagnostics say of a step whose first level was solved."""
+        if solved.remedy:
+            return self._remedy_messages[solved.remedy]
+        failed = solved.result.failed_level
+        if failed is None:
+            return ""
+        status = solved.result.per_level[failed].status
+        return f"level {failed + 1} failed ({status}); the higher levels' optimum kept"
 
     def _scaled(self) -> bool:
         """Whether the applied ``s`` is the solution's (else it is 1)."""
@@ -356,10 +406,10 @@ class QPController(Controller):
 
     # ------------------------------------------------------------------ inspection
     def last_problem(self) -> Problem:
-        """The problem of the last step, as first posed (before any relaxation): every
-        level's terms and every limit's rows, by name
+        """The problem solved at the last step (with the remedy that was kept, if any):
+        every level's terms and every limit's rows, by name
         (:class:`~dqcontrol.controllers.core.problem.Problem`; it also reads as the first
         level's dense QP ``P, c, A, lower, upper``)."""
-        if self._ctx is None:
+        if self._last is None:
             raise ParameterError("no QP has been built yet: call step() first")
-        return build_problem(self._ctx, self.levels, self.limits)
+        return self._last.problem()

@@ -1,6 +1,11 @@
 """The backend contract and the registry of backends by name (docs/theory.md §7.5).
 
-A backend solves the QPs the controllers build. It must implement one method,
+A controller hands its backend the whole problem of a step
+(:meth:`Backend.solve_problem`, a :class:`~dqcontrol.controllers.core.step_problem.
+StepProblem`): one level whose ``P`` is block diagonal goes to :meth:`Backend.solve_blocks`,
+several levels are solved lexicographically
+(:func:`~dqcontrol.controllers.core.levels.solve_levels`) through the other capabilities.
+A backend must implement one method,
 :meth:`Backend.solve` (a dense QP ``min ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with
 ``A = [I; C]``); every other capability has a dense default here, which a backend may
 replace by a path specialised on the problem's structure:
@@ -29,6 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dqcontrol.controllers.core.levels import LevelsResult, solve_levels
 from dqcontrol.controllers.core.problem import (
     BlockQP,
     DenseQP,
@@ -41,6 +47,7 @@ from dqcontrol.errors import ParameterError
 
 if TYPE_CHECKING:
     from dqcontrol.controllers.core.reduced import LevelRows, ReducedQP
+    from dqcontrol.controllers.core.step_problem import StepProblem
 
 __all__ = [
     "DEFAULT_SOLVER",
@@ -53,6 +60,8 @@ __all__ = [
     "refused_bounds",
     "register_backend",
 ]
+
+_new_result = tuple.__new__  # a NamedTuple from all its fields, at a 1 kHz step's cost
 
 #: The QP backend used when none is named.
 DEFAULT_SOLVER = "daqp"
@@ -76,6 +85,27 @@ class Backend(ABC):
     name: str = ""
     uses_warm_start: bool = False
     solves_warm_levels: bool = False
+
+    def solve_problem(self, problem: StepProblem) -> LevelsResult:
+        """Solve a step's whole problem in the form its structure allows: one level with a
+        block-diagonal ``P`` through :meth:`solve_blocks`, otherwise the levels in order
+        (:func:`~dqcontrol.controllers.core.levels.solve_levels`, through :meth:`solve`,
+        :meth:`solve_reduced` and :meth:`solve_warm_levels`)."""
+        qp = problem.block_form
+        if qp is None:
+            return solve_levels(problem.problem(), self)
+        sol = self.solve_blocks(qp)
+        return _new_result(
+            LevelsResult,
+            (
+                sol,
+                (sol,),
+                None if sol.ok else 0,
+                sol.solve_time_s,
+                sol.iterations,
+                sol.solve_time_s,
+            ),
+        )
 
     @abstractmethod
     def solve(self, key: object, qp: DenseQP) -> Solution:

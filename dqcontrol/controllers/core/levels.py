@@ -19,12 +19,11 @@ the thesis's controllers.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from dqcontrol._blas import single_blas_thread
-from dqcontrol.controllers.backends.base import Backend
 from dqcontrol.controllers.core.context import StepContext
 from dqcontrol.controllers.core.objective import (
     dense_hessian,
@@ -49,6 +48,9 @@ from dqcontrol.controllers.core.problem import (
 from dqcontrol.controllers.core.reduced import ReducedQP, level_rows
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.linalg.null_space import null_space
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dqcontrol.controllers.backends.base import Backend
 
 __all__ = [
     "LevelsResult",
@@ -107,30 +109,22 @@ def build_problem(
     return Problem(ctx.layout, tuple(built), bounds, general, lower, upper, conflict, fixed)
 
 
-@dataclass(frozen=True)
-class LevelsResult:
+class LevelsResult(NamedTuple):
     """The lexicographic solve: the final point and each level's solution.
 
     ``solution`` is the lowest level solved; if a lower level fails, the last level that
     succeeded gives the point and ``failed_level`` names the one that failed. ``time_s``
     is the wall time of the whole solve [s]: every level's reduction to the null space of
-    the rows held above and its backend solve.
+    the rows held above and its backend solve; ``iterations`` and ``solve_time_s`` the
+    solver's iterations and time [s] inside it for every level solved, summed.
     """
 
     solution: Solution
     per_level: tuple[Solution, ...]
     failed_level: int | None = None
     time_s: float = 0.0
-
-    @property
-    def iterations(self) -> int:
-        """The solver iterations of every level solved, summed."""
-        return sum(s.iterations for s in self.per_level)
-
-    @property
-    def solve_time_s(self) -> float:
-        """The time [s] inside the solver for every level solved, summed."""
-        return sum(s.solve_time_s for s in self.per_level)
+    iterations: int = 0
+    solve_time_s: float = 0.0
 
 
 def level_qp(problem: Problem, k: int, held: list[tuple]) -> DenseQP:
@@ -177,9 +171,11 @@ def solve_levels(problem: Problem, backend: Backend) -> LevelsResult:
     backend.set_general_rows(problem.layout.num_vars, problem.inequalities)
     with single_blas_thread():
         result = _solve_levels(problem, backend)
+    per_level = result.per_level
     return LevelsResult(
-        result.solution, result.per_level, result.failed_level, time.perf_counter() - start
-    )
+        result.solution, per_level, result.failed_level, time.perf_counter() - start,
+        sum(s.iterations for s in per_level), sum(s.solve_time_s for s in per_level),
+    )  # fmt: skip
 
 
 def _solve_levels(problem: Problem, backend: Backend) -> LevelsResult:

@@ -21,25 +21,19 @@ of times.
 from __future__ import annotations
 
 import dataclasses
-import time
 from typing import Literal
 
 import numpy as np
 
 from dqcontrol._blas import single_blas_thread
-from dqcontrol.controllers.backends import Backend, make_backend
 from dqcontrol.controllers.base import (
-    Controller,
-    StepDiagnostics,
     StepResult,
     acceleration_setting,
     check_position_margin,
     check_positive,
-    fast_constructor,
     per_joint,
 )
 from dqcontrol.controllers.core.context import StepContext, aligned_kinematics
-from dqcontrol.controllers.core.levels import LevelsResult, build_problem, solve_levels
 from dqcontrol.controllers.core.problem import Level, Problem, Residual
 from dqcontrol.controllers.core.state_rows import state_rows_into
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
@@ -52,8 +46,6 @@ from dqcontrol.controllers.limits.torque import TorqueLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.limits.velocity import VelocityLimit
 from dqcontrol.controllers.path_following.kernels import (
-    applied_plan,
-    count_set,
     tangent_mismatch,
 )
 from dqcontrol.controllers.path_following.kinematics_memo import KinematicsMemo
@@ -64,6 +56,7 @@ from dqcontrol.controllers.prediction.consistent import (
     interval_breakpoints,
 )
 from dqcontrol.controllers.prediction.distance import max_abs_difference
+from dqcontrol.controllers.qp_controller import QPController, Remedy, Solved
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, PathErrorTerm
 from dqcontrol.controllers.terms.posture import PostureTerm
@@ -92,11 +85,8 @@ STALL_DELAY_S = 0.5
 STALL_TIGHTENING = 0.01
 #: The step's message after the path level was infeasible, by what regained feasibility
 #: (the slack in mrad is formatted in).
-_RELAXED_MESSAGES = {
-    "": "",
-    "loosened": "predicted position bounds loosened by {:g} mrad to regain feasibility",
-    "dropped": "predicted position bounds dropped to regain feasibility",
-}
+_LOOSENED = "predicted position bounds loosened by {:g} mrad to regain feasibility"
+_DROPPED = "predicted position bounds dropped to regain feasibility"
 
 
 def _in_range(name: str, value: float, low: float, high: float, unit: str) -> float:
@@ -132,7 +122,7 @@ def _limit_settings(robot: RobotModel, velocity_limits, position_margin_rad: flo
     return margin, lim.q_min + margin, lim.q_max - margin, qd_max
 
 
-class PathFollowingController(Controller):
+class PathFollowingController(QPController):
     """Path first, progress second, posture third, over a consistent prediction.
 
     Args:
@@ -171,6 +161,7 @@ class PathFollowingController(Controller):
     """
 
     name = "path_following"
+    prediction_model: ConsistentPrediction
 
     def __init__(
         self,
@@ -197,7 +188,9 @@ class PathFollowingController(Controller):
         solver: str | None = None,
         solver_settings: dict | None = None,
     ) -> None:
-        super().__init__(robot, trajectory, period_s, measurement_delay_periods)
+        super().__init__(
+            robot, trajectory, period_s, measurement_delay_periods=measurement_delay_periods
+        )
         self.horizon_s = check_positive("horizon_s (tau_p)", horizon_s, "s")
         breaks = interval_breakpoints(num_intervals, self.horizon_s, self.period_s)
         self.num_intervals = int(num_intervals)
@@ -219,43 +212,29 @@ class PathFollowingController(Controller):
         self._set_servo(servo_time_constant_s, breaks)
         self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference
-        self.levels = self._levels(tuple(extra_terms))
-        self._stalled_levels = _tightened(self.levels)
-        self._set_limits(tuple(extra_limits))
+        levels = self._levels(tuple(extra_terms))
+        self._stalled_levels = _tightened(levels)
         self._stall_steps = int(np.ceil(STALL_DELAY_S / self.period_s - 1e-9))
-        self.backend = make_backend(solver, solver_settings)
-        self.solver = self.backend.name
-        self._cache: dict = {}
         self._a_max_key: tuple = (None, np.zeros((0, self.n)))
-        self._last: Problem | None = None
-        self._set_step_outputs()
+        self._memo = KinematicsMemo(self.robot)
+        prediction = self.prediction_model
+        limits = self._limits() + tuple(extra_limits)
+        self.compose(prediction, levels, limits, solver, solver_settings, self.s_max)
         self._reset_state()
 
-    def _set_step_outputs(self) -> None:
-        """What every step reuses to give its result: the kinematics kept from the last
-        step, the messages and the constructors of the diagnostics and the result."""
-        self._memo = KinematicsMemo(self.robot)
-        self._levels_time = 0.0  # the prioritised solves of the current step [s]
-        slack_mrad = self.tuning.position_slack_rad * 1e3
-        self._messages = {k: v.format(slack_mrad) for k, v in _RELAXED_MESSAGES.items()}
-        self._new_diag = fast_constructor(StepDiagnostics, status="solved")
-        self._new_result = fast_constructor(
-            StepResult, qd_command=np.zeros(self.n), s=0.0, sigma=0.0, sigma_next=0.0,
-            pose=np.zeros(8), target=np.zeros(8), diagnostics=StepDiagnostics("solved"),
-        )  # fmt: skip
-
     # ------------------------------------------------------------------ composition
-    def _set_limits(self, extra: tuple[Limit, ...]) -> None:
-        """The limits, and the two retries of an infeasible path level: the predicted
-        position rows loosened by ``position_slack_rad``, then without them (theory §8.6)."""
-        self.limits = self._limits() + extra
+    def _remedies(self) -> tuple[Remedy, ...]:
+        """An infeasible path level is solved again with the predicted position rows
+        loosened by ``position_slack_rad``, then without them (docs/theory.md §8.6)."""
         slack = self.tuning.position_slack_rad
-        self.loosened_limits = tuple(
+        loosened = tuple(
             lim.widened(slack) if isinstance(lim, PredictedPositionLimit) else lim
             for lim in self.limits
         )
-        self.relaxed_limits = tuple(
-            lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit)
+        dropped = tuple(lim for lim in self.limits if not isinstance(lim, PredictedPositionLimit))
+        return (
+            Remedy("loosened", loosened, _LOOSENED.format(slack * 1e3)),
+            Remedy("dropped", dropped, _DROPPED),
         )
 
     def _set_servo(self, time_constant_s: float, breaks: np.ndarray) -> None:
@@ -360,17 +339,8 @@ class PathFollowingController(Controller):
         self._expected_q: np.ndarray | None = None
         self._poor = True  # the first step linearises at rest: iterate
 
-    @property
-    def qp(self) -> Backend:
-        """The backend (:attr:`backend`), under the name the fault wrappers use."""
-        return self.backend
-
-    @qp.setter
-    def qp(self, backend: Backend) -> None:
-        self.backend = backend
-
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
-        self.prediction_model.reset(q0, qd0)
+        super()._reset_memory(q0, qd0)
         ref = self._posture_reference
         if isinstance(ref, str):
             if ref != "start":
@@ -380,12 +350,24 @@ class PathFollowingController(Controller):
             self.posture.reference = q0.copy()
         else:
             self.posture.reference = self.robot.check_q(ref, "posture_reference")
-        self.backend.reset()
         self._memo.clear()
         self._reset_state()
+        self._levels_now = self.levels
 
     # ------------------------------------------------------------------ one step
-    def _context(self, q: np.ndarray, pred: Prediction) -> StepContext:
+    def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        with single_blas_thread():  # the dense levels' products and factorisations
+            return super()._step(q, qd)
+
+    def _step_context(self, q: np.ndarray, qd: np.ndarray | None) -> StepContext:
+        """The context at the prediction from the measured state (``qd``: the measured
+        velocities, where given; the servo's lag starts from them)."""
+        self._memo.advance()
+        model = self.prediction_model
+        model.qd_measured = self.qd_prev if qd is None else qd
+        return self._context_at(q, model.predict(q, self.sigma))
+
+    def _context_at(self, q: np.ndarray, pred: Prediction) -> StepContext:
         xs, jacs, xd, dxd = aligned_kinematics(
             self.robot, self.trajectory, pred.q_lin, pred.sigma_lin
         )
@@ -416,23 +398,40 @@ class PathFollowingController(Controller):
             self._a_max_key = (a_const, np.broadcast_to(a_const, (p, self.n)))
         return self._a_max_key[1]
 
-    def _solve(self, ctx: StepContext) -> tuple[Problem, LevelsResult, str]:
-        """Build and solve; if the path level is infeasible, again with the predicted
-        position rows loosened, then without them. Returns the problem, its result and
-        which of those was kept (``""``, ``"loosened"``, ``"dropped"``)."""
-        levels = self._stalled_levels if self._stalled() else self.levels
-        problem = build_problem(ctx, levels, self.limits, self._cache)
-        result = solve_levels(problem, self.backend)
-        self._levels_time += result.time_s
-        if result.failed_level != 0:
-            return problem, result, ""
-        for limits, how in ((self.loosened_limits, "loosened"), (self.relaxed_limits, "dropped")):
-            retry = build_problem(ctx, levels, limits, self._cache)
-            again = solve_levels(retry, self.backend)
-            self._levels_time += again.time_s
-            if again.failed_level != 0:
-                return retry, again, how
-        return problem, result, ""
+    def _solve(self, ctx: StepContext) -> Solved:
+        """Linearise and solve: where the linearisation is poor (the first step, after a
+        fallback or a disturbance) or the first state's linearised path error is far from
+        the true one, again at the plan just found, a bounded number of rounds
+        (docs/theory.md §8.5)."""
+        q, model, tuning = ctx.q, self.prediction_model, self.tuning
+        poor = self._poor or self._disturbed(q)
+        iterations, solve_time, levels_time, rounds = 0, 0.0, 0.0, 0
+        while True:
+            solved = super()._solve(ctx)
+            rounds += 1
+            iterations += solved.iterations
+            solve_time += solved.solve_time_s
+            levels_time += solved.levels_time_s
+            result = solved.result
+            if result.failed_level == 0 or rounds == tuning.max_linearisations:
+                break
+            z = result.solution.x
+            assert z is not None, "a solved first level has its solution"
+            if not poor and self._mismatch(q, solved.problem.problem(), z) < (
+                tuning.linearisation_tolerance_m
+            ):
+                break
+            qd_plan, s_plan = self.layout.split(z)
+            assert s_plan is not None, "path following always scales time"
+            warm_qd = ctx.prediction.warm_qd
+            if poor and float(np.max(np.abs(qd_plan - warm_qd))) < tuning.linearisation_tolerance:
+                break
+            plan_s = np.clip(s_plan, 0.0, self.s_max)
+            ctx = self._context_at(q, model.at(q, self.sigma, qd_plan.copy(), plan_s))
+        return solved._replace(
+            iterations=iterations, solve_time_s=solve_time, rounds=rounds,
+            levels_time_s=levels_time,
+        )  # fmt: skip
 
     def _stalled(self) -> bool:
         """``s`` has stayed below :data:`STALL_SCALING` for :data:`STALL_DELAY_S`."""
@@ -468,90 +467,28 @@ class PathFollowingController(Controller):
         state_rows_into(st.rows[:1], st.weights[:1, :1], st.phase_weights[:1, :1], rows)
         return rows.reshape(r, m)
 
-    def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
-        with single_blas_thread():  # the dense levels' products and factorisations
-            return self._planned_step(q, qd)
-
-    def _planned_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
-        start = time.perf_counter()
-        self._memo.advance()
-        model = self.prediction_model
-        model.qd_measured = self.qd_prev if qd is None else qd
-        pred = model.predict(q, self.sigma)
-        poor = self._poor or self._disturbed(q)
-        iterations, solve_time, done = 0, 0.0, 0
-        self._levels_time = 0.0
-        while True:
-            problem, result, relaxation = self._solve(self._context(q, pred))
-            done += 1
-            iterations += result.iterations
-            solve_time += result.solve_time_s
-            if result.failed_level == 0 or done == self.tuning.max_linearisations:
-                break
-            z = result.solution.x
-            assert z is not None, "a solved first level has its solution"
-            if not poor and self._mismatch(q, problem, z) < self.tuning.linearisation_tolerance_m:
-                break
-            qd_plan, s_plan = self.layout.split(z)
-            assert s_plan is not None, "path following always scales time"
-            if poor and (
-                float(np.max(np.abs(qd_plan - pred.warm_qd))) < self.tuning.linearisation_tolerance
-            ):
-                break
-            pred = model.at(q, self.sigma, qd_plan.copy(), np.clip(s_plan, 0.0, self.s_max))
-        self._last = problem
-        return self._finish(q, problem, result, relaxation, start, iterations, solve_time, done)
-
-    def _finish(self, q, problem, result, relaxation, start, iterations, solve_time, rounds):
-        n, model = self.n, self.prediction_model
-        lo0, up0 = problem.lower[:n], problem.upper[:n]
-        conflict = problem.conflict[:n]
-        message = self._messages[relaxation]
-        if result.failed_level != 0:
-            plan_qd, plan_s = applied_plan(
-                result.solution.x, lo0, up0, self.s_max, self.layout.num_blocks
-            )
-            qd_cmd, s_now = plan_qd[0], float(plan_s[0])
-            fallback = False
-            if result.failed_level is not None:
-                message = f"level {result.failed_level + 1} failed; higher levels' optimum kept"
-            self._poor = False
-        else:
-            qd_cmd = np.minimum(np.maximum(np.zeros(n), lo0), up0)
-            s_now = 0.0
-            plan_qd = np.tile(qd_cmd, (self.layout.num_blocks, 1))
-            plan_s = np.zeros(self.layout.num_blocks)
-            fallback = True
-            message = (
-                f"QP failed ({result.solution.status}); safe fallback: brake within a_max, s = 0"
-            )
-            self._poor = True
-        model.commit(plan_qd, plan_s)  # a copy: the result keeps these arrays
-        self._expected_q = model.state_after_first(q, qd_cmd)
+    def _finish(self, solved: Solved, start: float) -> StepResult:
+        """The result, then what the next step needs: where the command takes the arm (the
+        disturbance check), the applied ``s``, the clock and the stall count; a fallback
+        makes the next linearisation poor."""
+        self._reported = self._pose_target(solved.problem.ctx.q)
+        result = super()._finish(solved, start)
+        qd_cmd, s_now = result.qd_command, result.s
+        self._expected_q = self.prediction_model.state_after_first(solved.problem.ctx.q, qd_cmd)
         self._s_prev = s_now
         self._steps += 1
         moving = s_now >= STALL_SCALING or self.sigma == 0.0
         self._stalled_steps = 0 if moving else self._stalled_steps + 1
+        self._poor = result.diagnostics.fallback
+        # the path's band narrower while the task is stalled
+        self._levels_now = self._stalled_levels if self._stalled() else self.levels
+        return result
+
+    def _pose_target(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pose at the measured ``q`` (kept from the last step's check where it was
+        predicted there) and the target now, the pose's sign aligned to it."""
         x0 = self._memo.pose(q)
         xd0 = self._memo.target(self.trajectory, self.sigma)
         if float(x0.dot(xd0)) < 0.0:
             x0 = -x0
-        conflicts = tuple(np.flatnonzero(conflict).tolist()) if count_set(conflict) else ()
-        diag = self._new_diag(
-            status=result.solution.status, iterations=iterations, solve_time_s=solve_time,
-            step_time_s=time.perf_counter() - start, fallback=fallback, relaxed=bool(relaxation),
-            conflict_joints=conflicts, message=message, linearisations=rounds,
-            levels_time_s=self._levels_time,
-        )  # fmt: skip
-        return self._new_result(
-            qd_command=qd_cmd.copy(), s=s_now, sigma=self.sigma,
-            sigma_next=self.sigma + self.period_s * s_now,
-            pose=x0, target=xd0, diagnostics=diag, horizon_qd=plan_qd, horizon_s=plan_s,
-        )  # fmt: skip
-
-    def last_problem(self) -> Problem:
-        """The problem built at the last step: every level's terms and every limit's rows,
-        by name (:class:`~dqcontrol.controllers.core.problem.Problem`)."""
-        if self._last is None:
-            raise ParameterError("no QP has been built yet: call step() first")
-        return self._last
+        return x0, xd0
