@@ -353,3 +353,17 @@ def test_a_simulation_error_ends_the_run_without_braking(lbr4p):
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), Failing(sim, 0.05), q0=LBR4P_Q0)
     assert res.reason == "simulation" and "the physics blew up" in res.note
     assert res.log.meta["stop"] == {"reason": "simulation", "brake_periods": 0}
+
+
+def test_wall_clock_figures_keep_bounded_memory():
+    """The lateness and jitter of a run of any length: the last values in a ring of fixed
+    size for the medians, the maximum and the positive count over every value."""
+    from dqcontrol.sim.loop import _Window
+
+    window = _Window(capacity=4)
+    series = [0.5, -1.0, 3.0, -2.0, -0.5, 0.25, -4.0, -3.0]
+    for value in series:
+        window.append(value)
+    assert len(window) == 8 and len(window.values) == 4
+    assert sorted(window.values) == sorted(series[-4:])
+    assert window.maximum == 3.0 and window.positive == 3 and window.last == -3.0

@@ -101,21 +101,55 @@ def _brake_rate(controller: Controller, q: np.ndarray) -> np.ndarray:
     return np.broadcast_to(np.asarray(a, dtype=float) * controller.period_s, q.shape)
 
 
+#: Samples of lateness and jitter the wall-clock mode keeps for its medians and p99 (the
+#: most recent ones: 8 MB each at most, about 17 minutes at 1 kHz); the maxima and the
+#: count of missed deadlines cover the whole run.
+TIMING_WINDOW = 1 << 20
+
+
+class _Window:
+    """The last ``capacity`` values of a series (a ring of floats), with the whole
+    series' maximum and its count of positive values: bounded memory for a run of any
+    length."""
+
+    def __init__(self, capacity: int = TIMING_WINDOW) -> None:
+        self.values = array.array("d")
+        self.capacity = capacity
+        self.count = 0
+        self.positive = 0
+        self.maximum = -np.inf
+        self.last = 0.0
+
+    def append(self, value: float) -> None:
+        if len(self.values) < self.capacity:
+            self.values.append(value)
+        else:
+            self.values[self.count % self.capacity] = value
+        self.count += 1
+        self.positive += value > 0.0
+        self.maximum = max(self.maximum, value)
+        self.last = value
+
+    def __len__(self) -> int:
+        return self.count
+
+
 class _Clock:
     """Pacing of the wall-clock mode (none in stepped mode): sample k starts at
     ``start + k T`` and must end by ``start + (k + 1) T``, its deadline.
 
     ``lateness_s``: end of each sample's work minus its deadline (> 0: missed);
-    ``jitter_s``: start of each sample after the first minus its scheduled start (packed
-    float arrays: 8 bytes a sample).
+    ``jitter_s``: start of each sample after the first minus its scheduled start (each a
+    :class:`_Window`: the medians and p99 are over the last :data:`TIMING_WINDOW` samples,
+    the maxima and the missed deadlines over the whole run).
     """
 
     def __init__(self, period_s: float, realtime: bool) -> None:
         self.period_s, self.realtime = period_s, realtime
         self.start = time.perf_counter()
         self.k = 0
-        self.lateness_s = array.array("d")
-        self.jitter_s = array.array("d")
+        self.lateness_s = _Window()
+        self.jitter_s = _Window()
 
     def restart(self) -> None:
         self.start, self.k = time.perf_counter(), 0
@@ -137,17 +171,17 @@ class _Clock:
     def report(self) -> dict:
         """``meta["stop"]``'s timing entries [ms]: lateness (max, median: negative is the
         slack left), start jitter (median, p99, max) and the missed deadlines."""
-        if not (self.realtime and self.lateness_s):
+        late, jitter = self.lateness_s, self.jitter_s
+        if not (self.realtime and len(late)):
             return {}
-        late = 1e3 * np.asarray(self.lateness_s)
-        jitter = 1e3 * np.asarray(self.jitter_s or [0.0])
+        recent_jitter = 1e3 * np.asarray(jitter.values or [0.0])
         return {
-            "lateness_max_ms": float(late.max()),
-            "lateness_median_ms": float(np.median(late)),
-            "jitter_median_ms": float(np.median(jitter)),
-            "jitter_p99_ms": float(np.percentile(jitter, 99)),
-            "jitter_max_ms": float(jitter.max()),
-            "missed_deadlines": int(np.count_nonzero(late > 0.0)),
+            "lateness_max_ms": 1e3 * late.maximum,
+            "lateness_median_ms": float(np.median(1e3 * np.asarray(late.values))),
+            "jitter_median_ms": float(np.median(recent_jitter)),
+            "jitter_p99_ms": float(np.percentile(recent_jitter, 99)),
+            "jitter_max_ms": 1e3 * jitter.maximum if len(jitter) else 0.0,
+            "missed_deadlines": late.positive,
         }
 
 
@@ -414,7 +448,7 @@ class _Samples:
             if not clock.wait():
                 self._stop("deadline", (
                     f"stopped after {len(rec)} samples: sample {k} ended "
-                    f"{1e3 * clock.lateness_s[-1]:.2f} ms after its deadline"
+                    f"{1e3 * clock.lateness_s.last:.2f} ms after its deadline"
                 ))  # fmt: skip
                 return
 
