@@ -48,6 +48,7 @@ from dqcontrol.faults.scenarios import (
     fault_by_name,
 )
 from dqcontrol.model import LBR4P_Q0
+from dqcontrol.registry import controller_spec
 from dqcontrol.sim import (
     FaultyDriver,
     KinematicDriver,
@@ -538,3 +539,22 @@ def test_delay_compensation_keeps_the_joints_within_their_limits(delay):
                  "kinematic", 2.0)
     )  # fmt: skip
     assert r.q_violations_true == 0 and r.safe, r.row()
+
+
+@pytest.mark.parametrize(
+    "fault", ["qp_crossed", "qp_coupled", "solver_fails", "solver_timeout", "solver_flaky"]
+)
+def test_path_following_runs_every_qp_fault_safely(fault):
+    """The campaign's QP faults reach the path-following controller through its backend:
+    contradictory bounds are refused (the safe fallback over the whole window, then the
+    task completes), a failing solver never moves the arm past a bound."""
+    spec = CaseSpec(
+        controller_spec("pf").renamed("path_following"), TRAJECTORIES["circle"],
+        fault_by_name(fault), "kinematic", TRAJECTORIES["circle"].quick_duration_s,
+    )  # fmt: skip
+    r = run_case(spec)
+    assert r.raised == "" and not r.nan_seen, r.row()
+    assert r.velocity_violations == r.acceleration_violations == r.q_violations_true == 0
+    assert r.false_successes == 0
+    if fault.startswith("qp_"):
+        assert r.completed and r.fallbacks == 20, r.row()
