@@ -324,8 +324,8 @@ class QPController(Controller):
                     break
         if assembly is not None and not first.block_diagonal:
             self._assembly = None  # the levels' form from now on
-        work = (outcome.iterations, outcome.solve_time_s, 1, spent)
-        return _new_solved(Solved, (kept, outcome, remedy, *work))
+        fields = (kept, outcome, remedy, outcome.iterations, outcome.solve_time_s, 1, spent)
+        return _new_solved(Solved, fields)
 
     def _finish(self, solved: Solved, start: float) -> StepResult:
         """Apply the solution (the first block clipped to its bounds) or the fallback,
@@ -341,11 +341,8 @@ class QPController(Controller):
             # the applied command clipped to its bounds in place; s within [0, s_max]
             s_now = clip_solution(z, lower, upper, n, self._s_at, self.s_max)
             qd_cmd = z[:n]
-            message = (
-                ""
-                if solved.remedy == "" and result.failed_level is None
-                else (self._solved_message(solved))
-            )
+            noted = solved.remedy or result.failed_level is not None
+            message = self._solved_message(solved) if noted else ""
         else:
             z = None
             qd_cmd = np.minimum(np.maximum(np.zeros(n), lower[:n]), upper[:n])  # fallback
