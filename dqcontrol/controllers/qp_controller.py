@@ -330,18 +330,18 @@ class QPController(Controller):
     def _finish(self, solved: Solved, start: float) -> StepResult:
         """Apply the solution (the first block clipped to its bounds) or the fallback,
         remember the plan, and give the result."""
-        problem, result = solved.problem, solved.result
+        problem, result, remedy, iterations, solve_time, rounds, levels_time = solved
         n = self.n
         lower, upper = problem.lower, problem.upper
         assert lower is not None and upper is not None, "a solved problem was built"
-        sol = result.solution
-        if result.failed_level != 0:  # the first level solved
+        sol, failed = result.solution, result.failed_level
+        if failed != 0:  # the first level solved
             z = sol.x
             assert z is not None, "a solved level has its solution"
             # the applied command clipped to its bounds in place; s within [0, s_max]
             s_now = clip_solution(z, lower, upper, n, self._s_at, self.s_max)
             qd_cmd = z[:n]
-            noted = solved.remedy or result.failed_level is not None
+            noted = remedy or failed is not None
             message = self._solved_message(solved) if noted else ""
         else:
             z = None
@@ -355,10 +355,10 @@ class QPController(Controller):
             observe(z, s_now)
         conflict = problem.conflict_joints(n) if problem.has_conflict else ()
         diag = self._new_diag(
-            status=sol.status, iterations=solved.iterations, solve_time_s=solved.solve_time_s,
-            step_time_s=perf_counter() - start, fallback=z is None,
-            relaxed=bool(solved.remedy), conflict_joints=conflict, message=message,
-            linearisations=solved.rounds, levels_time_s=solved.levels_time_s,
+            status=sol.status, iterations=iterations, solve_time_s=solve_time,
+            step_time_s=perf_counter() - start, fallback=z is None, relaxed=bool(remedy),
+            conflict_joints=conflict, message=message, linearisations=rounds,
+            levels_time_s=levels_time,
         )  # fmt: skip
         self._last = problem
         pose, target = self._reported
