@@ -1,32 +1,16 @@
 """The path-following step's compiled bookkeeping and kept kinematics against plain numpy
-(docs/theory.md §8): the applied plan, the linearisation mismatch, the kinematics memo."""
+(docs/theory.md §8): the linearisation mismatch, the kinematics memo."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.path_following.kernels import applied_plan, tangent_mismatch
+from dqcontrol.controllers.path_following.kernels import tangent_mismatch
 from dqcontrol.controllers.path_following.kinematics_memo import KinematicsMemo
 from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, tangent_projectors
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.trajectories import Circle
-
-
-@pytest.mark.parametrize("seed", range(4))
-def test_applied_plan_clips_the_first_command_and_every_scaling(seed):
-    rng = np.random.default_rng(seed)
-    p, n, s_max = 5, 7, 1.2
-    z = rng.normal(scale=2.0, size=p * (n + 1))
-    lower, upper = rng.uniform(-1.0, 0.0, n), rng.uniform(0.0, 1.0, n)
-    qd, s = applied_plan(z, lower, upper, s_max, p)
-    blocks = z.reshape(p, n + 1)
-    expected_qd = blocks[:, :n].copy()
-    expected_qd[0] = np.minimum(np.maximum(blocks[0, :n], lower), upper)
-    assert np.array_equal(qd, expected_qd)
-    assert np.array_equal(s, np.minimum(np.maximum(blocks[:, n], 0.0), s_max))
-    z[0] = np.nan
-    assert np.isnan(applied_plan(z, lower, upper, s_max, p)[0][0, 0])
 
 
 @pytest.mark.parametrize(("seed", "flip"), [(0, False), (1, True), (2, False)])
