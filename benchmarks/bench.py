@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from dqcontrol.controllers import single_blas_thread
-from dqcontrol.controllers.tracking import DEFAULT_SOLVER
+from dqcontrol.controllers.thesis.controller import DEFAULT_SOLVER
 from dqcontrol.experiments.thesis import THESIS_ACCELERATION_LIMIT, THESIS_VELOCITY_LIMITS
 from dqcontrol.model import LBR4P_Q0, RobotModel, load_lbr4p
 from dqcontrol.registry import build_controller

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from dqcontrol.controllers.backends.active_set import (
+from dqcontrol.controllers.backends.daqp.active_set import (
     DEPENDENT_ROWS,
     INFEASIBLE,
     SOLVED,
@@ -17,7 +17,7 @@ from dqcontrol.controllers.backends.active_set import (
     dense_factor,
     solve_on_active_set,
 )
-from dqcontrol.controllers.backends.daqp import DaqpBackend, _factor
+from dqcontrol.controllers.backends.daqp.backend import DaqpBackend, _factor
 from dqcontrol.controllers.core.problem import DenseQP
 from dqcontrol.controllers.linalg.entries import nonzero_entries
 

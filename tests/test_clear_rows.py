@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.backends.active_set import SOLVED
-from dqcontrol.controllers.backends.clear_rows import clear_level, row_starts
-from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
+from dqcontrol.controllers.backends.daqp.active_set import SOLVED
+from dqcontrol.controllers.backends.daqp.clear_rows import clear_level, row_starts
+from dqcontrol.controllers.backends.daqp.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.linalg.entries import nonzero_entries
 from dqcontrol.controllers.linalg.null_space import null_space
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from dqcontrol.controllers.backends.daqp_blocks import DaqpBlocks
+from dqcontrol.controllers.backends.daqp.blocks import DaqpBlocks
 from dqcontrol.errors import ParameterError
 
 

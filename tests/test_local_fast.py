@@ -18,7 +18,7 @@ import quadprog
 from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import LocalController, command_box
 from dqcontrol.controllers.backends import DaqpBackend, ForwardingBackend
-from dqcontrol.controllers.backends.daqp_blocks import DaqpBlocks
+from dqcontrol.controllers.backends.daqp.blocks import DaqpBlocks
 from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.controllers.core.bounds import _vp_box, braking_constants, intersect_acceleration
 from dqcontrol.faults.qp_faults import contradictory

@@ -19,7 +19,7 @@ from dqcontrol.controllers.core.bounds import (
     velocity_position_box,
 )
 from dqcontrol.controllers.proportional import _solve_spd
-from dqcontrol.controllers.tracking import DEFAULT_SOLVER
+from dqcontrol.controllers.thesis.controller import DEFAULT_SOLVER
 from dqcontrol.errors import ParameterError
 from dqcontrol.model import RobotModel
 from dqcontrol.trajectories import Circle, FunctionTrajectory, Sinusoid, WaypointTrajectory

@@ -12,7 +12,7 @@ import pytest
 from test_core_levels_properties import _problem
 
 from dqcontrol.controllers.backends.base import Backend
-from dqcontrol.controllers.backends.daqp import DaqpBackend
+from dqcontrol.controllers.backends.daqp.backend import DaqpBackend
 from dqcontrol.controllers.core.levels import solve_levels
 from dqcontrol.controllers.core.problem import Residual
 from dqcontrol.controllers.core.reduced import level_rows, objective_in_basis, reduced_objective
@@ -119,7 +119,7 @@ def test_the_levels_solved_in_one_call_are_those_solved_one_by_one(monkeypatch):
     # can, and says where it stopped: each outcome (first level's set broken, a null
     # space for LAPACK, a lower level's set broken, all levels) must give the answer of
     # the levels solved one by one, bit for bit
-    import dqcontrol.controllers.backends.daqp as daqp
+    import dqcontrol.controllers.backends.daqp.backend as daqp
 
     outcomes = []
     kernel = daqp.warm_levels

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.backends.row_identity import carried_set
+from dqcontrol.controllers.backends.daqp.row_identity import carried_set
 from dqcontrol.controllers.core.problem import Inequality
 
 

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from dqcontrol.controllers.backends.active_set import (
+from dqcontrol.controllers.backends.daqp.active_set import (
     SOLVED,
     dense_factor,
     solve_on_active_set,
 )
-from dqcontrol.controllers.backends.daqp import PIVOT_SHARE, DaqpBackend, _factor
-from dqcontrol.controllers.backends.state_factor import (
+from dqcontrol.controllers.backends.daqp.backend import PIVOT_SHARE, DaqpBackend, _factor
+from dqcontrol.controllers.backends.daqp.state_factor import (
     state_backward,
     state_factor,
     state_forward,

@@ -119,7 +119,8 @@ class ProportionalController(Controller):
         acceleration_limit: ``a_max`` [rad/s²] for the clipping box.
         braking_aware: add the stop-before-the-limit position bound (bounds.py).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
-            [rad] (default 5 mrad, see :class:`~dqcontrol.controllers.tracking.TrackingController`).
+            [rad] (default 5 mrad, see
+            :class:`~dqcontrol.controllers.thesis.controller.TrackingController`).
         measurement_delay_periods: see :class:`~dqcontrol.controllers.base.Controller`.
         saturate: clip the command to the hard bounds (default True).
     """

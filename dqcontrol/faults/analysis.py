@@ -26,7 +26,7 @@ from dataclasses import replace
 
 from dqcontrol.controllers.base import Controller
 from dqcontrol.controllers.proportional import ProportionalController
-from dqcontrol.controllers.tracking import TrackingController
+from dqcontrol.controllers.thesis.controller import TrackingController
 from dqcontrol.errors import ParameterError
 from dqcontrol.faults.campaign import CaseResult, CaseSpec, run_case
 from dqcontrol.faults.scenarios import CONTROLLERS, TRAJECTORIES, ControllerSpec, fault_by_name

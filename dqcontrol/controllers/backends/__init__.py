@@ -11,7 +11,7 @@ from dqcontrol.controllers.backends.base import (
     make_backend,
     register_backend,
 )
-from dqcontrol.controllers.backends.daqp import DaqpBackend
+from dqcontrol.controllers.backends.daqp.backend import DaqpBackend
 from dqcontrol.controllers.backends.osqp import OsqpBackend
 
 __all__ = [

@@ -208,7 +208,7 @@ BackendFactory = Callable[[dict | None], Backend]
 
 
 def _daqp(settings: dict | None) -> Backend:
-    from dqcontrol.controllers.backends.daqp import DaqpBackend
+    from dqcontrol.controllers.backends.daqp.backend import DaqpBackend
 
     return DaqpBackend(settings)
 

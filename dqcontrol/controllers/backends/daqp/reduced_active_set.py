@@ -5,7 +5,7 @@ its residual rows in the basis and their Gram matrix
 (:func:`~dqcontrol.controllers.core.reduced.objective_in_basis`), every limit's rows in the basis
 (:func:`~dqcontrol.controllers.core.reduced.rows_in_basis`), the Cholesky factor of its Hessian,
 and the solve on the guessed active set with its check
-(:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set`). Here one call
+(:func:`~dqcontrol.controllers.backends.daqp.active_set.solve_on_active_set`). Here one call
 runs the four in that order with the same kernels, so its answer is theirs bit for bit,
 without the Python between them. The caller falls back to the dense QP (and DAQP) where
 the call does not end with a checked optimum.
@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.backends.active_set import dense_factor, solve_on_active_set
+from dqcontrol.controllers.backends.daqp.active_set import dense_factor, solve_on_active_set
 from dqcontrol.controllers.core.reduced import _entry_rows, _rows_in_basis, _weighted_gram
 from dqcontrol.controllers.linalg.cholesky import cholesky_into
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dqcontrol.controllers.tracking import TrackingController
+from dqcontrol.controllers.thesis.controller import TrackingController
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
@@ -14,9 +14,9 @@ __all__ = ["LocalController"]
 class LocalController(TrackingController):
     """One-block QP: ``min λ1‖J qd - s w‖² + λ2(1-s)² + μ‖qd‖²`` within the hard bounds.
 
-    Decision ``z = [qd; s]``; see :class:`~dqcontrol.controllers.tracking.TrackingController`
-    for every keyword argument (gain, weights, bounds, solver, priority, extra terms and
-    limits).
+    Decision ``z = [qd; s]``; see
+    :class:`~dqcontrol.controllers.thesis.controller.TrackingController` for every keyword
+    argument (gain, weights, bounds, solver, priority, extra terms and limits).
     """
 
     name = "local"

@@ -6,7 +6,7 @@ import numpy as np
 
 from dqcontrol.controllers.base import check_positive
 from dqcontrol.controllers.prediction import integration_matrix, prediction_instants
-from dqcontrol.controllers.tracking import TrackingController
+from dqcontrol.controllers.thesis.controller import TrackingController
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
 
@@ -24,7 +24,7 @@ class PredictiveController(TrackingController):
     Args:
         num_instants: ``p ≥ 2`` prediction instants (the thesis used 6 and 10).
         horizon_s: ``τ_p`` [s] (default 1 s, the thesis's ``20 T``).
-        **kwargs: see :class:`~dqcontrol.controllers.tracking.TrackingController`
+        **kwargs: see :class:`~dqcontrol.controllers.thesis.controller.TrackingController`
             (``phase_prediction="nominal"`` reproduces the thesis's ``σ(t) + τ_i``).
 
     Only ``qd_1, s_1`` are applied; the rest of the horizon predicts the next step.

@@ -6,9 +6,9 @@ space of its held rows, solves the next level reduced to it, and so on, each ste
 compiled kernel with Python between them. While every level's active set stays what it was
 at the last step (the usual case in a control loop), :func:`warm_levels` runs the same
 kernels in the same order in one call: the first level on its last set
-(:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set`), each null space
+(:func:`~dqcontrol.controllers.backends.daqp.active_set.solve_on_active_set`), each null space
 (:func:`~dqcontrol.controllers.linalg.null_space.compiled_null_space`), each lower level
-(:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`). Its
+(:func:`~dqcontrol.controllers.backends.daqp.reduced_active_set.reduced_on_active_set`). Its
 answers are theirs bit for bit. It stops at the first level that needs more (a set that
 fails its check, a null space for LAPACK, a last set of another size) and says where, so
 that the caller goes on from there as without it.
@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
-from dqcontrol.controllers.backends.clear_rows import clear_level, row_starts
-from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
+from dqcontrol.controllers.backends.daqp.active_set import SOLVED, solve_on_active_set
+from dqcontrol.controllers.backends.daqp.clear_rows import clear_level, row_starts
+from dqcontrol.controllers.backends.daqp.reduced_active_set import reduced_on_active_set
 from dqcontrol.controllers.linalg.null_space import compiled_null_space
 
 __all__ = ["warm_levels"]
@@ -154,9 +154,9 @@ def _lower_level(
 ) -> tuple:
     """Lower level ``k`` in ``z = point + basis y`` (``starts``: where each row of ``C``
     starts in ``general``) on its last set, checked over the rows
-    near their bounds (:func:`~dqcontrol.controllers.backends.clear_rows.clear_level`);
+    near their bounds (:func:`~dqcontrol.controllers.backends.daqp.clear_rows.clear_level`);
     where the set does not hold as it is, solved in full
-    (:func:`~dqcontrol.controllers.backends.reduced_active_set.reduced_on_active_set`):
+    (:func:`~dqcontrol.controllers.backends.daqp.reduced_active_set.reduced_on_active_set`):
     ``(solved, point, active, at_upper, held rows in the basis)``."""
     lower, upper = first[2], first[3]
     dim = basis.shape[1]

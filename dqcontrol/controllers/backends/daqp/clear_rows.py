@@ -10,7 +10,7 @@ basis, the optimum found from them, and checked in ``z`` first, over ``[I; C]`` 
 value the reduced check would compute, passes that check too, and is not formed at all.
 Only the rows near or beyond a bound are formed in the basis, each exactly as
 :func:`~dqcontrol.controllers.core.reduced.rows_in_basis` forms it, and checked as
-:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set` checks it. The
+:func:`~dqcontrol.controllers.backends.daqp.active_set.solve_on_active_set` checks it. The
 answer is therefore the one of the full check bit for bit; where a row breaks its bound,
 or a multiplier has the wrong sign, the caller solves the level in full instead (which
 mends the set).
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.backends.active_set import (
+from dqcontrol.controllers.backends.daqp.active_set import (
     _breach,
     _equality_optimum,
     _worst_multiplier,

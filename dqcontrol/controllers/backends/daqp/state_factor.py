@@ -9,7 +9,7 @@ block's own (the damping). Then ``P = Tᵀ M T`` with ``M = G + T⁻ᵀ Λ T⁻�
 ``-Λ'_{j+1}``, with ``Λ'_j = S_j⁻¹ Λ_j S_j⁻¹``. Its Cholesky factor ``M = L_M L_Mᵀ`` is
 block bidiagonal (``p`` blocks of ``m × m``), and ``F = Tᵀ L_M`` has ``F Fᵀ = P``: the
 active-set kernels need only solves with ``F`` and ``Fᵀ``
-(:mod:`~dqcontrol.controllers.backends.active_set`), each a pass over the blocks instead
+(:mod:`~dqcontrol.controllers.backends.daqp.active_set`), each a pass over the blocks instead
 of a dense triangular solve.
 
 The factor's blocks are the tuple ``(diagonal, below, inverse_scales)``: ``diagonal[j]``

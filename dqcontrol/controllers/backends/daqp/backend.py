@@ -2,25 +2,26 @@
 step, and the paths specialised on the problem's structure (docs/theory.md §6, §7.5).
 
 One level with a block-diagonal ``P`` (the thesis's controllers) goes to
-:class:`~dqcontrol.controllers.backends.daqp_blocks.DaqpBlocks`, whose workspace is set up
+:class:`~dqcontrol.controllers.backends.daqp.blocks.DaqpBlocks`, whose workspace is set up
 for the blocks' structure once (:meth:`DaqpBackend.solve_blocks`).
 
 A QP with a positive definite ``H`` and sparse general rows is handed to DAQP as the
-equivalent least-distance problem (:func:`~dqcontrol.controllers.backends.least_distance.dense_ldp`,
-compiled), so that DAQP's ``H`` stays the identity for the workspace's life: forming
+equivalent least-distance problem
+(:func:`~dqcontrol.controllers.backends.daqp.least_distance.dense_ldp`, compiled), so that
+DAQP's ``H`` stays the identity for the workspace's life: forming
 ``C L⁻ᵀ`` then costs one pass over the non-zeros of ``C``, where DAQP, given the new ``H``,
 would form ``A R⁻¹`` over every entry. With dense rows (a level reduced to the null space
 of the levels above) DAQP's own handling costs the same and is kept.
 
 Before DAQP, a level is solved on the active set of its last solve and the KKT conditions
-are checked (:func:`~dqcontrol.controllers.backends.active_set.solve_on_active_set`): when
+are checked (:func:`~dqcontrol.controllers.backends.daqp.active_set.solve_on_active_set`): when
 the set has not changed, that is the optimum, found without DAQP's update. A level reduced
 to the null space of the levels above is given as its parts (:meth:`DaqpBackend.
 solve_reduced`): its QP is formed and solved on the last active set in one compiled call
-(:mod:`~dqcontrol.controllers.backends.reduced_active_set`), the same numbers as forming the
+(:mod:`~dqcontrol.controllers.backends.daqp.reduced_active_set`), the same numbers as forming the
 dense QP first. While every level's last set holds, all the levels of a problem are solved
 so in one call (:meth:`DaqpBackend.solve_warm_levels`,
-:mod:`~dqcontrol.controllers.backends.warm_levels`).
+:mod:`~dqcontrol.controllers.backends.daqp.warm_levels`).
 """
 
 from __future__ import annotations
@@ -33,14 +34,14 @@ import numpy as np
 from scipy.linalg import lapack
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.backends.active_set import SOLVED, solve_on_active_set
 from dqcontrol.controllers.backends.base import Backend
-from dqcontrol.controllers.backends.daqp_blocks import DaqpBlocks
-from dqcontrol.controllers.backends.least_distance import dense_ldp, ldp_solution
-from dqcontrol.controllers.backends.reduced_active_set import reduced_on_active_set
-from dqcontrol.controllers.backends.row_identity import carried_set
-from dqcontrol.controllers.backends.state_factor import state_factor
-from dqcontrol.controllers.backends.warm_levels import warm_levels
+from dqcontrol.controllers.backends.daqp.active_set import SOLVED, solve_on_active_set
+from dqcontrol.controllers.backends.daqp.blocks import DaqpBlocks
+from dqcontrol.controllers.backends.daqp.least_distance import dense_ldp, ldp_solution
+from dqcontrol.controllers.backends.daqp.reduced_active_set import reduced_on_active_set
+from dqcontrol.controllers.backends.daqp.row_identity import carried_set
+from dqcontrol.controllers.backends.daqp.state_factor import state_factor
+from dqcontrol.controllers.backends.daqp.warm_levels import warm_levels
 from dqcontrol.controllers.core.objective import dense_hessian
 from dqcontrol.controllers.core.problem import (
     BlockQP,
@@ -147,7 +148,7 @@ class DaqpBackend(Backend):
         """Name the rows of the problem whose levels are solved next: its ``num_vars``
         variables and its limits' inequalities, in order. An active set kept for other
         general rows is then carried to these by name
-        (:func:`~dqcontrol.controllers.backends.row_identity.carried_set`) instead of
+        (:func:`~dqcontrol.controllers.backends.daqp.row_identity.carried_set`) instead of
         by index."""
         self._num_vars, self._rows = int(num_vars), inequalities
 

@@ -14,7 +14,7 @@ again whenever that structure changes:
   ``H`` handed over at every step (:meth:`DaqpBlocks.solve_dense`);
 - several blocks or general rows (the predictive controllers): a new ``H`` would cost DAQP
   a dense factorisation, cubic in p (n+1), so the QP goes over as the equivalent
-  least-distance problem (:mod:`~dqcontrol.controllers.backends.least_distance`), whose
+  least-distance problem (:mod:`~dqcontrol.controllers.backends.daqp.least_distance`), whose
   ``H`` never changes; the problem as it is where a block is not positive definite.
 """
 
@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from dqcontrol._compiled import compiled
 from dqcontrol.controllers.backends.base import refused_bounds
-from dqcontrol.controllers.backends.least_distance import block_ldp, ldp_solution
+from dqcontrol.controllers.backends.daqp.least_distance import block_ldp, ldp_solution
 from dqcontrol.controllers.core.problem import BlockQP, Solution
 from dqcontrol.controllers.core.task_kernels import scatter_blocks, scatter_symmetric
 from dqcontrol.errors import ParameterError
@@ -90,7 +90,7 @@ class DaqpBlocks:
 
     ``block_size`` declares ``P`` block diagonal with blocks of that size: each solve then
     hands DAQP the equivalent least-distance problem
-    (:mod:`~dqcontrol.controllers.backends.least_distance`; DAQP's ``H`` stays the
+    (:mod:`~dqcontrol.controllers.backends.daqp.least_distance`; DAQP's ``H`` stays the
     identity, so a new ``P`` costs no dense refactorisation), and falls back to the
     problem as it is where a block is not positive definite. Both give the same optimum
     (to ~1e-11 here).

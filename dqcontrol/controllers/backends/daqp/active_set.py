@@ -9,7 +9,7 @@ For ``min ½ zᵀ P z + cᵀ z  s.t.  lower ≤ A z ≤ upper`` with ``P`` posit
 computed with a factor ``P = F Fᵀ`` (``Y = F⁻¹ A_Wᵀ``, ``g = F⁻¹ c``: the system is
 ``YᵀY λ = -(b_W + Yᵀ g)`` and ``z = -F⁻ᵀ (g + Y λ)``): the dense Cholesky factor ``L``, or
 the first level's factor in the predicted states
-(:mod:`~dqcontrol.controllers.backends.state_factor`). A factor is the tuple ``(L,
+(:mod:`~dqcontrol.controllers.backends.daqp.state_factor`). A factor is the tuple ``(L,
 diagonal, below, inverse_scales)``, the last three empty for a dense one
 (:func:`dense_factor`). The point is *the* optimum of the QP exactly when the KKT
 conditions hold: every row within its bounds and every multiplier of the right sign (``λ ≥
@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from dqcontrol._compiled import compiled
-from dqcontrol.controllers.backends.state_factor import (
+from dqcontrol.controllers.backends.daqp.state_factor import (
     state_backward,
     state_forward,
     state_forward_rows,
