@@ -398,8 +398,8 @@ class QPController(Controller):
                 plan_s = np.minimum(np.maximum(s_plan, 0.0), self.s_max)
             else:
                 plan_s = np.ones(p)
-        self.prediction_model.commit(plan_qd, plan_s)
-        return plan_qd.copy(), plan_s.copy()
+        self.prediction_model.commit(plan_qd, plan_s)  # a copy: the result keeps these
+        return plan_qd, plan_s
 
     # ------------------------------------------------------------------ inspection
     def last_problem(self) -> Problem:

@@ -55,4 +55,5 @@ class PredictionModel(ABC):
 
     @abstractmethod
     def commit(self, qd: np.ndarray, s: np.ndarray) -> None:
-        """Remember the plan ``qd`` ``(p, n)``, ``s`` ``(p,)`` chosen this step."""
+        """Remember the plan ``qd`` ``(p, n)``, ``s`` ``(p,)`` chosen this step (a copy:
+        the caller keeps the arrays it passed)."""
