@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from test_core_levels_properties import _problem
 
-from dqcontrol.controllers.core.levels import reduced_qp
+from dqcontrol.controllers.core.levels import level_in_basis
 from dqcontrol.controllers.core.problem import DecisionLayout, Residual, objective
 from dqcontrol.controllers.core.reduced import (
     nonzero_entries,
@@ -120,7 +120,8 @@ def test_the_reduced_qp_is_the_level_in_the_basis(seed):
     held = np.vstack([r.dense(problem.layout) for r in problem.levels[0].residuals if r.held])
     basis = null_space(held)
     point = rng.normal(size=nv)
-    qp = reduced_qp(problem, 1, point, basis)
+    reduced = level_in_basis(problem, 1, point, basis)
+    qp = reduced.dense(reduced.objective())
     p_mat, c = objective(problem.layout, problem.levels[1].residuals)
     dim = basis.shape[1]
     scale = max(1.0, np.abs(p_mat).max())

@@ -57,7 +57,7 @@ __all__ = [
     "build_problem",
     "held_rows",
     "level_qp",
-    "reduced_qp",
+    "level_in_basis",
     "residual_values",
     "solve_levels",
 ]
@@ -264,11 +264,10 @@ def _narrowed(
     return basis @ null_space(held)
 
 
-def reduced_qp(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> DenseQP:
-    """Level ``k``'s QP in ``y`` with ``z = point + basis y``: ``y`` has no bounds of its
-    own, every row of the problem's ``A`` is a general row."""
-    reduced = _reduced(problem, k, point, basis)
-    return reduced.dense(reduced.objective())
+def level_in_basis(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> ReducedQP:
+    """Level ``k`` in ``z = point + basis y`` as its parts (its dense QP: ``y`` has no
+    bounds of its own, every row of the problem's ``A`` is a general row)."""
+    return _reduced(problem, k, point, basis)
 
 
 def _reduced(problem: Problem, k: int, point: np.ndarray, basis: np.ndarray) -> ReducedQP:
