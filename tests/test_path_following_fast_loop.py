@@ -52,16 +52,21 @@ def test_the_states_within_the_full_weight_time_weigh_fully(lbr4p, period_s):
         assert (weights > shrinking).sum() == ends.size - 1
 
 
-def _first_step_message(robot, gap_rad: float) -> str:
-    """The first step's message with joint 1 ``gap_rad`` inside its upper bound, moving
-    towards it at 1 rad/s (braking at 5 rad/s² needs about 0.1 rad)."""
+def _first_step(robot, gap_rad: float):
+    """The controller and its first step with joint 1 ``gap_rad`` inside its upper bound,
+    moving towards it at 1 rad/s (braking at 5 rad/s² needs about 0.1 rad)."""
     ctrl = _controller(robot, 0.01, tuning=PathFollowingTuning(position_slack_rad=1e-3))
     q0 = LBR4P_Q0.copy()
     q0[0] = ctrl.q_max[0] - gap_rad
     qd0 = np.zeros(7)
     qd0[0] = 1.0
     ctrl.reset(q0, qd0)
-    result = ctrl.step(q0, qd0)
+    return ctrl, ctrl.step(q0, qd0)
+
+
+def _first_step_message(robot, gap_rad: float) -> str:
+    """The first step's message (:func:`_first_step`)."""
+    result = _first_step(robot, gap_rad)[1]
     assert not result.diagnostics.fallback
     assert result.qd_command[0] <= 1.0 + 1e-9
     return result.diagnostics.message
@@ -124,13 +129,7 @@ def test_last_problem_is_the_problem_solved_with_its_remedy(lbr4p):
     """Where the predicted position rows had to be dropped, the problem the step solved, and
     that ``last_problem`` gives, has none; where they were kept, it has them."""
     for gap_rad, kept in ((0.3, True), (0.0, False)):
-        ctrl = _controller(lbr4p, 0.01, tuning=PathFollowingTuning(position_slack_rad=1e-3))
-        q0 = LBR4P_Q0.copy()
-        q0[0] = ctrl.q_max[0] - gap_rad
-        qd0 = np.zeros(7)
-        qd0[0] = 1.0
-        ctrl.reset(q0, qd0)
-        result = ctrl.step(q0, qd0)
+        ctrl, result = _first_step(lbr4p, gap_rad)
         names = {g.name for g in ctrl.last_problem().inequalities}
         assert ("predicted_position" in names) == kept, (gap_rad, names)
         assert result.diagnostics.relaxed == (not kept)

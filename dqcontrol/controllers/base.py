@@ -33,6 +33,7 @@ __all__ = [
     "acceleration_setting",
     "check_position_margin",
     "check_positive",
+    "joint_limit_settings",
     "fast_constructor",
     "per_joint",
 ]
@@ -176,6 +177,26 @@ def check_position_margin(margin_rad: float, q_min: np.ndarray, q_max: np.ndarra
             f"got {margin_rad!r}"
         )
     return m
+
+
+def joint_limit_settings(
+    robot: RobotModel, velocity_limits, position_margin_rad: float
+) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """``(margin, q_min, q_max, qd_max)``: the URDF's position limits shrunk by the checked
+    margin [rad], and ``velocity_limits`` [rad/s] (scalar or per joint; ``None``: the URDF's,
+    which must then be positive and finite)."""
+    lim = robot.limits
+    margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
+    if velocity_limits is None:
+        qd_max = lim.qd_max.copy()
+        if np.any(qd_max <= 0.0) or not np.all(np.isfinite(qd_max)):
+            raise ParameterError(
+                "the URDF gives no positive velocity limit for some joints "
+                f"({lim.qd_max}); pass velocity_limits [rad/s]"
+            )
+    else:
+        qd_max = per_joint("velocity_limits", velocity_limits, robot.nq, "rad/s")
+    return margin, lim.q_min + margin, lim.q_max - margin, qd_max
 
 
 def fast_constructor(cls: type[_T], **required: object) -> Callable[..., _T]:

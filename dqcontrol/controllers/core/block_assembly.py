@@ -6,11 +6,11 @@ and the limits (docs/theory.md §7.5).
 
 - *terms*: the ``constant`` ones are evaluated once into a constant Hessian and linear
   term; at each step the others add their blocks through their fast path
-  (:meth:`~dqcontrol.controllers.core.problem.Term.add_gram`), or through their rows;
+  (:meth:`~dqcontrol.controllers.terms.term.Term.add_gram`), or through their rows;
 - *limits*: the ``constant`` ones are merged once into a template of the bounds; at each
   step the others tighten a copy of it, soft ones first and hard ones last (the conflict
-  rule), through their fast paths (:meth:`~dqcontrol.controllers.core.problem.Limit.tighten`,
-  :meth:`~dqcontrol.controllers.core.problem.Limit.row_bounds`) or through their rows.
+  rule), through their fast paths (:meth:`~dqcontrol.controllers.limits.limit.Limit.tighten`,
+  :meth:`~dqcontrol.controllers.limits.limit.Limit.row_bounds`) or through their rows.
 
 The numbers are those :func:`~dqcontrol.controllers.core.levels.build_problem` gives (up to the
 order of floating-point sums); its :class:`~dqcontrol.controllers.core.problem.Problem` stays the

@@ -29,9 +29,8 @@ from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.base import (
     StepResult,
     acceleration_setting,
-    check_position_margin,
     check_positive,
-    per_joint,
+    joint_limit_settings,
 )
 from dqcontrol.controllers.core.context import StepContext, aligned_kinematics
 from dqcontrol.controllers.core.problem import Level, Problem, Residual
@@ -107,21 +106,6 @@ def _tightened(levels: tuple[Level, ...]) -> tuple[Level, ...]:
     return (dataclasses.replace(path, tolerance=STALL_TIGHTENING * path.tolerance), *levels[1:])
 
 
-def _limit_settings(robot: RobotModel, velocity_limits, position_margin_rad: float):
-    lim = robot.limits
-    margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
-    if velocity_limits is None:
-        qd_max = lim.qd_max.copy()
-        if np.any(qd_max <= 0.0) or not np.all(np.isfinite(qd_max)):
-            raise ParameterError(
-                f"the URDF gives no positive velocity limit for some joints ({lim.qd_max}); "
-                "pass velocity_limits [rad/s]"
-            )
-    else:
-        qd_max = per_joint("velocity_limits", velocity_limits, robot.nq, "rad/s")
-    return margin, lim.q_min + margin, lim.q_max - margin, qd_max
-
-
 class PathFollowingController(QPController):
     """Path first, progress second, posture third, over a consistent prediction.
 
@@ -149,7 +133,7 @@ class PathFollowingController(QPController):
             acceleration reserve): :class:`PathFollowingTuning`, whose defaults are the
             measured choices of docs/theory.md §8.
         extra_terms: more terms, added to the lowest (posture) level.
-        extra_limits: more limits (any :class:`~dqcontrol.controllers.core.problem.Limit`).
+        extra_limits: more limits (any :class:`~dqcontrol.controllers.limits.limit.Limit`).
         solver: a registered backend's name (``"daqp"``, the default, or ``"osqp"``:
             :func:`~dqcontrol.controllers.backends.base.backend_names`);
             ``solver_settings`` for it.
@@ -205,7 +189,7 @@ class PathFollowingController(QPController):
             if torque_limit_fraction is None
             else _in_range("torque_limit_fraction", torque_limit_fraction, 0.0, 1.0, "-")
         )
-        self.position_margin_rad, self.q_min, self.q_max, self.qd_max = _limit_settings(
+        self.position_margin_rad, self.q_min, self.q_max, self.qd_max = joint_limit_settings(
             robot, velocity_limits, position_margin_rad
         )
         self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)

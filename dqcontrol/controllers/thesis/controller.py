@@ -34,9 +34,8 @@ import numpy as np
 from dqcontrol.controllers.backends.base import DEFAULT_SOLVER, check_backend_name
 from dqcontrol.controllers.base import (
     acceleration_setting,
-    check_position_margin,
     check_positive,
-    per_joint,
+    joint_limit_settings,
 )
 from dqcontrol.controllers.core.problem import DecisionLayout, DenseQP, Level
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
@@ -70,22 +69,6 @@ AccelerationSetting = float | np.ndarray | Literal["dynamics"]
 
 #: How far lower levels may move each held row of a higher level (``priority="strict"``).
 STRICT_TOLERANCE = 1e-7
-
-
-def _joint_limits(robot: RobotModel, velocity_limits, position_margin_rad: float) -> tuple:
-    """``(margin, q_min, q_max, qd_max)`` from the URDF, the margin and ``velocity_limits``."""
-    lim = robot.limits
-    margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
-    if velocity_limits is None:
-        qd_max = lim.qd_max.copy()
-        if np.any(qd_max <= 0.0) or not np.all(np.isfinite(qd_max)):
-            raise ParameterError(
-                "the URDF gives no positive velocity limit for some joints "
-                f"({lim.qd_max}); pass velocity_limits [rad/s]"
-            )
-    else:
-        qd_max = per_joint("velocity_limits", velocity_limits, robot.nq, "rad/s")
-    return margin, lim.q_min + margin, lim.q_max - margin, qd_max
 
 
 def _instants(instants_s) -> np.ndarray:
@@ -147,7 +130,7 @@ class TrackingController(QPController):
             scaling ≻ damping as three levels; needs ``regularization > 0`` and
             ``scaling_weight > 0``).
         extra_terms: more terms, added to the lowest level.
-        extra_limits: more limits (any :class:`~dqcontrol.controllers.core.problem.Limit`).
+        extra_limits: more limits (any :class:`~dqcontrol.controllers.limits.limit.Limit`).
 
     ``q_min``, ``q_max``, ``qd_max``, ``braking_aware``, ``gain_per_s`` and ``task_weight``
     are read at every step; the constant terms (``scaling_weight``, ``regularization``)
@@ -201,7 +184,9 @@ class TrackingController(QPController):
         self.scaling = bool(scaling)
         self.instants_s = _instants(instants_s)
         self.p = self.instants_s.size
-        margin, q_min, q_max, qd_max = _joint_limits(robot, velocity_limits, position_margin_rad)
+        margin, q_min, q_max, qd_max = joint_limit_settings(
+            robot, velocity_limits, position_margin_rad
+        )
         self.position_margin_rad = margin
         self._set_acceleration(robot.nq, acceleration_limit, acceleration_floor, acceleration_cap)
         layout = self._layout(robot.nq, period_s)
