@@ -53,12 +53,24 @@ class JointLimits:
             ``inf`` for a continuous joint.
         qd_max: symmetric velocity limit [rad/s].
         effort_max: symmetric torque limit [N·m].
+        qdd_max: symmetric acceleration limit [rad/s²]; ``inf`` where none is given (a
+            URDF gives none).
+        qddd_max: symmetric jerk limit of the commanded velocity [rad/s³]; ``inf`` where
+            none is given (a URDF gives none).
     """
 
     q_min: np.ndarray
     q_max: np.ndarray
     qd_max: np.ndarray
     effort_max: np.ndarray
+    qdd_max: np.ndarray | None = None
+    qddd_max: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = np.shape(self.q_min)[0]
+        for name in ("qdd_max", "qddd_max"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, np.full(n, np.inf))
 
 
 class RobotModel:
