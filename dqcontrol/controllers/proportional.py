@@ -12,7 +12,7 @@ arithmetic, so it is written for few calls: both Hamilton matrices from the targ
 one product, the box in one compiled call (:func:`_clip_to_box`: the joint box and the
 acceleration bound with its conflict rule, the kernels of the QP controllers' limits,
 ``joint_box.near_limit_box`` and ``intersect_hard``), the results built without per-field
-``__setattr__``. ``tests/test_proportional_fast.py`` checks it against the plain
+``__setattr__``. ``tests/controllers/test_proportional.py`` checks it against the plain
 computation.
 """
 
