@@ -118,7 +118,9 @@ class RunContacts:
         closest = record.get("closest") or {}
         pair = closest.get("pair")
         links = closest.get("links")
-        has_columns = columns is not None and all(k in columns for k in CONTACT_COLUMNS)
+        per_sample = None
+        if columns is not None and all(k in columns for k in CONTACT_COLUMNS):
+            per_sample = {k: columns[k] for k in CONTACT_COLUMNS}
         return cls(
             obstacles=tuple(record.get("obstacles") or ()),
             self_collision=bool(record.get("self_collision")),
@@ -129,7 +131,7 @@ class RunContacts:
             closest_pair=(str(pair[0]), str(pair[1])) if pair else None,
             closest_links=(str(links[0]), str(links[1])) if links else None,
             closest_t_s=_float_or_none(closest.get("t_s")),
-            per_sample={k: columns[k] for k in CONTACT_COLUMNS} if has_columns else None,
+            per_sample=per_sample,
         )
 
     def summary(self) -> str:
