@@ -40,6 +40,7 @@ from dqcontrol.cli.run_output import (
     progress_bar,
     progress_callback,
     show_progress,
+    with_contacts,
     write_results,
 )
 from dqcontrol.experiments.thesis import THESIS_VELOCITY_LIMITS
@@ -292,6 +293,7 @@ def _main(args: argparse.Namespace) -> int:
             _run_controller(label, args, robot, q0, robot_meta, velocity, viewer, out)
             for label in args.controllers
         ]
+        runs = with_contacts(runs, robot, args._collision)
         written = _write_results(runs, robot, out, args, name)
         _print_summary(args, name, robot, runs)
         print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
@@ -435,7 +437,7 @@ def _print_summary(args: argparse.Namespace, name: str, robot, runs: list) -> No
             "with the obstacles)"
         )
         for label, result, _ in runs:
-            print("  " + collision_report(label, robot, collision, result.log.q))
+            print("  " + collision_report(label, result))
 
 
 def _replay_last(viewer, runs: list, args: argparse.Namespace) -> None:

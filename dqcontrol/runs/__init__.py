@@ -5,6 +5,7 @@ to an MCAP file as the run goes (:class:`StreamRecorder`; docs/run_logs.md).
 """
 
 from dqcontrol.runs.bounds import bounds_of
+from dqcontrol.runs.contacts import ContactKind, RunContacts, contacts_text, loaded_contacts
 from dqcontrol.runs.log import LogRecorder, RunLog
 from dqcontrol.runs.mcap_log import RunLogWriteError
 from dqcontrol.runs.metrics import BoundSpec, Metrics, compute_metrics
@@ -15,8 +16,10 @@ from dqcontrol.runs.streamed_run import load_streamed
 
 __all__ = [
     "BoundSpec",
+    "ContactKind",
     "LogRecorder",
     "Metrics",
+    "RunContacts",
     "RunLog",
     "RunLogWriteError",
     "StreamRecorder",
@@ -24,8 +27,10 @@ __all__ = [
     "atomic_write_text",
     "bounds_of",
     "compute_metrics",
+    "contacts_text",
     "load_run",
     "load_streamed",
+    "loaded_contacts",
     "save_run",
     "streamed_metrics",
 ]

@@ -27,6 +27,7 @@ from dqcontrol.sim.model_faults import (
 )
 from dqcontrol.sim.mujoco_loop import run_mujoco
 from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation, ServoGains
+from dqcontrol.sim.run_contacts import measure_contacts
 
 __all__ = [
     "BridgeDriver",
@@ -50,6 +51,7 @@ __all__ = [
     "TorqueLimitDriver",
     "VelocityFromPosition",
     "joint_map",
+    "measure_contacts",
     "run_kinematic",
     "run_loop",
     "run_mujoco",
