@@ -18,7 +18,9 @@ Wire format, version 1 (every number little-endian; docs/drivers.md has the tabl
   1 = brake, 2 = hold (zero velocity); answered by ``STATE``;
 - ``STATE`` (5, server → client): ``t`` [s], ``q[n]``, ``qd[n]``, ``torque[n]``,
   ``torque_peak[n]``, all ``f64``; its sequence number is that of the message it answers;
-- ``ERROR`` (6, server → client): the reason, UTF-8; status: the reason's code;
+- ``ERROR`` (6, server → client): the reason, UTF-8; status: the reason's code (1: a bad
+  packet, 2: the driver failed, 3: a reflex — the command was refused, the arm is stopped,
+  motion is refused until ``RESET``; its sequence number is that of the command);
 - ``DESCRIBE`` (7, client → server): the header only; answered by ``DESCRIPTION`` (8): a
   JSON object, UTF-8, describing what is served (:meth:`SimServer.describe`: robot, joints,
   period, simulator, drive, faults, server and protocol versions). A server that does not
@@ -28,7 +30,9 @@ Both ends reject a packet of the wrong length, magic, version, kind or joint cou
 non-finite number, or (client) with a sequence number other than the one awaited (a
 duplicate, a reordered or a late reply), and count it by reason; neither ever raises on
 one. The server answers a repeated command (same sequence number as the last executed)
-with the same state, without stepping again.
+with the same state, without stepping again. A server with reflexes
+(:class:`~dqcontrol.sim.reflexes.Reflexes`) checks every command like a real arm; the
+client raises :class:`ReflexError` at a reflex.
 """
 
 from __future__ import annotations
@@ -43,12 +47,14 @@ import numpy as np
 
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.sim.mujoco_sim import Measurement
+from dqcontrol.sim.reflexes import Reflexes
 
 __all__ = [
     "HEADER",
     "PROTOCOL_VERSION",
     "BridgeDriver",
     "BridgeError",
+    "ReflexError",
     "SimServer",
     "decode",
     "encode_command",
@@ -62,11 +68,18 @@ MAGIC = b"DQ"
 HEADER = struct.Struct("<2sBBIHH")
 HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION = 1, 2, 3, 4, 5, 6, 7, 8
 TRACK, BRAKE, HOLD = 0, 1, 2
+#: ``ERROR`` status of a reflex (a refused command; the arm stopped until ``RESET``).
+REFLEX = 3
 _KINDS = {HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION}
 
 
 class BridgeError(DQControlError):
     """The bridge could not be set up (no server, no answer to ``HELLO``, a bad address)."""
+
+
+class ReflexError(BridgeError):
+    """The sim-server refused a command as a real arm would: its reflex fired (the message
+    names the violation); the arm is stopped until the next reset."""
 
 
 class PacketError(ValueError):
@@ -184,6 +197,8 @@ class SimServer:
             says which).
         description: entries added to :meth:`describe` (e.g. the robot's name); JSON
             values.
+        reflexes: check every command like a real arm
+            (:class:`~dqcontrol.sim.reflexes.Reflexes`); ``None``: execute any command.
 
     Raises:
         ParameterError: a description that JSON cannot carry.
@@ -193,13 +208,20 @@ class SimServer:
     """
 
     def __init__(
-        self, driver, address: str = "tcp://127.0.0.1:0", description: dict | None = None
+        self,
+        driver,
+        address: str = "tcp://127.0.0.1:0",
+        description: dict | None = None,
+        reflexes: Reflexes | None = None,
     ) -> None:
         zmq = _zmq()
         self.driver = driver
         self.joint_names = tuple(driver.joint_names)
         self.n = len(self.joint_names)
+        self.reflexes = reflexes
         self._description = dict(description or {})
+        if reflexes is not None:
+            self._description.setdefault("reflexes", reflexes.profile)
         self._described = self._encode_description()
         self._ctx = zmq.Context.instance()
         self._sock = self._ctx.socket(zmq.ROUTER)
@@ -287,15 +309,17 @@ class SimServer:
                 return _header(DESCRIPTION, seq, self.n) + self._described[HEADER.size :]
             if kind == RESET:
                 m = self.driver.reset(body)
+                if self.reflexes is not None:
+                    self.reflexes.reset()
             elif kind == COMMAND:
                 if seq == self._last_seq and self._last_state is not None:
                     self.rejected["duplicate"] += 1
                     return self._last_state
-                if status == HOLD:
-                    self.driver.hold()
-                else:
-                    assert isinstance(body, np.ndarray), "decode gives a command's floats"
-                    self.driver.write(body[: self.n])
+                assert isinstance(body, np.ndarray), "decode gives a command's floats"
+                refused = self._execute(status, body[: self.n])
+                if refused is not None:
+                    self.rejected["reflex"] += 1
+                    return _header(ERROR, seq, 0, REFLEX) + refused.encode()
                 m = self.driver.read()
             else:
                 raise PacketError("unexpected kind")
@@ -308,6 +332,31 @@ class SimServer:
         self.served += 1
         self._last_seq, self._last_state = seq, encode_state(seq, m)
         return self._last_state
+
+    def _execute(self, status: int, qd: np.ndarray) -> str | None:
+        """Run one command (``HOLD``: a zero command); with reflexes, the reason it was
+        refused (the arm then held), else ``None``. A held arm may always be held."""
+        hold = status == HOLD
+        reflexes = self.reflexes
+        refused = None if reflexes is None else reflexes.refusal()
+        if reflexes is None or (hold and refused is not None):
+            self._move(hold, qd)
+            return None
+        if refused is None:
+            refused = reflexes.command(self.driver.read().t_s, np.zeros(self.n) if hold else qd)
+        if refused is None:
+            self._move(hold, qd)
+            m = self.driver.read()
+            refused = reflexes.position(m.t_s, m.q)
+        if refused is not None:
+            self.driver.hold()
+        return refused
+
+    def _move(self, hold: bool, qd: np.ndarray) -> None:
+        if hold:
+            self.driver.hold()
+        else:
+            self.driver.write(qd)
 
     def __enter__(self) -> SimServer:
         return self
@@ -336,6 +385,8 @@ class BridgeDriver:
             duplicated, reordered or late replies, ``"wrong length"``, ``"wrong version"``,
             ``"non-finite value"``, ``"wrong joint count"``, ``"server error: …"`` ...).
         timeouts: commands whose state did not arrive within ``timeout_s``.
+        reflex: the server's message when its reflex fired (``""``: it did not); a
+            command it refuses raises :class:`ReflexError`.
     """
 
     def __init__(
@@ -350,6 +401,7 @@ class BridgeDriver:
         self._sock.connect(self.address)
         self.rejected: Counter[str] = Counter()
         self.timeouts = 0
+        self.reflex = ""
         self._seq = 0
         self._last: Measurement | None = None
         self.n = 0
@@ -373,8 +425,12 @@ class BridgeDriver:
         return {"simulator": "bridge", "address": self.address, "server": dict(self.server)}
 
     def report(self) -> dict:
-        """Counters for the run log: rejected packets by reason, timeouts."""
-        return {"rejected": dict(self.rejected), "timeouts": self.timeouts}
+        """Counters for the run log: rejected packets by reason, timeouts, and the server's
+        reflex (``"reflex"``, only when one fired)."""
+        report: dict = {"rejected": dict(self.rejected), "timeouts": self.timeouts}
+        if self.reflex:
+            report["reflex"] = self.reflex
+        return report
 
     def close(self) -> None:
         """Close the connection (idempotent)."""
@@ -393,10 +449,13 @@ class BridgeDriver:
                 self.timeouts += 1
                 return None
             try:
-                kind, got, _status, body = decode(self._sock.recv(), self.n or None)
+                kind, got, status, body = decode(self._sock.recv(), self.n or None)
             except PacketError as exc:
                 self.rejected[exc.reason] += 1
                 continue
+            if kind == ERROR and status == REFLEX and got == seq:
+                self.reflex = str(body)
+                raise ReflexError(f"the sim-server's {body}")
             if kind == ERROR:
                 self.rejected[f"server error: {body}"] += 1
                 if error_ends:
@@ -429,6 +488,7 @@ class BridgeDriver:
 
     def reset(self, q0: np.ndarray) -> Measurement:
         """Reset the served simulation at ``q0`` [rad] (server's joint order)."""
+        self.reflex = ""
         self._state(_header(RESET, self._next(), self.n) + _floats(q0))
         if self._last is None:
             raise BridgeError(f"no answer to reset from {self.address}")
