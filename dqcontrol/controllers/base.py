@@ -177,6 +177,7 @@ def robot_acceleration_limit(robot: RobotModel, acceleration_limit, default):
     if acceleration_limit is not None:
         return acceleration_limit
     qdd_max = robot.limits.qdd_max
+    assert qdd_max is not None, "JointLimits fills it"
     finite = np.isfinite(qdd_max)
     if isinstance(default, str) or not finite.any():
         return default

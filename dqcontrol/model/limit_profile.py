@@ -150,8 +150,12 @@ def _parse(data: dict, path: str, stem: str) -> LimitProfile:
     names = tuple(r[0] for r in rows)
     if len(set(names)) != len(names):
         raise ProfileError(f"{where}: a joint is named twice in {list(names)}")
-    cols = [np.array([r[i] for r in rows], dtype=float) for i in range(1, 6)]
-    return LimitProfile(name, source.strip(), names, *cols, periods_s=periods, path=path)
+    q_min, q_max, qd_max, qdd_max, qddd_max = (
+        np.array([r[i] for r in rows], dtype=float) for i in range(1, 6)
+    )
+    return LimitProfile(
+        name, source.strip(), names, q_min, q_max, qd_max, qdd_max, qddd_max, periods, path
+    )
 
 
 def _periods(value, where: str) -> tuple[float, ...]:

@@ -60,7 +60,7 @@ def _monitor(
         q_min, q_max, qd_max, qdd_max, qddd_max = (a[order] for a in arrays)
     else:
         q_min, q_max, qd_max = limits.q_min, limits.q_max, limits.qd_max
-        qdd_max, qddd_max = limits.qdd_max, limits.qddd_max
+        qdd_max, qddd_max = limits.qdd_max, limits.qddd_max  # type: ignore[assignment]
     return CommandMonitor(
         names, period_s, qd_max, q_min=q_min, q_max=q_max, qdd_max=qdd_max, qddd_max=qddd_max
     )

@@ -44,6 +44,7 @@ class Reflexes:
         ``velocity_only``: only the velocity limit is checked."""
         order = [robot.joint_names.index(name) for name in joint_names]
         lim = robot.limits
+        assert lim.qdd_max is not None and lim.qddd_max is not None, "JointLimits fills them"
         # a URDF velocity of 0 means "not given" (as for the controllers): not checked
         qd_max = np.where(lim.qd_max > 0.0, lim.qd_max, np.inf)[order]
         if velocity_only:
