@@ -172,3 +172,22 @@ def test_the_cli_refuses_a_bad_profile_with_exit_code_2(tmp_path, capsys):
             main(["run", "--robot", "panda", "--limits", option, "--out", str(tmp_path)])
         assert info.value.code == 2
         assert "--limits" in capsys.readouterr().err
+
+
+def test_a_run_records_its_profile_and_the_checker_reads_it(tmp_path, capsys):
+    from dqcontrol.runs.storage import load_run
+
+    argv = ["run", "--robot", "panda", "--limits", "franka_panda", "--simulator", "kinematic"]
+    argv += ["--period", "0.001", "--duration", "0.3", "--controllers", "local", "--short"]
+    assert main([*argv, "--no-viewer", "--out", str(tmp_path)]) == 0
+    (saved,) = tmp_path.glob("**/local.json")
+    log, _ = load_run(saved)
+    profile = load_profile("franka_panda")
+    assert log.meta["limits"] == "franka_panda"
+    np.testing.assert_array_equal(log.meta["velocity_limits"], profile.qd_max)
+    acc = np.abs(np.diff(np.vstack((np.zeros(7), log.qd_command)), axis=0)) / 0.001
+    assert np.all(acc <= profile.qdd_max * (1 + 1e-9))  # the profile's acceleration flowed in
+    capsys.readouterr()
+    code = main(["check", str(saved)])
+    out = capsys.readouterr().out
+    assert code == 1 and "check FAIL" in out and "against 'franka_panda'" in out

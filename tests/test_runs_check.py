@@ -222,3 +222,23 @@ def test_the_cli_refuses_bad_input_with_exit_code_2(tmp_path, capsys):
         assert main(argv) == 2, argv
         assert word in capsys.readouterr().err, argv
     assert main(["check", path, "--limits", limits, "--period", "0.01"]) == 0
+
+
+def test_the_cli_defaults_to_the_runs_profile_and_urdf_means_the_urdfs_limits(tmp_path, capsys):
+    from dqcontrol.model.library import PANDA_Q0
+
+    panda = [f"panda_joint{k}" for k in range(1, 8)]
+    u = np.zeros((3, 7))
+    u[0] = 0.01  # from rest: 10 rad/s² and 10000 rad/s³, beyond Franka's jerk, no URDF limit
+    log = _log(np.zeros((3, 2)))
+    arrays = {**log.arrays(), "q": np.tile(PANDA_Q0, (3, 1)), "qd_command": u}
+    arrays.update(qd_measured=np.zeros((3, 7)), torque=np.zeros((3, 7)))
+    arrays.update(torque_peak=np.zeros((3, 7)))
+    np.savez(tmp_path / "run.npz", **arrays)
+    meta = {"robot": "panda", "limits": "franka_panda", "period_s": 0.001, "joint_names": panda}
+    record = {"format": "dqcontrol-run", "version": 1, "npz": "run.npz", "meta": meta}
+    (tmp_path / "run.json").write_text(json.dumps(record), encoding="utf-8")
+    assert main(["check", str(tmp_path / "run.json")]) == 1
+    assert "against 'franka_panda'" in capsys.readouterr().out
+    assert main(["check", str(tmp_path / "run.json"), "--limits", "urdf"]) == 0
+    assert "check PASS run.json: 3 samples at T = 0.001 s against 'urdf'" in capsys.readouterr().out

@@ -91,8 +91,8 @@ def _limits(option: str | None, meta: dict):
     profile = load_profile(option or meta.get("limits") or "urdf")
     if not profile.is_urdf:
         return profile.name, profile
-    try:
-        robot = robot_from_meta(meta)
+    try:  # the robot as its URDF describes it, whatever profile the run had
+        robot = robot_from_meta({k: v for k, v in meta.items() if k != "limits"})
     except ParameterError as exc:
         raise ParameterError(
             f"{exc}; without its robot, check against a profile: --limits NAME|FILE.toml"
