@@ -143,3 +143,19 @@ def test_the_cli_refuses_a_period_the_profiles_robot_does_not_accept(capsys):
         main(["sim-server", "--robot", "panda", "--limits", "franka_panda", "--period", "0.05"])
     assert info.value.code == 2
     assert "accepts control periods of 0.001 s" in capsys.readouterr().err
+
+
+def test_the_mujoco_driver_in_this_process_with_a_profile(panda):
+    from dqcontrol.sim import MujocoDriver
+    from dqcontrol.sim.reflexes import ReflexDriver
+
+    robot, reflexes = _profiled(panda)
+    driver = ReflexDriver(MujocoDriver(robot, T), reflexes)
+    controller = LocalController(robot, Circle(1.0), T)  # no jerk limit: the first step trips
+    result = run_loop(controller, driver, q0=PANDA_Q0, warm_up=False)
+    assert result.reason == "simulation" and "reflex (franka_panda limits): jerk" in result.note
+    assert result.log.meta["driver_report"]["reflex"] in result.note
+    assert result.log.meta["reflexes"] == "franka_panda"
+    assert reflexes.fired.sample == len(result.log)  # the command of the first unlogged sample
+    with pytest.raises(ReflexError, match="send RESET"):
+        driver.write(np.zeros(robot.nq))

@@ -42,12 +42,13 @@ import struct
 import threading
 import time
 from collections import Counter
+from typing import Any
 
 import numpy as np
 
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.sim.mujoco_sim import Measurement
-from dqcontrol.sim.reflexes import Reflexes
+from dqcontrol.sim.reflexes import ReflexDriver, ReflexError, Reflexes
 
 __all__ = [
     "HEADER",
@@ -75,11 +76,6 @@ _KINDS = {HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION}
 
 class BridgeError(DQControlError):
     """The bridge could not be set up (no server, no answer to ``HELLO``, a bad address)."""
-
-
-class ReflexError(BridgeError):
-    """The sim-server refused a command as a real arm would: its reflex fired (the message
-    names the violation); the arm is stopped until the next reset."""
 
 
 class PacketError(ValueError):
@@ -215,13 +211,11 @@ class SimServer:
         reflexes: Reflexes | None = None,
     ) -> None:
         zmq = _zmq()
-        self.driver = driver
+        self.driver: Any = driver if reflexes is None else ReflexDriver(driver, reflexes)
         self.joint_names = tuple(driver.joint_names)
         self.n = len(self.joint_names)
         self.reflexes = reflexes
         self._description = dict(description or {})
-        if reflexes is not None:
-            self._description.setdefault("reflexes", reflexes.profile)
         self._described = self._encode_description()
         self._ctx = zmq.Context.instance()
         self._sock = self._ctx.socket(zmq.ROUTER)
@@ -309,54 +303,30 @@ class SimServer:
                 return _header(DESCRIPTION, seq, self.n) + self._described[HEADER.size :]
             if kind == RESET:
                 m = self.driver.reset(body)
-                if self.reflexes is not None:
-                    self.reflexes.reset()
             elif kind == COMMAND:
                 if seq == self._last_seq and self._last_state is not None:
                     self.rejected["duplicate"] += 1
                     return self._last_state
-                assert isinstance(body, np.ndarray), "decode gives a command's floats"
-                refused = self._execute(status, body[: self.n])
-                if refused is not None:
-                    self.rejected["reflex"] += 1
-                    return _header(ERROR, seq, 0, REFLEX) + refused.encode()
+                if status == HOLD:
+                    self.driver.hold()
+                else:
+                    assert isinstance(body, np.ndarray), "decode gives a command's floats"
+                    self.driver.write(body[: self.n])
                 m = self.driver.read()
             else:
                 raise PacketError("unexpected kind")
         except PacketError as exc:
             self.rejected[exc.reason] += 1
             return _header(ERROR, 0, 0, 1) + exc.reason.encode()
+        except ReflexError as exc:
+            self.rejected["reflex"] += 1
+            return _header(ERROR, seq, 0, REFLEX) + str(exc).encode()
         except Exception as exc:  # noqa: BLE001 - the server reports, it does not stop
             self.rejected["driver error"] += 1
             return _header(ERROR, 0, 0, 2) + f"{type(exc).__name__}: {exc}".encode()
         self.served += 1
         self._last_seq, self._last_state = seq, encode_state(seq, m)
         return self._last_state
-
-    def _execute(self, status: int, qd: np.ndarray) -> str | None:
-        """Run one command (``HOLD``: a zero command); with reflexes, the reason it was
-        refused (the arm then held), else ``None``. A held arm may always be held."""
-        hold = status == HOLD
-        reflexes = self.reflexes
-        refused = None if reflexes is None else reflexes.refusal()
-        if reflexes is None or (hold and refused is not None):
-            self._move(hold, qd)
-            return None
-        if refused is None:
-            refused = reflexes.command(self.driver.read().t_s, np.zeros(self.n) if hold else qd)
-        if refused is None:
-            self._move(hold, qd)
-            m = self.driver.read()
-            refused = reflexes.position(m.t_s, m.q)
-        if refused is not None:
-            self.driver.hold()
-        return refused
-
-    def _move(self, hold: bool, qd: np.ndarray) -> None:
-        if hold:
-            self.driver.hold()
-        else:
-            self.driver.write(qd)
 
     def __enter__(self) -> SimServer:
         return self

@@ -5,17 +5,29 @@
 commands, the arm at rest at each reset) and the simulated arm's position after each
 period. The first violation *fires the reflex*: the server stops the arm (holds it) and
 answers an error naming the violation; every later motion command is refused until the
-next reset (:class:`~dqcontrol.sim.bridge.SimServer`).
+next reset. :class:`ReflexDriver` gives any simulated driver these reflexes (the MuJoCo
+driver in this process, or the one a :class:`~dqcontrol.sim.bridge.SimServer` serves): a
+refused command raises :class:`ReflexError`, which stops
+:func:`~dqcontrol.sim.loop.run_loop` with the reflex in its note and in
+``meta["driver_report"]["reflex"]``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from dqcontrol.errors import DQControlError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.runs.reflexes import CommandMonitor, Violation
+from dqcontrol.sim.mujoco_sim import Measurement
 
-__all__ = ["Reflexes"]
+__all__ = ["ReflexDriver", "ReflexError", "Reflexes"]
+
+
+class ReflexError(DQControlError):
+    """A command refused as a real arm would refuse it: its reflex fired (the message names
+    the violation: kind, joint, sample, value and limit); the arm is stopped until the next
+    reset."""
 
 
 class Reflexes:
@@ -87,3 +99,75 @@ class Reflexes:
             f"reflex ({self.profile} limits): {self.fired.describe()}; the arm is stopped, "
             "commands are refused until RESET"
         )
+
+
+class ReflexDriver:
+    """A simulated driver with a real arm's reflexes (:class:`Reflexes`).
+
+    Args:
+        driver: a simulated driver (``reset``, ``write``, ``hold``, ``read``, ``period_s``,
+            ``joint_names``).
+        reflexes: the checks, in the driver's joint order.
+
+    ``write`` checks the command, then the arm's position after the period; ``hold`` is a
+    zero command (accepted without check once the reflex has fired: the arm is held). At
+    the first violation the arm is held and :class:`ReflexError` raised; every later
+    ``write`` raises it until ``reset``.
+    """
+
+    def __init__(self, driver, reflexes: Reflexes) -> None:
+        self.driver = driver
+        self.reflexes = reflexes
+        self.joint_names = tuple(driver.joint_names)
+        self.period_s = driver.period_s
+        self.message = ""
+
+    @property
+    def meta(self) -> dict:
+        """The driver's ``meta`` and the limits checked (``"reflexes"``)."""
+        return {**dict(getattr(self.driver, "meta", {})), "reflexes": self.reflexes.profile}
+
+    def report(self) -> dict:
+        """The driver's own report and, once it fired, the reflex (``"reflex"``)."""
+        own = getattr(self.driver, "report", None)
+        report = dict(own()) if callable(own) else {}
+        if self.message:
+            report["reflex"] = self.message
+        return report
+
+    def reset(self, q0: np.ndarray) -> Measurement:
+        """Reset the arm at rest at ``q0`` [rad]; the reflexes re-armed."""
+        self.reflexes.reset()
+        self.message = ""
+        return self.driver.reset(q0)
+
+    def read(self) -> Measurement:
+        """The driver's latest measurement."""
+        return self.driver.read()
+
+    def write(self, qd_command: np.ndarray) -> None:
+        """Execute the command [rad/s] for one period, or raise :class:`ReflexError`."""
+        self._move(np.asarray(qd_command, dtype=float), hold=False)
+
+    def hold(self) -> None:
+        """Hold the arm for one period (a zero command)."""
+        if self.reflexes.fired is not None:
+            self.driver.hold()
+            return
+        self._move(np.zeros(len(self.joint_names)), hold=True)
+
+    def _move(self, u: np.ndarray, hold: bool) -> None:
+        reflexes = self.reflexes
+        refused = reflexes.refusal()
+        if refused is None:
+            refused = reflexes.command(self.driver.read().t_s, u)
+        if refused is None:
+            self.driver.hold() if hold else self.driver.write(u)
+            m = self.driver.read()
+            refused = reflexes.position(m.t_s, m.q)
+            if refused is None:
+                return
+        self.driver.hold()
+        if not self.message:
+            self.message = refused
+        raise ReflexError(refused)
