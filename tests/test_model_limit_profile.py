@@ -87,7 +87,7 @@ def test_the_figures_are_the_vendors():
     assert np.all(np.isinf(iiwa7.qdd_max)) and iiwa7.periods_s[-1] == 0.005
     ur10e = load_profile("ur10e")
     np.testing.assert_allclose(np.degrees(ur10e.qd_max), [120, 120, 180, 180, 180, 180])
-    np.testing.assert_allclose(ur10e.q_max, 2 * math.pi)
+    np.testing.assert_allclose(ur10e.q_max, [2 * math.pi] * 2 + [math.pi] + [2 * math.pi] * 3)
     assert ur10e.joint_names[0] == "shoulder_pan_joint" and ur10e.periods_s == (0.002,)
 
 
@@ -191,3 +191,13 @@ def test_a_run_records_its_profile_and_the_checker_reads_it(tmp_path, capsys):
     code = main(["check", str(saved)])
     out = capsys.readouterr().out
     assert code == 1 and "check FAIL" in out and "against 'franka_panda'" in out
+
+
+@pytest.mark.parametrize(("spec", "name"), [("erd:ur5", "ur5e"), ("erd:ur10", "ur10e")])
+def test_the_ur_profiles_fit_the_ur_arms_of_example_robot_data(spec, name):
+    from dqcontrol.cli.robot_options import RobotRequest, load_robot
+
+    robot, _, _ = load_robot(RobotRequest(spec, ee_frame="tool0", limits=name))
+    profile = load_profile(name)
+    np.testing.assert_array_equal(robot.limits.qd_max, profile.qd_max)
+    assert robot.limits.q_max[2] == pytest.approx(math.pi) and robot.limit_profile == name

@@ -38,6 +38,8 @@ __all__ = [
 
 #: The name of the profile that keeps the URDF's own limits.
 URDF_PROFILE = "urdf"
+#: Relative tolerance of the comparison of a profile's entry with the URDF's.
+URDF_TOLERANCE = 1e-7
 #: The per-joint keys of a profile, their unit, and whether "unbounded" is accepted.
 _ENTRIES = (
     ("velocity_rad_s", "rad/s", False),
@@ -239,7 +241,8 @@ def fitted_limits(
 
 def _check_within(name: str, joints, mine: tuple[np.ndarray, ...], urdf) -> None:
     """:class:`ProfileError` at the first entry of ``mine`` looser than the URDF's (to a
-    relative 1e-9)."""
+    relative :data:`URDF_TOLERANCE`: a URDF's figures are written to about 8 digits, e.g.
+    π as 3.14159265)."""
     entries = (
         ("position min", "rad", -1.0),
         ("position max", "rad", 1.0),
@@ -249,7 +252,7 @@ def _check_within(name: str, joints, mine: tuple[np.ndarray, ...], urdf) -> None
         for j, (value, limit) in enumerate(zip(values, limits, strict=True)):
             if unit == "rad/s" and not limit > 0.0:
                 continue  # the URDF gives no velocity limit: any profile's is tighter
-            slack = 1e-9 * max(1.0, abs(limit)) if math.isfinite(limit) else 0.0
+            slack = URDF_TOLERANCE * max(1.0, abs(limit)) if math.isfinite(limit) else 0.0
             if sign * value > sign * limit + slack:
                 raise ProfileError(
                     f"limit profile {name!r} is looser than the URDF: joint {joints[j]!r}, "
