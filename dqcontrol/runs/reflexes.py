@@ -1,8 +1,8 @@
 """What a real arm's controller checks on the stream of commands it receives.
 
 A robot receives joint-velocity commands ``u_k`` at period ``T`` and differentiates them
-(docs/theory.md, "Commands a real arm accepts"): per joint it refuses the stream — a
-*reflex* — as soon as one of
+(docs/user_guide.md, "Robot limit profiles"): per joint it refuses the stream — a *reflex*
+— as soon as one of
 
 * position: ``q_min ≤ q_k ≤ q_max`` (the measured joint position),
 * velocity: ``|u_k| ≤ v̄``,
