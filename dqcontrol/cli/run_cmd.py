@@ -73,6 +73,7 @@ examples:
   dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10,pf
   dqcontrol run --period 0.001                      the 1 kHz controller
   dqcontrol run --robot panda --simulator kinematic
+  dqcontrol run --robot panda --limits franka_panda --period 0.001 --controllers pf
   dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0 \
       --package-dir ~/ws/src
   dqcontrol run --robot erd:ur5 --ee-frame tool0 --q0=0,-1.2,1.5,-1.9,-1.57,0
@@ -193,7 +194,8 @@ def _check_options(args) -> tuple:
     spec = args.velocity_limits
     if spec is None:
         thesis_arm = robot_meta["robot"] == "lbr4p" and n == len(THESIS_VELOCITY_LIMITS)
-        spec = "thesis" if thesis_arm else "urdf"
+        spec = "thesis" if thesis_arm and robot.limit_profile == "urdf" else "urdf"
+    _note_period(args, robot)
     if spec == "thesis":
         if n != len(THESIS_VELOCITY_LIMITS):
             parser.error(
@@ -228,6 +230,22 @@ def _check_options(args) -> tuple:
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)
     return robot, q0, robot_meta, velocity
+
+
+def _note_period(args, robot) -> None:
+    """A note on stderr when the limit profile's robot does not accept ``--period``."""
+    if args.limits is None:
+        return
+    from dqcontrol.model.limit_profile import load_profile
+
+    profile = load_profile(args.limits)
+    if not profile.accepts_period(args.period):
+        accepted = ", ".join(f"{p:g}" for p in profile.periods_s)
+        print(
+            f"dqcontrol run: note: the robot of limit profile {profile.name!r} accepts control "
+            f"periods of {accepted} s, not --period {args.period:g}",
+            file=sys.stderr,
+        )
 
 
 def _collision_model(args, robot, q0):
