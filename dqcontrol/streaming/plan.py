@@ -9,7 +9,7 @@ stream (``start_k``), from the state the stream will have reached there.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,6 +44,11 @@ class Plan:
     qd: np.ndarray
     s: np.ndarray
     stop_after_first: bool = False
+    #: the breakpoints ``[0, Δ_0, Δ_0 + Δ_1, …]`` [s], the states there ``(p + 1, n)`` [rad]
+    #: and the phase there ``(p + 1,)`` [s] (derived)
+    ends_s: np.ndarray = field(init=False, repr=False)
+    q_at: np.ndarray = field(init=False, repr=False)
+    sigma_at: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         ends = np.concatenate(([0.0], np.cumsum(self.durations_s)))
@@ -51,21 +56,21 @@ class Plan:
             (np.zeros((1, self.q_start.size)), np.cumsum(self.durations_s[:, None] * self.qd, 0))
         )
         sigma_at = self.sigma_start + np.concatenate(([0.0], np.cumsum(self.durations_s * self.s)))
-        object.__setattr__(self, "_ends", ends)
-        object.__setattr__(self, "_q_at", q_at)
-        object.__setattr__(self, "_sigma_at", sigma_at)
+        object.__setattr__(self, "ends_s", ends)
+        object.__setattr__(self, "q_at", q_at)
+        object.__setattr__(self, "sigma_at", sigma_at)
 
     @property
     def duration_s(self) -> float:
         """The horizon ``τ_p`` [s]."""
-        return float(self._ends[-1])  # type: ignore[attr-defined]
+        return float(self.ends_s[-1])
 
     def states(self) -> np.ndarray:
         """The predicted joint positions at the breakpoints ``(p + 1, n)`` [rad]."""
-        return self._q_at.copy()  # type: ignore[attr-defined]
+        return self.q_at.copy()
 
     def _index(self, tau_s: float) -> int:
-        ends = self._ends  # type: ignore[attr-defined]
+        ends = self.ends_s
         return int(min(max(np.searchsorted(ends, tau_s, side="right") - 1, 0), ends.size - 2))
 
     def velocity(self, tau_s: float) -> np.ndarray:
@@ -88,7 +93,7 @@ class Plan:
 
     def position(self, tau_s: float) -> np.ndarray:
         """The joint positions at plan time ``tau_s`` [rad] (held past the end)."""
-        ends, q_at = self._ends, self._q_at  # type: ignore[attr-defined]
+        ends, q_at = self.ends_s, self.q_at
         tau = min(max(tau_s, 0.0), self.duration_s)
         i = self._index(tau)
         if i > 0 and self.stop_after_first:
@@ -98,7 +103,7 @@ class Plan:
     def phase(self, tau_s: float) -> float:
         """The phase ``σ`` at plan time ``tau_s`` [s] (held past the end; a fallback plan
         holds it after its first interval)."""
-        ends, sigma_at = self._ends, self._sigma_at  # type: ignore[attr-defined]
+        ends, sigma_at = self.ends_s, self.sigma_at
         tau = min(max(tau_s, 0.0), self.duration_s)
         i = self._index(tau)
         if i > 0 and self.stop_after_first:

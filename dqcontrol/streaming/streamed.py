@@ -13,6 +13,7 @@ sends, and a plan starts one plan period after its measurement.
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass
 
@@ -32,6 +33,9 @@ from dqcontrol.streaming.streamer import Streamer, StreamSample
 from dqcontrol.streaming.tracker import JerkLimitedTracker
 
 __all__ = ["StreamDiagnostics", "StreamedController", "streamed"]
+
+#: The interpreter's thread switch interval while a planner thread runs [s].
+SWITCH_INTERVAL_S = 5e-5
 
 
 @dataclass(frozen=True)
@@ -104,17 +108,31 @@ class StreamedController(Controller):
         self._next_id = 1
         self.streamer_times_s: list[float] = []
         self.ages_s: list[float] = []
+        self.lateness_s: list[float] = []
+        self._t0: float | None = None
+        self._thread_stats: dict = {}
 
     # ------------------------------------------------------------------ modes
     def use_wall_clock(self, on: bool) -> None:
         """Plan in a thread of its own, each plan one plan period after its measurement
         (``on``), or in the caller's thread (stepped: deterministic)."""
         self._wall_clock = bool(on)
+        if on and self._thread is None and self._reset_done:
+            self._thread, self._t0 = PlannerThread(self.planner), None
+            # the planner thread runs Python between its compiled parts: hand the
+            # interpreter back to the streamer within SWITCH_INTERVAL_S, not the 5 ms default
+            self._switch_before = sys.getswitchinterval()
+            sys.setswitchinterval(SWITCH_INTERVAL_S)
 
     def close(self) -> None:
         """Stop the planner thread (if any)."""
         if self._thread is not None:
+            sys.setswitchinterval(self._switch_before)
             self._thread.close()
+            self._thread_stats = {
+                "planner_busy_skips": self._thread.busy_skips,
+                "planner_error": self._thread.error,
+            }
             self._thread = None
 
     @property
@@ -130,11 +148,11 @@ class StreamedController(Controller):
         self.planner.step_times_s.clear()
         self.streamer_times_s.clear()
         self.ages_s.clear()
+        self.lateness_s.clear()
         self._next_id = 1
         request = project(self.streamer, q0, qd0, 0, self._take_id())
         self.streamer.offer(self.planner.plan(request))  # the first plan, before the clock
-        if self._wall_clock:
-            self._thread = PlannerThread(self.planner)
+        self._t0 = None
 
     def _take_id(self) -> int:
         self._next_id += 1
@@ -144,7 +162,10 @@ class StreamedController(Controller):
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
         streamer, k = self.streamer, self.streamer.k
+        streamer.take_due()
         qd_meas = np.zeros(self.n) if qd is None else qd
+        if self._wall_clock and self._t0 is None:
+            self._t0 = start
         if self._thread is not None:
             plan = self._thread.take()
             if plan is not None:
@@ -156,7 +177,10 @@ class StreamedController(Controller):
             request = project(streamer, q, qd_meas, self.lead_k, self._take_id())
             streamer.offer(self.planner.plan(request))
         sample = streamer.step()
-        spent = time.perf_counter() - start
+        now = time.perf_counter()
+        spent = now - start
+        if self._t0 is not None:  # the command's time after the sample's place on the grid
+            self.lateness_s.append(now - (self._t0 + k * self.period_s))
         self.streamer_times_s.append(spent)
         self.ages_s.append(sample.plan_age_s)
         return self._result(q, sample, spent)
@@ -206,15 +230,21 @@ class StreamedController(Controller):
             "plan_age_max_ms": 1e3 * float(np.max(ages)),
             "playout": self.streamer.playout_note,
         }
-        if self._thread is not None:
-            out["planner_busy_skips"] = self._thread.busy_skips
-            out["planner_error"] = self._thread.error
+        if self.lateness_s:
+            late = 1e3 * np.asarray(self.lateness_s)
+            out["lateness_median_ms"] = float(np.median(late))
+            out["lateness_p99_ms"] = float(np.percentile(late, 99))
+            out["lateness_max_ms"] = float(np.max(late))
+            out["late_commands"] = int(np.sum(late > 1e3 * self.period_s))
+        out.update(self._thread_stats)
         return out
 
 
 def _limit(name: str, value, default: np.ndarray, n: int) -> np.ndarray:
     if value is None:
         return np.array(default, dtype=float)
+    if np.all(np.isinf(np.asarray(value, dtype=float)) & (np.asarray(value, dtype=float) > 0)):
+        return np.full(n, np.inf)
     return per_joint(name, value, n, name.split("_")[0] + " limit")
 
 

@@ -8,7 +8,7 @@ has integrated back onto the plan's, and sends what the
 at its start sample (a blend: the tracker carries the command and its acceleration over);
 a plan offered after its start is refused and counted. With no new plan for
 ``patience_k`` samples it plays the last plan out: plan time slows to a stop along the
-plan's own joint path (a stop on the path), using half of what is left of the horizon.
+plan's own joint path (a stop on the path), within the limits and the plan's horizon.
 """
 
 from __future__ import annotations
@@ -17,10 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dqcontrol.streaming.kernels import stream_period
 from dqcontrol.streaming.plan import Plan
 from dqcontrol.streaming.tracker import JerkLimitedTracker
 
 __all__ = ["StreamSample", "Streamer"]
+
+#: The shortest play-out [periods].
+STOP_MIN_PERIODS = 20
 
 
 @dataclass(frozen=True)
@@ -97,11 +101,15 @@ class Streamer:
         """Whether the last plan is being played out to rest (no newer plan came)."""
         return bool(self.playout_note)
 
-    def step(self) -> StreamSample:
-        """The command of sample ``k``; advances to ``k + 1``."""
+    def take_due(self) -> None:
+        """Switch to the pending plan if it starts at this sample."""
         pending = self.pending
         if pending is not None and pending.start_k <= self.k:
             self._switch(pending)
+
+    def step(self) -> StreamSample:
+        """The command of sample ``k``; advances to ``k + 1``."""
+        self.take_due()
         plan = self.plan
         if plan is None:
             u = self.tracker.step(np.zeros_like(self.q))
@@ -121,28 +129,38 @@ class Streamer:
 
     def _begin_playout(self, plan: Plan) -> None:
         left_s = max(plan.duration_s - self.tau_s, self.period_s)
-        self.rate_step = self.period_s / left_s
+        self.rate_step = self.period_s / min(left_s, self._stop_time_s(plan))
         waited_ms = 1e3 * (self.k - plan.start_k) * self.period_s
         self.playout_note = (
             f"no new plan for {waited_ms:.0f} ms: playing out plan {plan.plan_id} to rest "
             f"along its path from sample {self.k}"
         )
 
+    def _stop_time_s(self, plan: Plan) -> float:
+        """How long the play-out's slowing takes [s]: at least twice what the acceleration
+        limit needs from the present command to rest, plus the jerk's ramps, and at least
+        ``STOP_MIN_PERIODS`` periods: the plan's nearest part, where it is closest to the
+        path, is the part played."""
+        tr = self.tracker
+        u = np.abs(tr.u)
+        a_max = tr.qdd_max
+        jerk = tr.jerk_step / self.period_s
+        need = np.where(np.isfinite(a_max), 2.0 * u / a_max, 0.0)
+        need = need + np.where(np.isfinite(jerk) & np.isfinite(a_max), 2.0 * a_max / jerk, 0.0)
+        return max(float(np.max(need)), STOP_MIN_PERIODS * self.period_s)
+
     def _play(self, plan: Plan) -> StreamSample:
-        T, tau0 = self.period_s, self.tau_s
-        rate = self.rate
-        tau1 = tau0 + rate * T
-        # the mean velocity of the period at this rate, and the pull onto the plan
-        wanted = rate * plan.mean_velocity(tau0, tau1) if rate > 0.0 else np.zeros_like(self.q)
-        error = plan.position(tau0) - self.q
-        u = self.tracker.step(wanted + self.gain_per_s * error)
-        self.q += T * u
-        sigma, sigma_next = plan.phase(tau0), plan.phase(tau1)
+        T, rate, tr = self.period_s, self.rate, self.tracker
+        tau1, sigma, sigma_next = stream_period(
+            plan.ends_s, plan.q_at, plan.qd, plan.sigma_at, plan.s, plan.stop_after_first,
+            self.tau_s, rate, self.gain_per_s, T,
+            self.q, tr.u, tr.a, tr.qd_max, tr.qdd_max, tr.jerk_step,
+        )  # fmt: skip
+        u = tr.u.copy()
         self.tau_s = tau1
-        if self.playing_out:
-            self.rate = max(rate - self.rate_step, 0.0)
         mode = "plan"
         if self.playing_out:
+            self.rate = max(rate - self.rate_step, 0.0)
             mode = "stopped" if rate == 0.0 and float(np.max(np.abs(u))) < 1e-9 else "playout"
         age = (self.k * T) - plan.made_s
         self.k += 1
