@@ -4,6 +4,8 @@ stops answering played out to rest on the path, bad input refused."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -57,24 +59,24 @@ def test_stepped_runs_are_deterministic_and_within_the_limits(lbr4p, lead):
     assert np.max(dev) < 1e-3
 
 
-def test_a_planner_that_stops_answering_is_played_out_to_rest_on_the_path(lbr4p):
-    c = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0)
+@pytest.mark.parametrize("planner_in", ["thread", "process"])
+def test_a_planner_that_stops_answering_is_played_out_to_rest_on_the_path(lbr4p, planner_in):
+    c = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0,
+                 planner_in=planner_in)  # fmt: skip
     q = LBR4P_Q0.copy()
     c.reset(q)
-    c.use_wall_clock(True)  # a planner thread, clocked here by hand
+    c.use_wall_clock(True)  # a planner thread or process, clocked here by hand
     try:
         results = []
         for k in range(3000):
             if k == 100:
-                c._thread.gate.clear()  # the planner blocks from here on
+                c._thread.pause()  # the planner stops answering from here on
             r = c.step(q)
             results.append(r)
             q = q + 0.001 * r.qd_command
             if c.done:
                 break
-            if k < 100:  # give the thread its time, as the wall clock would
-                import time
-
+            if k < 100:  # give the planner its time, as the wall clock would
                 time.sleep(0.002)
     finally:
         c.close()
@@ -89,7 +91,9 @@ def test_a_planner_that_stops_answering_is_played_out_to_rest_on_the_path(lbr4p)
     assert np.all(q > lbr4p.limits.q_min) and np.all(q < lbr4p.limits.q_max)
     dev = c.trajectory.path_deviation(translation(lbr4p.pose(q))[None, :])
     assert float(dev[0]) < 1e-3
-    assert "no new plan" in c.report()["playout"]
+    report = c.report()
+    assert "no new plan" in report["playout"]
+    assert report["plans_used"] > 1  # the planner answered before it stopped
 
 
 @pytest.mark.parametrize(

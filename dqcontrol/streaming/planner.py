@@ -1,10 +1,15 @@
 """The planner: the path-following controller run at its own period ``T_p`` from the latest
 measurement projected to the plan's start by the stream already committed (docs/theory.md
-§12.1), in the caller's thread (stepped mode) or a thread of its own (wall clock).
+§12.1), in the caller's thread (stepped mode), or on the wall clock in a process of its
+own (the default: measured, docs/theory.md §12.5) or a thread.
 """
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
+import signal
 import threading
 import time
 from dataclasses import dataclass
@@ -15,7 +20,7 @@ from dqcontrol.controllers.path_following.controller import PathFollowingControl
 from dqcontrol.streaming.plan import Plan, plan_from_result
 from dqcontrol.streaming.streamer import Streamer
 
-__all__ = ["PlanRequest", "Planner", "PlannerThread", "project"]
+__all__ = ["PlanRequest", "Planner", "PlannerProcess", "PlannerThread", "project"]
 
 
 @dataclass(frozen=True)
@@ -129,6 +134,10 @@ class PlannerThread:
             plan, self._done = self._done, None
         return plan
 
+    def pause(self) -> None:
+        """Block the planner before its next plan: it stops answering."""
+        self.gate.clear()
+
     def close(self) -> None:
         """End the thread (a blocked planner is released first)."""
         self._closed = True
@@ -153,3 +162,95 @@ class PlannerThread:
                 return
             with self._lock:
                 self._done, self._busy = plan, False
+
+
+class PlannerProcess:
+    """A :class:`Planner` in a process of its own (forked with the controller's state):
+    the same :meth:`request`/:meth:`take` as :class:`PlannerThread`, through a pipe, so
+    that the planner's compiled code and solver, which hold the interpreter's lock while
+    they run, never hold up the streamer (docs/theory.md §12.5). :meth:`pause` stops the
+    process (a test of the play-out); :meth:`close` ends it."""
+
+    def __init__(self, planner: Planner) -> None:
+        ctx = multiprocessing.get_context("fork")
+        self.planner = planner
+        self._conn, child = ctx.Pipe()
+        self._process = ctx.Process(
+            target=_serve, args=(planner, child), name="dqcontrol-planner", daemon=True
+        )
+        self._process.start()
+        child.close()
+        self._busy = False
+        self._done: Plan | None = None
+        self.busy_skips = 0
+        self.error = ""
+
+    def request(
+        self, stream: Streamer, q: np.ndarray, qd: np.ndarray, lead_k: int, plan_id: int
+    ) -> bool:
+        """As :meth:`PlannerThread.request`."""
+        if not self._collect() or self.error:
+            self.busy_skips += 1
+            return False
+        try:
+            self._conn.send((stream, q, qd, lead_k, plan_id))
+        except OSError as exc:
+            self.error = f"the planner process is gone ({exc})"
+            return False
+        self._busy = True
+        return True
+
+    def take(self) -> Plan | None:
+        """The plan finished since the last call, or ``None``."""
+        self._collect()
+        plan, self._done = self._done, None
+        return plan
+
+    def pause(self) -> None:
+        """Stop the process where it is (``SIGSTOP``): the planner stops answering."""
+        if self._process.pid is not None:
+            os.kill(self._process.pid, signal.SIGSTOP)
+
+    def close(self) -> None:
+        """End the process (killed if it does not end within a second)."""
+        with contextlib.suppress(OSError):
+            self._conn.send(None)
+        self._process.join(timeout=1.0)
+        if self._process.is_alive():
+            self._process.kill()
+            self._process.join(timeout=1.0)
+        self._conn.close()
+
+    def _collect(self) -> bool:
+        """Receive a finished plan if one is there; whether the planner is free."""
+        if not self._busy or not self._conn.poll():
+            return not self._busy
+        try:
+            message = self._conn.recv()
+        except (EOFError, OSError):
+            self.error = "the planner process ended"
+            return False
+        if isinstance(message, str):
+            self.error = message
+            return False
+        self._done, step_s = message
+        self.planner.step_times_s.append(step_s)
+        self._busy = False
+        return True
+
+
+def _serve(planner: Planner, conn) -> None:
+    """The planner process: a plan for every request until ``None`` or the pipe closes."""
+    while True:
+        try:
+            request = conn.recv()
+        except (EOFError, OSError):
+            return
+        if request is None:
+            return
+        try:
+            plan = planner.plan(project(*request))
+        except Exception as exc:  # noqa: BLE001 - reported; the streamer plays out
+            conn.send(f"{type(exc).__name__}: {exc}")
+            return
+        conn.send((plan, planner.step_times_s[-1]))

@@ -28,7 +28,7 @@ from dqcontrol.controllers.base import (
 )
 from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.errors import ParameterError
-from dqcontrol.streaming.planner import Planner, PlannerThread, project
+from dqcontrol.streaming.planner import Planner, PlannerProcess, PlannerThread, project
 from dqcontrol.streaming.streamer import Streamer, StreamSample
 from dqcontrol.streaming.tracker import JerkLimitedTracker
 
@@ -81,6 +81,7 @@ class StreamedController(Controller):
         lead_periods: int = 0,
         patience_plans: int = 2,
         feedback_s: float | None = None,
+        planner_in: str = "process",
     ) -> None:
         num = _plan_periods(planner, period_s)
         super().__init__(planner.robot, planner.task, period_s)
@@ -98,12 +99,15 @@ class StreamedController(Controller):
                 f"{lead_periods!r}"
             )
         self.lead_periods = int(lead_periods)
+        if planner_in not in ("process", "thread"):
+            raise ParameterError(f"planner_in must be 'process' or 'thread', got {planner_in!r}")
+        self.planner_in = planner_in
         tracker = JerkLimitedTracker(self.qd_max, self.qdd_max, self.qddd_max, self.period_s)
         feedback = 2.0 * self.plan_period_s if feedback_s is None else feedback_s
         feedback = check_positive("feedback_s", feedback, "s")
         self.streamer = Streamer(tracker, feedback, num * (1 + int(patience_plans)))
         self.planner = Planner(planner)
-        self._thread: PlannerThread | None = None
+        self._thread: PlannerThread | PlannerProcess | None = None
         self._wall_clock = False
         self._next_id = 1
         self.streamer_times_s: list[float] = []
@@ -118,8 +122,9 @@ class StreamedController(Controller):
         (``on``), or in the caller's thread (stepped: deterministic)."""
         self._wall_clock = bool(on)
         if on and self._thread is None and self._reset_done:
-            self._thread, self._t0 = PlannerThread(self.planner), None
-            # the planner thread runs Python between its compiled parts: hand the
+            kind = PlannerProcess if self.planner_in == "process" else PlannerThread
+            self._thread, self._t0 = kind(self.planner), None
+            # a planner thread runs Python between its compiled parts: hand the
             # interpreter back to the streamer within SWITCH_INTERVAL_S, not the 5 ms default
             self._switch_before = sys.getswitchinterval()
             sys.setswitchinterval(SWITCH_INTERVAL_S)
@@ -259,7 +264,8 @@ def streamed(
     Options: ``acceleration_max``, ``jerk_max`` (per joint or scalar [rad/s²], [rad/s³];
     default the robot's ``qdd_max``, ``qddd_max``, infinite when not given),
     ``lead_periods`` (stepped mode: 0, or ``T_p/T`` to start each plan one plan period
-    after its measurement as on the wall clock), ``patience_plans`` (plan periods without a
+    after its measurement as on the wall clock), ``planner_in`` (on the wall clock:
+    ``"process"``, the default, or ``"thread"``), ``patience_plans`` (plan periods without a
     new plan before the play-out), ``feedback_s`` (the pull onto the plan's positions).
 
     Raises:
