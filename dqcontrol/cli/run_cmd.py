@@ -42,6 +42,7 @@ from dqcontrol.cli.run_output import (
     show_progress,
     write_results,
 )
+from dqcontrol.cli.stream_options import check_stream_options, streamed_from_args
 from dqcontrol.experiments.thesis import THESIS_VELOCITY_LIMITS
 from dqcontrol.registry import CONTROLLER_HELP
 
@@ -146,7 +147,11 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
         from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
 
         shared["servo_time_constant_s"] = SERVO_TIME_CONSTANT_S
-    return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+    plan_period = getattr(args, "plan_period", None)
+    if plan_period is None:
+        return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+    planner = build_controller(name, robot, trajectory, plan_period, shared=shared, **extra)
+    return streamed_from_args(planner, args)
 
 
 def run_connected(args, controller, q0, meta: dict, on_progress, log_file=None):
@@ -226,6 +231,7 @@ def _check_options(args) -> tuple:
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)
+    check_stream_options(args)
     return robot, q0, robot_meta, velocity
 
 

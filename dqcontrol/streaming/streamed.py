@@ -13,6 +13,7 @@ sends, and a plan starts one plan period after its measurement.
 
 from __future__ import annotations
 
+import copy
 import sys
 import time
 from dataclasses import dataclass
@@ -140,6 +141,17 @@ class StreamedController(Controller):
             }
             self._thread = None
 
+    def __deepcopy__(self, memo: dict) -> StreamedController:
+        """A copy that streams the plans it holds and cannot plan (a solver's state cannot
+        be copied): what a loop's warm-up needs, one stepped period."""
+        twin = copy.copy(self)
+        twin.streamer = self.streamer.copy()
+        twin.planner = None  # type: ignore[assignment]
+        twin._thread, twin._wall_clock, twin._t0 = None, False, None
+        twin.streamer_times_s, twin.ages_s, twin.lateness_s = [], [], []
+        twin.qd_prev = self.qd_prev.copy()
+        return twin
+
     @property
     def lead_k(self) -> int:
         """Samples from a plan's measurement to its start."""
@@ -157,6 +169,7 @@ class StreamedController(Controller):
         self._next_id = 1
         request = project(self.streamer, q0, qd0, 0, self._take_id())
         self.streamer.offer(self.planner.plan(request))  # the first plan, before the clock
+        self.streamer.copy().step()  # loads the compiled period before the clock, too
         self._t0 = None
 
     def _take_id(self) -> int:

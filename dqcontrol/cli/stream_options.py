@@ -1,0 +1,65 @@
+"""The options of a streamed run (``--plan-period``, ``--jerk-limit``): the path-following
+controller plans every ``T_p`` and its plans are streamed every ``--period`` (docs/theory.md
+§12, docs/streaming.md)."""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["add_stream_options", "check_stream_options", "streamed_from_args"]
+
+
+def add_stream_options(group) -> None:
+    """Add ``--plan-period`` and ``--jerk-limit`` to the argument ``group``."""
+    from dqcontrol.cli.run_options import positive_float
+
+    group.add_argument(
+        "--plan-period",
+        type=positive_float("s"),
+        default=None,
+        metavar="T_P",
+        help="plan every T_P [s] (a whole multiple of --period) and stream the plans every "
+        "--period: path following only (default: solve every period)",
+    )
+    group.add_argument(
+        "--jerk-limit",
+        type=positive_float("rad/s^3"),
+        default=None,
+        metavar="J",
+        help="with --plan-period: joint jerk bound of the stream [rad/s^3] (default: the "
+        "robot's, none when it gives none; --acceleration-limit bounds its acceleration)",
+    )
+
+
+def check_stream_options(args: argparse.Namespace) -> None:
+    """Parser error (exit 2) for a plan period shorter than ``--period`` or not a whole
+    multiple of it, or a controller without a consistent plan."""
+    from dqcontrol.controllers.path_following.controller import PathFollowingController
+    from dqcontrol.registry import controller_spec
+
+    parser = args._parser
+    if args.plan_period is None:
+        if args.jerk_limit is not None:
+            parser.error("--jerk-limit bounds the stream of --plan-period: give --plan-period")
+        return
+    ratio = args.plan_period / args.period
+    if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+        parser.error(
+            f"--plan-period must be a whole multiple >= 1 of --period {args.period:g} s "
+            f"(e.g. {max(round(ratio), 1) * args.period:g}), got {args.plan_period:g}"
+        )
+    for name in args.controllers:
+        if not issubclass(controller_spec(name).cls, PathFollowingController):
+            parser.error(
+                f"--plan-period: {name} has no consistent plan to stream (its horizon is "
+                "predicted from its previous plan); choose path following (--controllers pf)"
+            )
+
+
+def streamed_from_args(planner, args: argparse.Namespace):
+    """``planner`` (built with ``period_s = --plan-period``) streamed at ``--period``."""
+    from dqcontrol.streaming import streamed
+
+    return streamed(
+        planner, args.period, acceleration_max=args.acceleration_limit, jerk_max=args.jerk_limit
+    )
