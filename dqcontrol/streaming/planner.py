@@ -20,7 +20,14 @@ from dqcontrol.controllers.path_following.controller import PathFollowingControl
 from dqcontrol.streaming.plan import Plan, plan_from_result
 from dqcontrol.streaming.streamer import Streamer
 
-__all__ = ["PlanRequest", "Planner", "PlannerProcess", "PlannerThread", "project"]
+__all__ = [
+    "PlanRequest",
+    "Planner",
+    "PlannerProcess",
+    "PlannerThread",
+    "choose_plan_period",
+    "project",
+]
 
 
 @dataclass(frozen=True)
@@ -254,3 +261,10 @@ def _serve(planner: Planner, conn) -> None:
             conn.send(f"{type(exc).__name__}: {exc}")
             return
         conn.send((plan, planner.step_times_s[-1]))
+
+
+def choose_plan_period(step_times_s, period_s: float, margin: float = 2.0) -> float:
+    """The shortest plan period [s] that is a whole multiple of ``period_s`` and at least
+    ``margin`` times the 99th percentile of the measured planner ``step_times_s``."""
+    p99 = float(np.percentile(np.asarray(step_times_s, dtype=float), 99))
+    return max(1, int(np.ceil(margin * p99 / period_s - 1e-9))) * period_s
