@@ -109,3 +109,38 @@ def test_a_controller_without_a_consistent_plan_is_refused(lbr4p):
     local = LocalController(lbr4p, Circle(2.0), 0.01, velocity_limits=QD_MAX)
     with pytest.raises(ParameterError, match="consistent plan"):
         streamed(local, 0.001)
+
+
+def test_the_log_records_plan_id_and_age_per_sample(lbr4p, tmp_path):
+    from dqcontrol.runs import load_run
+
+    c = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0)
+    memory = run_kinematic(c, LBR4P_Q0, max_time_s=0.05)
+    c = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0)
+    streamed_file = run_kinematic(c, LBR4P_Q0, max_time_s=0.05, log_file=tmp_path / "run.mcap")
+    loaded, _ = load_run(streamed_file.log_file)
+    for log in (memory.log, loaded):
+        assert log.plan_id.tolist() == [k // 10 + 1 for k in range(50)]
+        np.testing.assert_allclose(log.plan_age_s, [0.001 * (k % 10) for k in range(50)])
+        assert np.all(np.isnan(log.lateness_s))  # stepped: no wall clock
+    synchronous = run_kinematic(_pf(lbr4p, 0.01), LBR4P_Q0, max_time_s=0.05)
+    assert synchronous.log.plan_id is None
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        ["--plan-period", "0.0015"],
+        ["--plan-period", "0.0005"],
+        ["--controllers", "local", "--plan-period", "0.01"],
+    ],
+)
+def test_bad_stream_options_exit_2(options, tmp_path, capsys):
+    from dqcontrol.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["run", "--period", "0.001", "--controllers", "pf", *options, "--duration",
+              "0.5", "--out", str(tmp_path)])  # fmt: skip
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "--plan-period" in err

@@ -46,6 +46,7 @@ class StreamDiagnostics(StepDiagnostics):
 
     plan_id: int = 0
     plan_age_s: float = 0.0
+    lateness_s: float = float("nan")
 
 
 def _plan_periods(planner: Controller, period_s: float) -> int:
@@ -196,21 +197,22 @@ class StreamedController(Controller):
             streamer.offer(self.planner.plan(request))
         sample = streamer.step()
         now = time.perf_counter()
-        spent = now - start
+        spent, late = now - start, float("nan")
         if self._t0 is not None:  # the command's time after the sample's place on the grid
-            self.lateness_s.append(now - (self._t0 + k * self.period_s))
+            late = now - (self._t0 + k * self.period_s)
+            self.lateness_s.append(late)
         self.streamer_times_s.append(spent)
         self.ages_s.append(sample.plan_age_s)
-        return self._result(q, sample, spent)
+        return self._result(q, sample, spent, late)
 
-    def _result(self, q: np.ndarray, sample: StreamSample, spent: float) -> StepResult:
+    def _result(self, q: np.ndarray, sample: StreamSample, spent: float, late: float) -> StepResult:
         target = self.trajectory.target(sample.sigma)
         pose = self.robot.fast.poses(q[None, :])[0]
         if float(pose.dot(target)) < 0.0:
             pose = -pose
         diag = StreamDiagnostics(
             status=sample.mode, step_time_s=spent, message=self.streamer.playout_note,
-            plan_id=sample.plan_id, plan_age_s=sample.plan_age_s,
+            plan_id=sample.plan_id, plan_age_s=sample.plan_age_s, lateness_s=late,
         )  # fmt: skip
         s = (sample.sigma_next - sample.sigma) / self.period_s
         return StepResult(sample.u, s, sample.sigma, sample.sigma_next, pose, target, diag)
