@@ -42,7 +42,11 @@ from dqcontrol.cli.run_output import (
     show_progress,
     write_results,
 )
-from dqcontrol.cli.stream_options import check_stream_options, streamed_from_args
+from dqcontrol.cli.stream_options import (
+    check_stream_options,
+    planner_acceleration,
+    streamed_from_args,
+)
 from dqcontrol.experiments.thesis import THESIS_VELOCITY_LIMITS
 from dqcontrol.registry import CONTROLLER_HELP
 
@@ -150,6 +154,8 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
     plan_period = getattr(args, "plan_period", None)
     if plan_period is None:
         return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+    if args.acceleration_limit is not None:
+        shared["acceleration_limit"] = planner_acceleration(args)
     planner = build_controller(name, robot, trajectory, plan_period, shared=shared, **extra)
     return streamed_from_args(planner, args)
 

@@ -6,7 +6,12 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["add_stream_options", "check_stream_options", "streamed_from_args"]
+__all__ = [
+    "add_stream_options",
+    "check_stream_options",
+    "planner_acceleration",
+    "streamed_from_args",
+]
 
 
 def add_stream_options(group) -> None:
@@ -27,7 +32,8 @@ def add_stream_options(group) -> None:
         default=None,
         metavar="J",
         help="with --plan-period: joint jerk bound of the stream [rad/s^3] (default: the "
-        "robot's, none when it gives none; --acceleration-limit bounds its acceleration)",
+        "robot's, none when it gives none); --acceleration-limit then bounds the stream's "
+        "acceleration and the planner plans with half of it",
     )
 
 
@@ -54,6 +60,14 @@ def check_stream_options(args: argparse.Namespace) -> None:
                 f"--plan-period: {name} has no consistent plan to stream (its horizon is "
                 "predicted from its previous plan); choose path following (--controllers pf)"
             )
+
+
+def planner_acceleration(args: argparse.Namespace) -> float | None:
+    """The planner's acceleration bound of a streamed run: half of ``--acceleration-limit``
+    (the stream's), so that the plan's velocity steps fit their jerk-bounded blends
+    (docs/theory.md §12.2); ``None``: the controller's own."""
+    limit = args.acceleration_limit
+    return None if limit is None else 0.5 * limit
 
 
 def streamed_from_args(planner, args: argparse.Namespace):

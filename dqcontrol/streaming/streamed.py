@@ -92,7 +92,9 @@ class StreamedController(Controller):
         self.name = f"{planner.name}_streamed"
         lim = planner.robot.limits
         self.qd_max = np.minimum(planner.qd_max, lim.qd_max)
-        self.qdd_max = _limit("acceleration_max", acceleration_max, lim.qdd_max, self.n)
+        self.qdd_max = _limit(
+            "acceleration_max", acceleration_max, _default_acceleration(planner), self.n
+        )
         self.qddd_max = _limit("jerk_max", jerk_max, lim.qddd_max, self.n)
         self.a_const = self.qdd_max if np.all(np.isfinite(self.qdd_max)) else None
         if lead_periods not in (0, num):
@@ -260,6 +262,16 @@ class StreamedController(Controller):
         return out
 
 
+def _default_acceleration(planner: PathFollowingController) -> np.ndarray:
+    """The stream's acceleration bound where none is given [rad/s²]: the robot's
+    ``qdd_max`` where finite, else twice the planner's own bound (its constant, or the cap
+    of its dynamics-aware one), so that the plan's velocity steps fit their blends
+    (docs/theory.md §12.2)."""
+    robot = np.asarray(planner.robot.limits.qdd_max, dtype=float)
+    own = planner.a_const if planner.a_const is not None else planner.acceleration_cap
+    return np.where(np.isfinite(robot), robot, 2.0 * np.broadcast_to(own, robot.shape))
+
+
 def _limit(name: str, value, default: np.ndarray, n: int) -> np.ndarray:
     if value is None:
         return np.array(default, dtype=float)
@@ -277,7 +289,9 @@ def streamed(
     ``T_p``) streamed at ``period_s = T`` (``T_p`` a whole multiple of ``T``).
 
     Options: ``acceleration_max``, ``jerk_max`` (per joint or scalar [rad/s²], [rad/s³];
-    default the robot's ``qdd_max``, ``qddd_max``, infinite when not given),
+    default the robot's ``qdd_max`` — where it gives none, twice the planner's own bound —
+    and ``qddd_max``, infinite when not given; the stream follows the plan closest when
+    the planner's acceleration bound is at most half ``acceleration_max``),
     ``lead_periods`` (stepped mode: 0, or ``T_p/T`` to start each plan one plan period
     after its measurement as on the wall clock), ``planner_in`` (on the wall clock:
     ``"process"``, the default, or ``"thread"``), ``patience_plans`` (plan periods without a
