@@ -95,7 +95,7 @@ def test_kernel_is_the_tracker():
         expected = reference.step(wanted)
         q_ref = q_ref + T * expected
         tau, _, _ = stream_period(plan.ends_s, plan.q_at, plan.qd, plan.sigma_at, plan.s,
-                                  False, tau, 1.0, 50.0, T, q, u, a, limits[0], limits[1],
+                                  False, tau, 1.0, 50.0, T, 0.0, q, u, a, limits[0], limits[1],
                                   limits[2] * T)  # fmt: skip
         np.testing.assert_allclose(u, expected, rtol=0, atol=1e-12)
 

@@ -60,19 +60,24 @@ def _phase(ends, sigma_at, s, stop_after_first: bool, tau: float) -> float:
 @compiled
 def stream_period(
     ends, q_at, qd, sigma_at, s, stop_after_first: bool,
-    tau0: float, rate: float, gain_per_s: float, period_s: float,
+    tau0: float, rate: float, gain_per_s: float, period_s: float, lookahead_s: float,
     q, u, a, qd_max, qdd_max, jerk_step,
 ) -> tuple[float, float, float]:  # fmt: skip
     """One streamed period from plan time ``tau0`` at ``rate``: updates the command ``u``,
     its acceleration ``a`` and the integrated positions ``q`` in place; returns the plan
-    time of the next period and the phase now and then."""
+    time of the next period and the phase now and then. The velocity asked for is the
+    plan's mean over the period ``lookahead_s`` later (the blends then start before the
+    breakpoints, about centred on them); the pull is onto the plan's positions now."""
     tau1 = tau0 + rate * period_s
     span = tau1 - tau0
+    ahead = rate * lookahead_s
     for j in range(q.shape[0]):
         p0 = _position(ends, q_at, qd, stop_after_first, tau0, j)
         wanted = 0.0
         if span > 0.0:
-            wanted = rate * (_position(ends, q_at, qd, stop_after_first, tau1, j) - p0) / span
+            start = _position(ends, q_at, qd, stop_after_first, tau0 + ahead, j)
+            end = _position(ends, q_at, qd, stop_after_first, tau1 + ahead, j)
+            wanted = rate * (end - start) / span
         r = wanted + gain_per_s * (p0 - q[j])
         v_max, a_max, js = qd_max[j], qdd_max[j], jerk_step[j]
         r = min(max(r, -v_max), v_max)

@@ -91,7 +91,7 @@ class StreamedController(Controller):
         self.plan_period_s = planner.period_s
         self.name = f"{planner.name}_streamed"
         lim = planner.robot.limits
-        self.qd_max = np.minimum(planner.qd_max, lim.qd_max)
+        self.qd_max = np.array(planner.qd_max, dtype=float)  # the bound the plans keep
         self.qdd_max = _limit(
             "acceleration_max", acceleration_max, _default_acceleration(planner), self.n
         )

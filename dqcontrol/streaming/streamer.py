@@ -56,10 +56,19 @@ class Streamer:
         feedback_s: time constant of the pull onto the plan's positions [s].
         patience_k: samples a plan is played as planned after its start before, with no
             newer plan, the play-out begins.
+        lookahead_s: the velocity asked for is the plan's this much later [s], so that a
+            blend starts before its breakpoint (0: at it).
     """
 
-    def __init__(self, tracker: JerkLimitedTracker, feedback_s: float, patience_k: int) -> None:
+    def __init__(
+        self,
+        tracker: JerkLimitedTracker,
+        feedback_s: float,
+        patience_k: int,
+        lookahead_s: float = 0.0,
+    ) -> None:
         self.tracker = tracker
+        self.lookahead_s = float(lookahead_s)
         self.period_s = tracker.period_s
         self.gain_per_s = 1.0 / feedback_s
         self.patience_k = int(patience_k)
@@ -153,7 +162,7 @@ class Streamer:
         T, rate, tr = self.period_s, self.rate, self.tracker
         tau1, sigma, sigma_next = stream_period(
             plan.ends_s, plan.q_at, plan.qd, plan.sigma_at, plan.s, plan.stop_after_first,
-            self.tau_s, rate, self.gain_per_s, T,
+            self.tau_s, rate, self.gain_per_s, T, self.lookahead_s,
             self.q, tr.u, tr.a, tr.qd_max, tr.qdd_max, tr.jerk_step,
         )  # fmt: skip
         u = tr.u.copy()
