@@ -54,10 +54,18 @@ class PlanRequest:
 
 
 def project(
-    streamer: Streamer, q_measured: np.ndarray, qd_measured: np.ndarray, lead_k: int, plan_id: int
+    streamer: Streamer,
+    q_measured: np.ndarray,
+    qd_measured: np.ndarray,
+    lead_k: int,
+    plan_id: int,
+    lag_s: float = 0.0,
 ) -> PlanRequest:
     """The request of a plan starting ``lead_k`` samples after the streamer's present one:
-    a copy of the streamer run ahead gives the displacement, phase and last command there."""
+    a copy of the streamer run ahead gives the commands up to there, its phase and last
+    command. The arm is moved by those commands from the measurement: behind a velocity
+    servo of time constant ``lag_s`` as a first-order lag from the measured velocity
+    (docs/theory.md §8.7), which is then the velocity the plan starts from."""
     k, T = streamer.k, streamer.period_s
     if lead_k == 0:
         sigma = streamer.plan.phase(streamer.tau_s) if streamer.plan else streamer.sigma0
@@ -65,13 +73,18 @@ def project(
             plan_id, k, k * T, q_measured, qd_measured, sigma, streamer.tracker.u.copy()
         )
     twin = streamer.copy()
-    q0 = twin.q.copy()
+    q = np.array(q_measured, dtype=float)
+    v = np.array(qd_measured, dtype=float)
+    e = np.exp(-T / lag_s) if lag_s > 0.0 else 0.0
+    c = lag_s * (1.0 - e)
     sample = None
     for _ in range(lead_k):
         sample = twin.step()
+        q += (T - c) * sample.u + c * v
+        v = e * v + (1.0 - e) * sample.u
     assert sample is not None
-    q = q_measured + (twin.q - q0)
-    return PlanRequest(plan_id, k + lead_k, k * T, q, None, sample.sigma_next, sample.u.copy())
+    qd = v if lag_s > 0.0 else None
+    return PlanRequest(plan_id, k + lead_k, k * T, q, qd, sample.sigma_next, sample.u.copy())
 
 
 class Planner:
@@ -83,6 +96,8 @@ class Planner:
     def __init__(self, controller: PathFollowingController) -> None:
         self.controller = controller
         self.durations_s = np.array(controller.layout.durations_s, dtype=float)
+        #: the servo lag the controller predicts (0: none), for the projection
+        self.lag_s = float(controller.prediction_model.lag_s)
         self.step_times_s: list[float] = []
 
     def plan(self, request: PlanRequest) -> Plan:
@@ -129,7 +144,7 @@ class PlannerThread:
                 self.busy_skips += 1
                 return False
             self._busy = True
-            self._request = (stream, q.copy(), qd.copy(), lead_k, plan_id)
+            self._request = (stream, q.copy(), qd.copy(), lead_k, plan_id, self.planner.lag_s)
         self._wake.set()
         return True
 
@@ -200,7 +215,7 @@ class PlannerProcess:
             self.busy_skips += 1
             return False
         try:
-            self._conn.send((stream, q, qd, lead_k, plan_id))
+            self._conn.send((stream, q, qd, lead_k, plan_id, self.planner.lag_s))
         except OSError as exc:
             self.error = f"the planner process is gone ({exc})"
             return False

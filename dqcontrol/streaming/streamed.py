@@ -195,7 +195,9 @@ class StreamedController(Controller):
                 if self._thread.request(streamer.copy(), q, qd_meas, self.lead_k, self._next_id):
                     self._next_id += 1
         elif k % self.plan_periods == 0 and k > 0:
-            request = project(streamer, q, qd_meas, self.lead_k, self._take_id())
+            request = project(
+                streamer, q, qd_meas, self.lead_k, self._take_id(), self.planner.lag_s
+            )
             streamer.offer(self.planner.plan(request))
         sample = streamer.step()
         now = time.perf_counter()
