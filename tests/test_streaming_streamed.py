@@ -59,8 +59,10 @@ def test_stepped_runs_are_deterministic_and_within_the_limits(lbr4p, lead):
     assert np.max(dev) < 1e-3
 
 
-@pytest.mark.parametrize("planner_in", ["thread", "process"])
-def test_a_planner_that_stops_answering_is_played_out_to_rest_on_the_path(lbr4p, planner_in):
+@pytest.mark.parametrize(
+    ("planner_in", "how"), [("thread", "pause"), ("process", "pause"), ("process", "kill")]
+)
+def test_a_planner_that_stops_answering_is_played_out_to_rest_on_the_path(lbr4p, planner_in, how):
     c = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0,
                  planner_in=planner_in)  # fmt: skip
     q = LBR4P_Q0.copy()
@@ -70,7 +72,10 @@ def test_a_planner_that_stops_answering_is_played_out_to_rest_on_the_path(lbr4p,
         results = []
         for k in range(3000):
             if k == 100:
-                c._thread.pause()  # the planner stops answering from here on
+                if how == "kill":  # the planner's process is killed
+                    c._thread._process.kill()
+                else:  # the planner blocks from here on
+                    c._thread.pause()
             r = c.step(q)
             results.append(r)
             q = q + 0.001 * r.qd_command

@@ -45,6 +45,7 @@ from dqcontrol.cli.run_output import (
 from dqcontrol.cli.stream_options import (
     check_stream_options,
     planner_acceleration,
+    stream_summary,
     streamed_from_args,
 )
 from dqcontrol.experiments.thesis import THESIS_VELOCITY_LIMITS
@@ -362,6 +363,8 @@ def _run_controller(
         result = _simulate(args, controller, q0, meta, viewer, on_progress, out / f"{label}.mcap")
     finally:
         bar.close()
+    if "stream" in result.log.meta:
+        print(f"{label}: {stream_summary(result.log.meta['stream'])}")
     if result.note:
         print(f"{label}: {result.note}", file=sys.stderr)
     return label, result, controller.trajectory

@@ -10,6 +10,7 @@ __all__ = [
     "add_stream_options",
     "check_stream_options",
     "planner_acceleration",
+    "stream_summary",
     "streamed_from_args",
 ]
 
@@ -77,3 +78,24 @@ def streamed_from_args(planner, args: argparse.Namespace):
     return streamed(
         planner, args.period, acceleration_max=args.acceleration_limit, jerk_max=args.jerk_limit
     )
+
+
+def stream_summary(report: dict) -> str:
+    """One line of a streamed run's ``meta["stream"]``: plans, step times, plan ages and,
+    on the wall clock, late commands."""
+    line = (
+        f"plans every {1e3 * report['plan_period_s']:g} ms: {report['plans_used']} used, "
+        f"{report['plans_refused']} refused; planner step median "
+        f"{report['planner_step_median_ms']:.2f} ms, max {report['planner_step_max_ms']:.1f} "
+        f"ms; streamer step median {report['streamer_step_median_us']:.1f} µs; plan age "
+        f"median {report['plan_age_median_ms']:.0f} ms, max {report['plan_age_max_ms']:.0f} ms"
+    )
+    if "late_commands" in report:
+        line += (
+            f"; late commands {report['late_commands']} (lateness median "
+            f"{report['lateness_median_ms']:.3f} ms, p99 {report['lateness_p99_ms']:.2f} ms, "
+            f"max {report['lateness_max_ms']:.2f} ms)"
+        )
+    if report.get("playout"):
+        line += f"; {report['playout']}"
+    return line
