@@ -44,6 +44,7 @@ from dqcontrol.cli.run_output import (
 )
 from dqcontrol.cli.stream_options import (
     check_stream_options,
+    measured_plan_period,
     planner_acceleration,
     stream_summary,
     streamed_from_args,
@@ -239,6 +240,9 @@ def _check_options(args) -> tuple:
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)
     check_stream_options(args)
+    if args.plan_period == "auto":
+        args.plan_period = measured_plan_period(args, robot, q0, velocity)
+        print(f"dqcontrol run: --plan-period auto: {args.plan_period:g} s", file=sys.stderr)
     return robot, q0, robot_meta, velocity
 
 

@@ -9,6 +9,7 @@ import argparse
 __all__ = [
     "add_stream_options",
     "check_stream_options",
+    "measured_plan_period",
     "planner_acceleration",
     "stream_summary",
     "streamed_from_args",
@@ -19,13 +20,19 @@ def add_stream_options(group) -> None:
     """Add ``--plan-period`` and ``--jerk-limit`` to the argument ``group``."""
     from dqcontrol.cli.run_options import positive_float
 
+    seconds = positive_float("s")
+
+    def plan_period(text: str) -> float | str:
+        return "auto" if text == "auto" else seconds(text)
+
     group.add_argument(
         "--plan-period",
-        type=positive_float("s"),
+        type=plan_period,
         default=None,
         metavar="T_P",
-        help="plan every T_P [s] (a whole multiple of --period) and stream the plans every "
-        "--period: path following only (default: solve every period)",
+        help="plan every T_P [s] (a whole multiple of --period, or 'auto': twice the p99 of "
+        "the measured step time) and stream the plans every --period: path following only "
+        "(default: solve every period)",
     )
     group.add_argument(
         "--jerk-limit",
@@ -49,7 +56,7 @@ def check_stream_options(args: argparse.Namespace) -> None:
         if args.jerk_limit is not None:
             parser.error("--jerk-limit bounds the stream of --plan-period: give --plan-period")
         return
-    ratio = args.plan_period / args.period
+    ratio = 1.0 if args.plan_period == "auto" else args.plan_period / args.period
     if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9 * ratio:
         parser.error(
             f"--plan-period must be a whole multiple >= 1 of --period {args.period:g} s "
@@ -99,3 +106,32 @@ def stream_summary(report: dict) -> str:
     if report.get("playout"):
         line += f"; {report['playout']}"
     return line
+
+
+#: Steps of a trial controller timed for ``--plan-period auto`` (the first few, which
+#: iterate from rest, are left out).
+AUTO_STEPS, AUTO_SKIP = 40, 10
+
+
+def measured_plan_period(args: argparse.Namespace, robot, q0, velocity) -> float:
+    """``--plan-period auto``: twice the p99 of the step time of the first controller of
+    the options, run at ``--period`` on the ideal kinematics from ``q0``, as a whole
+    number of periods (:func:`~dqcontrol.streaming.planner.choose_plan_period`)."""
+    import time
+
+    from dqcontrol.cli.run_cmd import make_controller, make_trajectory
+    from dqcontrol.streaming.planner import choose_plan_period
+
+    trajectory, _ = make_trajectory(args.trajectory, args.duration)
+    saved, args.plan_period = args.plan_period, None
+    try:
+        trial = make_controller(args.controllers[0], robot, trajectory, args, velocity)
+    finally:
+        args.plan_period = saved
+    trial.reset(q0)
+    q, times = q0.copy(), []
+    for _ in range(AUTO_STEPS):
+        start = time.perf_counter()
+        q = q + args.period * trial.step(q).qd_command
+        times.append(time.perf_counter() - start)
+    return choose_plan_period(times[AUTO_SKIP:], args.period)

@@ -119,6 +119,7 @@ class StreamedController(Controller):
         self.lateness_s: list[float] = []
         self._t0: float | None = None
         self._thread_stats: dict = {}
+        self.first_plan_s = 0.0
 
     # ------------------------------------------------------------------ modes
     def use_wall_clock(self, on: bool) -> None:
@@ -172,6 +173,7 @@ class StreamedController(Controller):
         self._next_id = 1
         request = project(self.streamer, q0, qd0, 0, self._take_id())
         self.streamer.offer(self.planner.plan(request))  # the first plan, before the clock
+        self.first_plan_s = self.planner.step_times_s.pop()  # its iterations from rest
         self.streamer.copy().step()  # loads the compiled period before the clock, too
         self._t0 = None
 
@@ -244,7 +246,8 @@ class StreamedController(Controller):
             "period_s": self.period_s,
             "plan_period_s": self.plan_period_s,
             "wall_clock": self._wall_clock,
-            "plans": len(self.planner.step_times_s),
+            "plans": len(self.planner.step_times_s) + 1,
+            "first_plan_ms": 1e3 * self.first_plan_s,
             "plans_used": self.streamer.switches,
             "plans_refused": self.streamer.refused,
             "planner_step_median_ms": 1e3 * float(np.median(steps)),
