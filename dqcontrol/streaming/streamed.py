@@ -129,7 +129,7 @@ class StreamedController(Controller):
         if on and self._thread is None and self._reset_done:
             kind = PlannerProcess if self.planner_in == "process" else PlannerThread
             self._thread, self._t0 = kind(self.planner), None
-            # a planner thread runs Python between its compiled parts: hand the
+            # other threads (a planner thread, the run log's writer) run Python: hand the
             # interpreter back to the streamer within SWITCH_INTERVAL_S, not the 5 ms default
             self._switch_before = sys.getswitchinterval()
             sys.setswitchinterval(SWITCH_INTERVAL_S)
