@@ -48,6 +48,7 @@ from dqcontrol.runs.stream import DEFAULT_CHUNK_S, StreamRecorder
 from dqcontrol.runs.streamed_run import end_streamed
 from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
+from dqcontrol.streaming.hook import stream_hook
 
 __all__ = ["RunResult", "run_loop"]
 
@@ -274,7 +275,12 @@ def run_loop(
     num = _sample_count(controller, max_time_s, stale_periods)
     logging = (log_file, log_chunk_s)
     run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
-    stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
+    stream = stream_hook(controller, realtime)  # a streamed controller plans in a thread
+    try:
+        stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
+    finally:
+        stream.close()
+    run.rec.meta.update(stream.meta())
     return _result(controller, driver, run.rec, stop, run)
 
 
