@@ -53,6 +53,7 @@ def field_layout(num_joints: int) -> list[tuple[str, str, int]]:
         ("fallback", "|b1", 0),
         ("relaxed", "|b1", 0),
         ("saturated", "|b1", 0),
+        ("stopping", "|b1", 0),
     ]
 
 
@@ -91,6 +92,7 @@ class SampleBlock:
         result: StepResult,
         torque: np.ndarray | None = None,
         torque_peak: np.ndarray | None = None,
+        stopping: bool = False,
     ) -> None:
         """Write one sample in the next row (as :meth:`~dqcontrol.runs.log.LogRecorder.record`)."""
         k, c, d = self.count, self.columns, result.diagnostics
@@ -114,6 +116,7 @@ class SampleBlock:
         c["fallback"][k] = d.fallback
         c["relaxed"][k] = d.relaxed
         c["saturated"][k] = d.saturated
+        c["stopping"][k] = stopping
         self.count = k + 1
 
     def status_names(self) -> list[str]:

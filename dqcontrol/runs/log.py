@@ -28,6 +28,9 @@ class RunLog:
         solver_status: status string per sample. iterations, solve_time_s, step_time_s.
         fallback, relaxed, saturated: per-sample flags.
         meta: free-form description (robot, trajectory, controller, parameters, simulator).
+        stopping: per-sample flag: the sample belongs to a stop (the controller's stop was
+            requested: the end of the task, Ctrl-C, the watchdog, a driver error or the
+            caller); all False when not given.
     """
 
     t_s: np.ndarray
@@ -48,6 +51,11 @@ class RunLog:
     relaxed: np.ndarray
     saturated: np.ndarray
     meta: dict = field(default_factory=dict)
+    stopping: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.stopping is None:
+            self.stopping = np.zeros(self.t_s.shape, dtype=bool)
 
     def __len__(self) -> int:
         return int(self.t_s.size)
@@ -59,8 +67,13 @@ class RunLog:
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict | None = None) -> RunLog:
         """Rebuild a log from :meth:`arrays` (e.g. a loaded ``.npz``)."""
-        names = [f.name for f in fields(cls) if f.name != "meta"]
-        return cls(**{k: np.asarray(arrays[k]) for k in names}, meta=dict(meta or {}))
+        names = [f.name for f in fields(cls) if f.name not in ("meta", "stopping")]
+        stopping = arrays.get("stopping")
+        return cls(
+            **{k: np.asarray(arrays[k]) for k in names},
+            meta=dict(meta or {}),
+            stopping=None if stopping is None else np.asarray(stopping, dtype=bool),
+        )
 
 
 class LogRecorder:
@@ -82,8 +95,10 @@ class LogRecorder:
         result: StepResult,
         torque: np.ndarray | None = None,
         torque_peak: np.ndarray | None = None,
+        stopping: bool = False,
     ) -> None:
-        """Append sample k: the measurement it was computed from and the controller output."""
+        """Append sample k: the measurement it was computed from and the controller output
+        (``stopping``: the sample belongs to a stop)."""
         d = result.diagnostics
         self._rows.append(
             (
@@ -106,6 +121,7 @@ class LogRecorder:
                 d.fallback,
                 d.relaxed,
                 d.saturated,
+                bool(stopping),
             )
         )
 
@@ -122,7 +138,7 @@ class LogRecorder:
                 solver_status=np.zeros(0, dtype="U32"), iterations=np.zeros(0, dtype=int),
                 solve_time_s=empty, step_time_s=empty, fallback=np.zeros(0, dtype=bool),
                 relaxed=np.zeros(0, dtype=bool), saturated=np.zeros(0, dtype=bool),
-                meta=self.meta,
+                meta=self.meta, stopping=np.zeros(0, dtype=bool),
             )  # fmt: skip
         cols = list(zip(*self._rows, strict=True))
         return RunLog(
@@ -144,4 +160,5 @@ class LogRecorder:
             relaxed=np.array(cols[15], dtype=bool),
             saturated=np.array(cols[16], dtype=bool),
             meta=self.meta,
+            stopping=np.array(cols[17], dtype=bool),
         )

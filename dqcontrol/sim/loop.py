@@ -16,9 +16,12 @@ only the run's own objects. The loop holds one BLAS thread for its whole length
 (:func:`~dqcontrol.controllers.single_blas_thread`), so that no step switches the libraries
 itself. A watchdog ends the run on a stale measurement (no newer sample for
 ``stale_periods`` periods), a missed deadline (wall-clock mode), the end of the task or the
-time limit, or Ctrl-C; with ``brake=True`` it then brings the command to zero within the
-controller's acceleration limit (``|Δu| ≤ a_max T`` per period) and holds. Braking happens
-after the last logged sample: the log and the metrics are those of the task.
+time limit, or Ctrl-C; a driver error ends it too. With ``brake=True`` every one of these
+then brings the arm to rest along the path (:mod:`dqcontrol.sim.path_stop`): the
+controller's stop is requested and it is stepped until at rest, those samples logged with
+the ``stopping`` flag. Only where the controller has no solution does the loop fall back to
+bringing each joint's command to zero within the acceleration limit (``|Δu| ≤ a_max T`` per
+period), after the last logged sample, ``meta["stop"]["ramp"]`` saying why; then it holds.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from dqcontrol.runs.stream import DEFAULT_CHUNK_S, StreamRecorder
 from dqcontrol.runs.streamed_run import end_streamed
 from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
+from dqcontrol.sim.path_stop import stop_along_path
 
 __all__ = ["RunResult", "run_loop"]
 
@@ -67,8 +71,9 @@ class RunResult:
     note: str = ""
     #: why the run was cut short: ``""`` (it was not), ``"user"`` (Ctrl-C),
     #: ``"simulation"`` (the driver or simulator failed; the note says how), ``"stale"``
-    #: (no fresh measurement), ``"deadline"`` (a step missed its period in wall-clock mode)
-    #: or ``"log"`` (the streamed run log could not be written).
+    #: (no fresh measurement), ``"deadline"`` (a step missed its period in wall-clock mode),
+    #: ``"request"`` (the controller's stop was requested, e.g. from ``on_sample``) or
+    #: ``"log"`` (the streamed run log could not be written).
     reason: str = ""
     #: the streamed run log (``run_loop(log_file=...)``); ``log`` then holds only the
     #: samples of its last block(s), the file all of them (:func:`~dqcontrol.runs.load_run`).
@@ -247,7 +252,9 @@ def run_loop(
             the GC sees only the run's objects (``gc.freeze``). Else: as fast as it answers.
         stale_periods: stop (``reason = "stale"``) after this many periods with no new
             measurement.
-        brake: after the run, ramp the command to zero within the acceleration limit, hold.
+        brake: after the run, bring the arm to rest along the path (the controller's stop,
+            logged), the joint-space ramp only where that has no solution; then hold.
+            ``False``: the run ends with its last command.
         warm_up: step a copy of the controller once before the first command.
         log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md); the
             result's ``log`` then holds only the last samples. ``None``: all in memory.
@@ -330,15 +337,24 @@ def _sample_count(controller: Controller, max_time_s: float | None, stale_period
 
 def _stop_and_brake(run: _Samples, brake: bool) -> dict:
     """``meta["stop"]``: why the run ended, the timing on the wall clock
-    (:meth:`_Clock.report`), and the periods of braking (done here, after the last logged
-    sample)."""
+    (:meth:`_Clock.report`), the periods of the stop along the path (logged) and those of
+    the joint-space ramp (``brake_periods``, after the last logged sample) with why
+    (``ramp``)."""
     clock = run.clock
     stop: dict = {"reason": run.reason or "end", "brake_periods": 0, **clock.report()}
-    if brake and run.reason != "simulation":
+    if not brake:
+        return stop
+    rate = _brake_rate(run.controller, run.q)
+    path = stop_along_path(run, rate, record=run.reason != "log")
+    stop.update(stop_periods=path.periods, at_rest=path.at_rest, ramp=path.ramp)
+    if not path.at_rest:
         stop["brake_periods"] = _brake_and_hold(
             run.driver, np.array(run.command, dtype=float),
-            _brake_rate(run.controller, run.q), run.order.to_driver, clock,
+            rate, run.order.to_driver, clock,
         )  # fmt: skip
+    else:
+        with contextlib.suppress(KeyboardInterrupt, DQControlError):
+            run.driver.hold()
     return stop
 
 
@@ -437,14 +453,19 @@ class _Samples:
                 on_sample(k, driver, result)
             if on_progress is not None:
                 on_progress(float(result.sigma_next), duration)
-            if controller.done:
-                return
             if nxt.t_s > newest:
                 newest, unchanged = nxt.t_s, 0
             else:
                 unchanged += 1
             self.meas = nxt
             self.q, self.qd = self.order.to_model(nxt)
+            if controller.done:
+                return
+            if controller.stopping:
+                self._stop("request", (
+                    f"stop requested after {len(rec)} samples (σ = {controller.sigma:.4f} s)"
+                ))  # fmt: skip
+                return
             if not clock.wait():
                 self._stop("deadline", (
                     f"stopped after {len(rec)} samples: sample {k} ended "
