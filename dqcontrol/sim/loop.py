@@ -251,7 +251,8 @@ def run_loop(
             :data:`SPIN_S`); ending after ``start + (k + 1) T`` stops the run (``"deadline"``);
             the GC sees only the run's objects (``gc.freeze``). Else: as fast as it answers.
         stale_periods: stop (``reason = "stale"``) after this many periods with no new
-            measurement.
+            measurement; until then (and during the stop) the controller is given the last
+            measured ``q`` moved by the commands sent since (dead reckoning).
         brake: after the run, bring the arm to rest along the path (the controller's stop,
             logged), the joint-space ramp only where that has no solution; then hold.
             ``False``: the run ends with its last command.
@@ -418,6 +419,8 @@ class _Samples:
         self.rec, self.clock, self.meas = rec, clock, meas
         self.q, self.qd = order.to_model(meas)
         self.command = np.zeros(controller.robot.nq)
+        #: where the commands sent since the last fresh measurement took the arm [rad]
+        self.drift_rad = np.zeros(controller.robot.nq)
         self.interrupted, self.note, self.reason = False, "", ""
 
     def loop(self, num: int, stale_periods: int, on_sample, on_progress) -> None:
@@ -455,10 +458,14 @@ class _Samples:
                 on_progress(float(result.sigma_next), duration)
             if nxt.t_s > newest:
                 newest, unchanged = nxt.t_s, 0
+                self.drift_rad[:] = 0.0
             else:
                 unchanged += 1
+                self.drift_rad += controller.period_s * self.command
             self.meas = nxt
             self.q, self.qd = self.order.to_model(nxt)
+            if unchanged:  # not renewed: where the commands since took the arm
+                self.q = self.q + self.drift_rad
             if controller.done:
                 return
             if controller.stopping:

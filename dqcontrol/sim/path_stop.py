@@ -49,8 +49,15 @@ class PathStop:
     ramp: str = ""
 
 
-def _at_rest(result: StepResult, rate: np.ndarray) -> bool:
-    return result.s <= REST_SCALING and bool(np.all(np.abs(result.qd_command) <= REST_SHARE * rate))
+def _at_rest(result: StepResult, sent: np.ndarray, rate: np.ndarray) -> bool:
+    """Whether the command may now be zero: the phase at rest, the step's command within
+    :data:`REST_SHARE` of ``rate`` and the last one sent (``sent``) within ``rate`` of
+    zero."""
+    return (
+        result.s <= REST_SCALING
+        and bool(np.all(np.abs(result.qd_command) <= REST_SHARE * rate))
+        and bool(np.all(np.abs(sent) <= rate))
+    )
 
 
 def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathStop:
@@ -62,6 +69,7 @@ def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathSto
     out = PathStop()
     try:
         controller.request_stop()
+        _latest_state(run)
         run.clock.restart()  # the stop's own periods, from now
         limit = int(np.ceil(MAX_STOP_S / period))
         while out.periods < limit:
@@ -69,7 +77,7 @@ def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathSto
             if result.diagnostics.fallback:
                 out.ramp = f"no QP solution at stop sample {out.periods}: joint-space ramp"
                 return out
-            out.at_rest = _at_rest(result, rate)
+            out.at_rest = _at_rest(result, run.command, rate)
             if out.at_rest:
                 result = dataclasses.replace(result, qd_command=np.zeros_like(result.qd_command))
             _send_and_read(run, result, period, record)
@@ -82,6 +90,16 @@ def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathSto
     except DQControlError as exc:
         out.ramp = f"driver error during the stop ({exc}): joint-space ramp"
     return out
+
+
+def _latest_state(run: _Run) -> None:
+    """The state the stop starts from: a measurement newer than the last one used (the run
+    may have been cut between a command and its measurement), else the loop's (moved by
+    the commands sent since the last fresh one)."""
+    nxt = run.driver.read()
+    if nxt.t_s > run.meas.t_s:
+        run.meas = nxt
+        run.q, run.qd = run.order.to_model(nxt)
 
 
 def _send_and_read(run: _Run, result: StepResult, period: float, record: bool) -> None:
