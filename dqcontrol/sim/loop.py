@@ -84,11 +84,13 @@ class RunResult:
 
 
 def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:
-    """One step of a deep copy of ``controller`` (loads the compiled kernels; the controller
-    itself is untouched). Returns ``""`` or why it was skipped."""
+    """One step of a deep copy of ``controller``, then one of its stop (loads the compiled
+    kernels; the controller itself is untouched). Returns ``""`` or why it was skipped."""
     memo = {id(m): m for m in list(sys.modules.values())}  # modules are shared, not copied
     try:
         twin = copy.deepcopy(controller, memo)
+        twin.step(q.copy(), qd.copy())
+        twin.request_stop()  # and its stop (a delegate's first steps load their own kernels)
         twin.step(q.copy(), qd.copy())
     except Exception as exc:  # noqa: BLE001 - a warm-up never stops the run
         return f"skipped: {type(exc).__name__}: {exc}"
