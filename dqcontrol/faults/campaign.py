@@ -42,7 +42,6 @@ from typing import Any
 import numpy as np
 
 from dqcontrol.controllers.base import Controller
-from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.dq.algebra import dq_from_rt, dq_mul, translation
 from dqcontrol.experiments.executor import Executor, resolve_executor
 from dqcontrol.experiments.runner import lbr4p
@@ -177,8 +176,6 @@ def _build_controller(spec: CaseSpec, robot: RobotModel, trajectory) -> Controll
     :func:`~dqcontrol.faults.qp_faults.contradictory`."""
     f, ctrl_spec = spec.fault, spec.controller
     extra: dict = f.controller_options()
-    if issubclass(ctrl_spec.cls, PathFollowingController):
-        extra.setdefault("end", "at_speed")  # every case ends at speed, as Table 1's rows
     if ctrl_spec.qp and f.solver_settings:
         extra["solver"] = "osqp"  # the solver faults are written in OSQP's settings
         extra["solver_settings"] = dict(f.solver_settings)
