@@ -1,8 +1,9 @@
 """The rest-to-rest and path-maintaining-stop goals, measured (docs/theory.md §8.9–8.10).
 
 The Franka Panda with Franka's velocity and acceleration limits given to the
-path-following controller, on a circle of radius ``--radius`` [m] lasting ``--duration``
-[s], at ``T = --period`` [s], in the kinematic loop (and MuJoCo with ``--mujoco``):
+path-following controller, on a circle of radius ``--radius`` [m] (or, ``--path
+waypoints``, the user guide's four waypoints) lasting ``--duration`` [s], at
+``T = --period`` [s], in the kinematic loop (and MuJoCo with ``--mujoco``):
 
 * rest to rest: the run to the end of the task and its stop; the largest path deviation
   (task and stop), the last command, the tool's distance from the path's end;
@@ -26,19 +27,32 @@ import numpy as np
 
 import dqcontrol
 from dqcontrol.controllers.path_following.controller import PathFollowingController
+from dqcontrol.dq import qfrom_axis_angle
 from dqcontrol.dq.algebra import translation
 from dqcontrol.model import PANDA_Q0
 from dqcontrol.sim import KinematicDriver, MujocoDriver, run_loop
-from dqcontrol.trajectories import Circle
+from dqcontrol.trajectories import Circle, WaypointTrajectory
 
 #: Franka's published limits (libfranka's rate limiter) [rad/s], [rad/s²].
 FRANKA_VELOCITY = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 FRANKA_ACCELERATION = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
 
 
+def _task(args):
+    """The circle, or four waypoints with the tool turning about its z-axis."""
+    if args.path == "circle":
+        return Circle(args.duration, radius_m=args.radius)
+    z = np.array([0.0, 0.0, 1.0])
+    return WaypointTrajectory(
+        positions_m=[[0.0, 0.0, 0.0], [0.08, 0.05, 0.0], [0.12, -0.05, 0.03], [0.0, 0.0, 0.0]],
+        orientations=[qfrom_axis_angle(z, np.radians(a)) for a in (0.0, 30.0, -20.0, 0.0)],
+        duration_s=args.duration,
+    )
+
+
 def _controller(robot, args, end: str = "rest") -> PathFollowingController:
     return PathFollowingController(
-        robot, Circle(args.duration, radius_m=args.radius), args.period,
+        robot, _task(args), args.period,
         velocity_limits=FRANKA_VELOCITY, acceleration_limit=FRANKA_ACCELERATION, end=end,
     )  # fmt: skip
 
@@ -132,6 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--period", type=float, default=0.001)
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--radius", type=float, default=0.15)
+    ap.add_argument("--path", choices=("circle", "waypoints"), default="circle")
     ap.add_argument("--mujoco", action="store_true", help="also in MuJoCo")
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args(argv)

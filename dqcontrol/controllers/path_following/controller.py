@@ -84,6 +84,10 @@ STALL_SCALING = 0.01
 STALL_DELAY_S = 0.5
 #: Factor on the path level's tolerance while stalled.
 STALL_TIGHTENING = 0.01
+#: Weight of the joint velocities beside the braking rows during a stop: with the level's
+#: usual ``μ`` the tool brakes faster by moving the joints in the path's null space, which
+#: then take as long again to stop (docs/theory.md §8.10).
+STOP_DAMPING = 1e-2
 #: The step's message after the path level was infeasible, by what regained feasibility
 #: (the slack in mrad is formatted in).
 _LOOSENED = "predicted position bounds loosened by {:g} mrad to regain feasibility"
@@ -109,14 +113,19 @@ def _tightened(levels: tuple[Level, ...]) -> tuple[Level, ...]:
 
 
 def _braking(levels: tuple[Level, ...], layout) -> tuple[Level, ...]:
-    """The levels of a stop: the progress level's progress term replaced by a braking one
-    (and its smoothing of ``s`` dropped: the stop is as fast as the limits allow)."""
+    """The levels of a stop: the progress level's progress term replaced by a braking one,
+    its damping by :data:`STOP_DAMPING` and its smoothing of ``s`` dropped (the stop is as
+    fast as the limits allow)."""
     path, progress, *rest = levels
-    terms = tuple(
-        BrakingTerm(layout) if isinstance(t, ProgressTerm) else t
-        for t in progress.terms
-        if not isinstance(t, ScalingSmoothnessTerm)
-    )
+
+    def stop_term(term: Term) -> Term:
+        if isinstance(term, ProgressTerm):
+            return BrakingTerm(layout)
+        if isinstance(term, DampingTerm):
+            return DampingTerm(layout, STOP_DAMPING)
+        return term
+
+    terms = tuple(stop_term(t) for t in progress.terms if not isinstance(t, ScalingSmoothnessTerm))
     return (path, dataclasses.replace(progress, terms=terms), *rest)
 
 
