@@ -233,3 +233,16 @@ def test_a_stop_in_mujoco_keeps_the_path(panda):
     assert stop["reason"] == "request" and stop["at_rest"] and not drv.writes[-1].any()
     assert result.metrics.path_deviation_max_m <= MUJOCO_GOAL_M
     assert result.metrics.stop_path_deviation_max_m <= MUJOCO_GOAL_M
+
+
+def test_rest_to_rest_in_mujoco(panda):
+    ctrl = _pf(panda)
+    drv = Wrapped(MujocoDriver(panda, T))
+    result = run_loop(ctrl, drv, q0=PANDA_Q0)
+    m = result.metrics
+    assert m.completed and result.log.meta["stop"]["at_rest"] and not drv.writes[-1].any()
+    assert m.path_deviation_max_m <= MUJOCO_GOAL_M
+    assert m.stop_path_deviation_max_m <= MUJOCO_GOAL_M
+    end = translation(ctrl.trajectory.target(1.0)[None])[0]
+    tool = translation(result.log.pose[-1:])[0]
+    assert np.linalg.norm(tool - end) <= KINEMATIC_GOAL_M
