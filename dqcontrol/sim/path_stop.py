@@ -28,9 +28,11 @@ from dqcontrol.runs.mcap_log import RunLogWriteError
 __all__ = ["PathStop", "stop_along_path"]
 
 #: The command counts as at rest once every joint's is within this share of one period's
-#: acceleration bound (``a_max T``) of zero, the phase velocity below :data:`REST_SCALING`.
+#: acceleration bound (``a_max T``) of zero, the phase velocity below :data:`REST_SCALING`
+#: (the phase is the controller's own: behind a servo's lag the path level may keep a
+#: trace of ``s`` while the joints are at rest).
 REST_SHARE = 0.1
-REST_SCALING = 1e-6
+REST_SCALING = 1e-2
 #: Longest stop [s] before the joint-space ramp takes over.
 MAX_STOP_S = 5.0
 
