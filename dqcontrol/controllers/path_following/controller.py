@@ -172,6 +172,7 @@ class PathFollowingController(QPController):
     """
 
     name = "path_following"
+    stops_itself = True
     prediction_model: ConsistentPrediction
 
     def __init__(
@@ -367,8 +368,6 @@ class PathFollowingController(QPController):
         return self._rest.speed_share(self.trajectory, self.sigma)
 
     # ------------------------------------------------------------------ the stop
-    stops_itself = True
-
     def _begin_stop(self) -> None:
         """The progress level's goal becomes ``s → 0`` (the path level kept, its band as
         narrow as while stalled; the posture level holds the arm still): the arm brakes
