@@ -53,6 +53,7 @@ def field_layout(num_joints: int) -> list[tuple[str, str, int]]:
         ("fallback", "|b1", 0),
         ("relaxed", "|b1", 0),
         ("saturated", "|b1", 0),
+        ("stopping", "|b1", 0),
     ]
 
 
@@ -91,6 +92,7 @@ class SampleBlock:
         result: StepResult,
         torque: np.ndarray | None = None,
         torque_peak: np.ndarray | None = None,
+        stopping: bool = False,
     ) -> None:
         """Write one sample in the next row (as :meth:`~dqcontrol.runs.log.LogRecorder.record`)."""
         k, c, d = self.count, self.columns, result.diagnostics
@@ -117,6 +119,7 @@ class SampleBlock:
         stream = stream_values(result)
         if stream is not None:
             self._record_stream(k, stream)
+        c["stopping"][k] = stopping
         self.count = k + 1
 
     def _record_stream(self, k: int, values: tuple[int, float, float]) -> None:

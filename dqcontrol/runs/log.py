@@ -44,6 +44,9 @@ class RunLog:
             otherwise): the plan each command came from, the time since that plan's
             measurement [s] and, on the wall clock, how long after its place on the grid the
             command was ready [s] (NaN in stepped runs); docs/theory.md §12.4.
+        stopping: per-sample flag: the sample belongs to a stop (the controller's stop was
+            requested: the end of the task, Ctrl-C, the watchdog, a driver error or the
+            caller); all False when not given.
     """
 
     t_s: np.ndarray
@@ -67,6 +70,11 @@ class RunLog:
     plan_id: np.ndarray | None = None
     plan_age_s: np.ndarray | None = None
     lateness_s: np.ndarray | None = None
+    stopping: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.stopping is None:
+            self.stopping = np.zeros(self.t_s.shape, dtype=bool)
 
     def __len__(self) -> int:
         return int(self.t_s.size)
@@ -79,9 +87,15 @@ class RunLog:
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict | None = None) -> RunLog:
         """Rebuild a log from :meth:`arrays` (e.g. a loaded ``.npz``)."""
-        names = [f.name for f in fields(cls) if f.name not in ("meta", *STREAM_FIELDS)]
+        names = [f.name for f in fields(cls) if f.name not in ("meta", "stopping", *STREAM_FIELDS)]
         stream = {k: np.asarray(arrays[k]) for k in STREAM_FIELDS if k in arrays}
-        return cls(**{k: np.asarray(arrays[k]) for k in names}, meta=dict(meta or {}), **stream)
+        stopping = arrays.get("stopping")
+        return cls(
+            **{k: np.asarray(arrays[k]) for k in names},
+            meta=dict(meta or {}),
+            stopping=None if stopping is None else np.asarray(stopping, dtype=bool),
+            **stream,
+        )
 
 
 class LogRecorder:
@@ -104,8 +118,10 @@ class LogRecorder:
         result: StepResult,
         torque: np.ndarray | None = None,
         torque_peak: np.ndarray | None = None,
+        stopping: bool = False,
     ) -> None:
-        """Append sample k: the measurement it was computed from and the controller output."""
+        """Append sample k: the measurement it was computed from and the controller output
+        (``stopping``: the sample belongs to a stop)."""
         d = result.diagnostics
         stream = stream_values(result)
         if stream is not None:
@@ -131,6 +147,7 @@ class LogRecorder:
                 d.fallback,
                 d.relaxed,
                 d.saturated,
+                bool(stopping),
             )
         )
 
@@ -147,7 +164,7 @@ class LogRecorder:
                 solver_status=np.zeros(0, dtype="U32"), iterations=np.zeros(0, dtype=int),
                 solve_time_s=empty, step_time_s=empty, fallback=np.zeros(0, dtype=bool),
                 relaxed=np.zeros(0, dtype=bool), saturated=np.zeros(0, dtype=bool),
-                meta=self.meta,
+                meta=self.meta, stopping=np.zeros(0, dtype=bool),
             )  # fmt: skip
         cols = list(zip(*self._rows, strict=True))
         stream = {}
@@ -177,5 +194,6 @@ class LogRecorder:
             relaxed=np.array(cols[15], dtype=bool),
             saturated=np.array(cols[16], dtype=bool),
             meta=self.meta,
+            stopping=np.array(cols[17], dtype=bool),
             **stream,
         )
