@@ -433,7 +433,8 @@ def _run_meta(args, label: str, controller, q0, velocity, task_meta: dict) -> di
 def _simulate(args, controller, q0, meta: dict, viewer, on_progress, log_file: Path):
     """One run of ``controller``, its log streamed to ``log_file``: against the sim-server
     with ``--connect``, else in MuJoCo (the viewer follows it live) or the kinematic loop
-    (the viewer plays it afterwards)."""
+    (the viewer plays it afterwards). Every run ends with the controller's stop along the
+    path (logged, flagged ``stopping``), as a real arm's run would."""
     from dqcontrol.sim import run_kinematic, run_mujoco
 
     collision = args._collision
@@ -444,9 +445,12 @@ def _simulate(args, controller, q0, meta: dict, viewer, on_progress, log_file: P
         return loaded_result(run_mujoco(
             controller, q0, meta=meta, on_sample=on_sample, on_progress=on_progress,
             obstacles=collision.obstacles if collision is not None else (), log_file=log_file,
+            brake=True,
         ))  # fmt: skip
     result = loaded_result(
-        run_kinematic(controller, q0, meta=meta, on_progress=on_progress, log_file=log_file)
+        run_kinematic(
+            controller, q0, meta=meta, on_progress=on_progress, log_file=log_file, brake=True
+        )
     )
     if viewer is not None:
         viewer.play(
