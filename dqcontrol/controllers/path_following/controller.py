@@ -37,6 +37,7 @@ from dqcontrol.controllers.core.problem import Level, Problem, Residual
 from dqcontrol.controllers.core.state_rows import state_rows_into
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.applied_box import AppliedCommandBox
+from dqcontrol.controllers.limits.jerk import jerk_limits, jerk_setting
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.phase_end import PhaseEndLimit
 from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
@@ -121,6 +122,8 @@ class PathFollowingController(QPController):
         s_max: largest time scaling (1; up to 1.5 lets a late task catch up).
         posture_gain_per_s: rate of the pull towards the start posture [1/s].
         posture_reference: ``"start"`` (the configuration at reset) or a configuration.
+        jerk_limit: jerk bound of the commanded velocity [rad/s³] (scalar or per joint);
+            default: the robot's ``limits.qddd_max`` (no jerk rows where it is infinite).
         torque_limit_fraction: bound the joint torques of the plan through the inverse
             dynamics to this share of the URDF's effort limits (``None``: no torque rows).
         servo_time_constant_s: the joints follow each new velocity command as a first-order
@@ -163,6 +166,7 @@ class PathFollowingController(QPController):
         s_max: float = 1.0,
         posture_gain_per_s: float = 1.0,
         posture_reference: Literal["start"] | np.ndarray = "start",
+        jerk_limit: float | np.ndarray | None = None,
         torque_limit_fraction: float | None = None,
         servo_time_constant_s: float = 0.0,
         tuning: PathFollowingTuning | None = None,
@@ -193,6 +197,7 @@ class PathFollowingController(QPController):
             robot, velocity_limits, position_margin_rad
         )
         self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)
+        self.jerk_max = jerk_setting(robot, jerk_limit)
         self._set_servo(servo_time_constant_s, breaks)
         self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference
@@ -308,8 +313,16 @@ class PathFollowingController(QPController):
             AppliedCommandBox(layout, self.q_min, self.q_max, self.qd_max, self.period_s),
             ScalingRange(layout, 0.0, self.s_max),
             AccelerationLimit(layout, self.period_s, coupling, self._reserve()),
+            *jerk_limits(
+                self.jerk_max, layout, self.period_s, self.qd_max, self.q_min, self.q_max, coupling
+            ),
             PredictedPositionLimit(
-                layout, self.q_min, self.q_max, self.qd_max, reach_rad=self._trust.radii_rad
+                layout,
+                self.q_min,
+                self.q_max,
+                self.qd_max,
+                reach_rad=self._trust.radii_rad,
+                jerk_max=self.jerk_max,
             ),
             PhaseEndLimit(layout),
             self._trust,
@@ -371,7 +384,7 @@ class PathFollowingController(QPController):
             s_prev=self._s_prev,
             lag_s=self._steps * self.period_s - self.sigma,
             posture_scale=0.0 if self._stalled() else 1.0,
-            qd_measured=self.prediction_model.qd_measured,
+            qd_measured=self.prediction_model.qd_measured, qd_before_prev=self.qd_before_prev,
         )  # fmt: skip
 
     def _constant_a_max(self, a_const: np.ndarray, p: int) -> np.ndarray:
