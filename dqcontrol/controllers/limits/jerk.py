@@ -104,14 +104,12 @@ class JerkLimit(Limit):
         q_max: np.ndarray,
         horizon_s: np.ndarray | None = None,
     ) -> None:
-        n = layout.num_joints
         self.period_s = float(period_s)
         self.jerk = np.asarray(jerk, dtype=float)
         self.qd_max = np.asarray(qd_max, dtype=float)
         self.q_min, self.q_max = np.asarray(q_min, dtype=float), np.asarray(q_max, dtype=float)
         self._active = np.flatnonzero(np.isfinite(self.jerk))
-        self._index = layout.qd_index()[0]
-        self._box = np.empty((4, n))
+        self._index = frozen(layout.qd_index()[0][self._active])  # the active joints' qd_0
         self._c: np.ndarray | None = None
         if horizon_s is not None and layout.num_blocks > 1:
             self._set_horizon(layout, np.asarray(horizon_s, dtype=float))
@@ -135,22 +133,26 @@ class JerkLimit(Limit):
         self._u1_weight = m[0] / h[0]  # the first row reads u_1 as qd_{-1}
 
     def applied_box(self, ctx: StepContext) -> np.ndarray:
-        """``[soft lo; soft up; hard lo; hard up]`` ``(4, n)`` of ``qd_0`` [rad/s]."""
+        """``[soft lo; soft up; hard lo; hard up]`` ``(4, n)`` of ``qd_0`` [rad/s] (a new
+        array)."""
         u2 = ctx.qd_prev if ctx.qd_before_prev is None else ctx.qd_before_prev
+        box = np.empty((4, self.jerk.shape[0]))
         applied_jerk_box(
             ctx.q, ctx.qd_prev, u2, ctx.a_max[0], self.jerk, self.qd_max, self.q_min,
-            self.q_max, self.period_s, self._box,
+            self.q_max, self.period_s, box,
         )  # fmt: skip
-        return self._box
+        return box
 
     def rows(self, ctx: StepContext) -> tuple:
         """The applied command's bounds and, over a horizon, the jerk rows."""
         box = self.applied_box(ctx)
         a = self._active
-        index = self._index[a]
+        if a.size != box.shape[1]:
+            box = box[:, a]
+        index = self._index
         out: tuple = (
-            Bounds("jerk_feasible", index, box[0, a].copy(), box[1, a].copy()),
-            Bounds("jerk_applied", index, box[2, a].copy(), box[3, a].copy(), hard=True),
+            Bounds("jerk_feasible", index, box[0], box[1]),
+            Bounds("jerk_applied", index, box[2], box[3], hard=True),
         )
         if self._c is None:
             return out
