@@ -1,4 +1,4 @@
-"""The jerk limit (docs/theory.md §8.8): its rows against second differences formed with
+"""The jerk limit (docs/theory.md §8.9): its rows against second differences formed with
 numpy, the stops it plans against a simulation, and closed kinematic loops in which no
 command leaves a limit and every next problem stays feasible."""
 

@@ -43,7 +43,7 @@ class StepContext:
         qd_measured: the measured joint velocities [rad/s] ``(n,)``, where the controller
             was given them (``None``: take ``qd_prev``, the command).
         qd_before_prev: the command applied the period before ``qd_prev`` [rad/s] ``(n,)``
-            (the jerk of the applied command, docs/theory.md §8.8; ``None``: ``qd_prev``).
+            (the jerk of the applied command, docs/theory.md §8.9; ``None``: ``qd_prev``).
     """
 
     robot: RobotModel

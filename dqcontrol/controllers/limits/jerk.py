@@ -1,5 +1,5 @@
 """Joint jerk of the commanded velocity, and the bounds that keep it feasible
-(docs/theory.md §8.8).
+(docs/theory.md §8.9).
 
 The arm differentiates the applied commands ``u_k``: ``a_k = (u_k - u_{k-1})/T`` and
 ``j_k = (a_k - a_{k-1})/T``. With ``u_1 = qd_prev`` and ``u_2 = qd_before_prev``:
@@ -38,7 +38,7 @@ __all__ = ["JerkLimit", "jerk_limits", "jerk_setting", "terminal_jerk_distance"]
 
 #: The braking deceleration ``b`` is at most this many ``j̄ T``: following the braking
 #: envelope to rest, the deceleration fades from ``b`` to 0 over a few periods, and changes
-#: by at most ``b/4`` in one of them (docs/theory.md §8.8).
+#: by at most ``b/4`` in one of them (docs/theory.md §8.9).
 ENVELOPE_JERK_RATIO = 2.0
 
 
@@ -65,11 +65,12 @@ def jerk_limits(
     q_min: np.ndarray,
     q_max: np.ndarray,
     horizon_s: np.ndarray | None = None,
+    a_bound: np.ndarray | float | None = None,
 ) -> tuple[Limit, ...]:
     """``(JerkLimit(...),)``, or ``()`` without a jerk bound (``jerk`` is ``None``)."""
     if jerk is None:
         return ()
-    return (JerkLimit(layout, period_s, jerk, qd_max, q_min, q_max, horizon_s),)
+    return (JerkLimit(layout, period_s, jerk, qd_max, q_min, q_max, horizon_s, a_bound),)
 
 
 def terminal_jerk_distance(a_max: np.ndarray, jerk: np.ndarray) -> np.ndarray:
@@ -90,6 +91,9 @@ class JerkLimit(Limit):
         q_min, q_max: position bounds [rad] (already shrunk by any margin).
         horizon_s: ``h_i`` for ``i = 1 … p-1`` [s] (the unreduced acceleration coupling of
             the intervals); ``None``: the applied command only.
+        a_bound: the largest ``ā`` [rad/s²] per joint the steps may give (``None``:
+            unknown). A horizon row with ``j̄ ½(h_i + h_{i+1}) ≥ 2 ā`` cannot bind (the two
+            accelerations it compares are each within ``ā``) and is left out.
     """
 
     name = "jerk"
@@ -103,6 +107,7 @@ class JerkLimit(Limit):
         q_min: np.ndarray,
         q_max: np.ndarray,
         horizon_s: np.ndarray | None = None,
+        a_bound: np.ndarray | None = None,
     ) -> None:
         self.period_s = float(period_s)
         self.jerk = np.asarray(jerk, dtype=float)
@@ -112,25 +117,35 @@ class JerkLimit(Limit):
         self._index = frozen(layout.qd_index()[0][self._active])  # the active joints' qd_0
         self._c: np.ndarray | None = None
         if horizon_s is not None and layout.num_blocks > 1:
-            self._set_horizon(layout, np.asarray(horizon_s, dtype=float))
+            n = layout.num_joints
+            bound = np.full(n, np.inf) if a_bound is None else np.broadcast_to(a_bound, (n,))
+            self._set_horizon(layout, np.asarray(horizon_s, dtype=float), bound)
 
-    def _set_horizon(self, layout: DecisionLayout, coupling_s: np.ndarray) -> None:
-        """The rows ``m_r (A_{r+1} - A_r)`` over ``qd`` and their bounds' constants."""
-        p = layout.num_blocks
+    def _set_horizon(self, layout: DecisionLayout, coupling_s: np.ndarray, a_bound) -> None:
+        """The rows ``m_r (A_{r+1} - A_r)`` over ``qd`` that can bind, and their bounds."""
         h = np.concatenate(([self.period_s], coupling_s))  # h_0 … h_{p-1}
         m = 0.5 * (h[:-1] + h[1:])  # m_0 … m_{p-2}
         idx = layout.qd_index()
-        active = self._active
-        c = np.zeros((p - 1, active.size, layout.num_vars))
-        for r in range(p - 1):
-            for k, joint in enumerate(active):
-                c[r, k, idx[r + 1, joint]] = m[r] / h[r + 1]
-                c[r, k, idx[r, joint]] = -m[r] / h[r + 1] - m[r] / h[r]
+        rows, half, first = [], [], []
+        for r in range(layout.num_blocks - 1):
+            for joint in self._active:
+                if self.jerk[joint] * m[r] >= 2.0 * a_bound[joint]:
+                    continue  # cannot bind
+                row = np.zeros(layout.num_vars)
+                row[idx[r + 1, joint]] = m[r] / h[r + 1]
+                row[idx[r, joint]] = -m[r] / h[r + 1] - m[r] / h[r]
                 if r >= 1:
-                    c[r, k, idx[r - 1, joint]] = m[r] / h[r]
-        self._c = frozen(c.reshape((p - 1) * active.size, layout.num_vars))
-        self._half = frozen((m[:, None] ** 2 * self.jerk[active][None, :]).ravel())
-        self._u1_weight = m[0] / h[0]  # the first row reads u_1 as qd_{-1}
+                    row[idx[r - 1, joint]] = m[r] / h[r]
+                else:
+                    first.append(joint)
+                rows.append(row)
+                half.append(self.jerk[joint] * m[r] ** 2)
+        if not rows:
+            return
+        self._c = frozen(np.array(rows))
+        self._half = frozen(np.array(half))
+        self._first_joints = frozen(np.array(first, dtype=np.int64))  # rows 0 … len - 1
+        self._u1_weight = m[0] / h[0]  # the first rows read u_1 as qd_{-1}
 
     def applied_box(self, ctx: StepContext) -> np.ndarray:
         """``[soft lo; soft up; hard lo; hard up]`` ``(4, n)`` of ``qd_0`` [rad/s] (a new
@@ -157,9 +172,10 @@ class JerkLimit(Limit):
         if self._c is None:
             return out
         lower, upper = -self._half, self._half.copy()
-        shift = self._u1_weight * ctx.qd_prev[a]  # the first rows' constant, moved over
-        lower[: a.size] -= shift
-        upper[: a.size] -= shift
+        first = self._first_joints
+        shift = self._u1_weight * ctx.qd_prev[first]  # the first rows' constant, moved over
+        lower[: first.size] -= shift
+        upper[: first.size] -= shift
         return (*out, Inequality("jerk_horizon", self._c, lower, upper))
 
 

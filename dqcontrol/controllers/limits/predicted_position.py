@@ -11,7 +11,7 @@ from ``v`` at ``a`` covers ``v² / (2 a) ≤ |v| qd_max / (2 a)``, so
 is sufficient (linear and conservative), and keeps the next problem's braking plan
 feasible. Under a jerk bound ``j̄`` the stop from ``v`` (the last interval holds its
 velocity: no acceleration) covers ``v²/(2 a) + v a/(2 j̄)``: ``c = qd_max/(2 a) + a/(2 j̄)``
-(docs/theory.md §8.8).
+(docs/theory.md §8.9).
 
 With ``reach_rad`` (how far each state can move from its linearisation point, e.g. a trust
 region's radius), only the rows a state can reach are given; the limit is inactive (no

@@ -314,8 +314,15 @@ class PathFollowingController(QPController):
             ScalingRange(layout, 0.0, self.s_max),
             AccelerationLimit(layout, self.period_s, coupling, self._reserve()),
             *jerk_limits(
-                self.jerk_max, layout, self.period_s, self.qd_max, self.q_min, self.q_max, coupling
-            ),
+                self.jerk_max,
+                layout,
+                self.period_s,
+                self.qd_max,
+                self.q_min,
+                self.q_max,
+                coupling,
+                self.acceleration_cap if self.a_const is None else self.a_const,
+            ),  # fmt: skip
             PredictedPositionLimit(
                 layout,
                 self.q_min,

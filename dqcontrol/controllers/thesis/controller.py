@@ -118,7 +118,7 @@ class TrackingController(QPController):
             clipped to ``[acceleration_floor, acceleration_cap]``.
         jerk_limit: jerk bound of the applied command [rad/s³] (scalar or per joint);
             default: the robot's ``limits.qddd_max`` (no bound where it is infinite;
-            docs/theory.md §8.8).
+            docs/theory.md §8.9).
         braking_aware: add the stop-before-the-limit position bound (docs/theory.md §5).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
             [rad] (default 5 mrad: a velocity servo lags its command, so a joint braked to
