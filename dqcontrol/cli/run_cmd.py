@@ -40,7 +40,15 @@ from dqcontrol.cli.run_output import (
     progress_bar,
     progress_callback,
     show_progress,
+    with_contacts,
     write_results,
+)
+from dqcontrol.cli.stream_options import (
+    check_stream_options,
+    measured_plan_period,
+    planner_acceleration,
+    stream_summary,
+    streamed_from_args,
 )
 from dqcontrol.experiments.thesis import THESIS_VELOCITY_LIMITS
 from dqcontrol.registry import CONTROLLER_HELP
@@ -72,6 +80,7 @@ examples:
   dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10,pf
   dqcontrol run --period 0.001                      the 1 kHz controller
   dqcontrol run --robot panda --simulator kinematic
+  dqcontrol run --robot panda --limits franka_panda --period 0.001 --controllers pf
   dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0 \
       --package-dir ~/ws/src
   dqcontrol run --robot erd:ur5 --ee-frame tool0 --q0=0,-1.2,1.5,-1.9,-1.57,0
@@ -146,7 +155,13 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
         from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
 
         shared["servo_time_constant_s"] = SERVO_TIME_CONSTANT_S
-    return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+    plan_period = getattr(args, "plan_period", None)
+    if plan_period is None:
+        return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+    if args.acceleration_limit is not None:
+        shared["acceleration_limit"] = planner_acceleration(args)
+    planner = build_controller(name, robot, trajectory, plan_period, shared=shared, **extra)
+    return streamed_from_args(planner, args)
 
 
 def run_connected(args, controller, q0, meta: dict, on_progress, log_file=None):
@@ -192,7 +207,8 @@ def _check_options(args) -> tuple:
     spec = args.velocity_limits
     if spec is None:
         thesis_arm = robot_meta["robot"] == "lbr4p" and n == len(THESIS_VELOCITY_LIMITS)
-        spec = "thesis" if thesis_arm else "urdf"
+        spec = "thesis" if thesis_arm and robot.limit_profile == "urdf" else "urdf"
+    _note_period(args, robot)
     if spec == "thesis":
         if n != len(THESIS_VELOCITY_LIMITS):
             parser.error(
@@ -226,7 +242,27 @@ def _check_options(args) -> tuple:
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)
+    check_stream_options(args)
+    if args.plan_period == "auto":
+        args.plan_period = measured_plan_period(args, robot, q0, velocity)
+        print(f"dqcontrol run: --plan-period auto: {args.plan_period:g} s", file=sys.stderr)
     return robot, q0, robot_meta, velocity
+
+
+def _note_period(args, robot) -> None:
+    """A note on stderr when the limit profile's robot does not accept ``--period``."""
+    if args.limits is None:
+        return
+    from dqcontrol.model.limit_profile import load_profile
+
+    profile = load_profile(args.limits)
+    if not profile.accepts_period(args.period):
+        accepted = ", ".join(f"{p:g}" for p in profile.periods_s)
+        print(
+            f"dqcontrol run: note: the robot of limit profile {profile.name!r} accepts control "
+            f"periods of {accepted} s, not --period {args.period:g}",
+            file=sys.stderr,
+        )
 
 
 def _collision_model(args, robot, q0):
@@ -292,6 +328,7 @@ def _main(args: argparse.Namespace) -> int:
             _run_controller(label, args, robot, q0, robot_meta, velocity, viewer, out)
             for label in args.controllers
         ]
+        runs = with_contacts(runs, robot, args._collision)
         written = _write_results(runs, robot, out, args, name)
         _print_summary(args, name, robot, runs)
         print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
@@ -350,6 +387,8 @@ def _run_controller(
         result = _simulate(args, controller, q0, meta, viewer, on_progress, out / f"{label}.mcap")
     finally:
         bar.close()
+    if "stream" in result.log.meta:
+        print(f"{label}: {stream_summary(result.log.meta['stream'])}")
     if result.note:
         print(f"{label}: {result.note}", file=sys.stderr)
     return label, result, controller.trajectory
@@ -435,7 +474,7 @@ def _print_summary(args: argparse.Namespace, name: str, robot, runs: list) -> No
             "with the obstacles)"
         )
         for label, result, _ in runs:
-            print("  " + collision_report(label, robot, collision, result.log.q))
+            print("  " + collision_report(label, result))
 
 
 def _replay_last(viewer, runs: list, args: argparse.Namespace) -> None:

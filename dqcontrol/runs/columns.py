@@ -23,7 +23,7 @@ import numpy as np
 
 from dqcontrol.controllers.base import StepResult
 from dqcontrol.errors import ParameterError
-from dqcontrol.runs.log import RunLog
+from dqcontrol.runs.log import RunLog, stream_values
 
 __all__ = ["SampleBlock", "decode_block", "encode_block", "field_layout"]
 
@@ -114,7 +114,20 @@ class SampleBlock:
         c["fallback"][k] = d.fallback
         c["relaxed"][k] = d.relaxed
         c["saturated"][k] = d.saturated
+        stream = stream_values(result)
+        if stream is not None:
+            self._record_stream(k, stream)
         self.count = k + 1
+
+    def _record_stream(self, k: int, values: tuple[int, float, float]) -> None:
+        """A streamed controller's plan id, plan age and lateness: their columns are made
+        at its first sample (a run's samples all come from one controller)."""
+        c = self.columns
+        if "plan_id" not in c:
+            for name, dt in (("plan_id", "<i8"), ("plan_age_s", "<f8"), ("lateness_s", "<f8")):
+                self.layout.append((name, dt, 0))
+                c[name] = _empty(dt, 0, self.capacity)
+        c["plan_id"][k], c["plan_age_s"][k], c["lateness_s"][k] = values
 
     def status_names(self) -> list[str]:
         """The block's distinct solver statuses, in the order of their codes."""

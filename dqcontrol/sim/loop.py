@@ -40,6 +40,7 @@ from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.base import Controller, StepResult, check_positive
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
+from dqcontrol.runs.contacts import RunContacts
 from dqcontrol.runs.log import LogRecorder, RunLog
 from dqcontrol.runs.mcap_log import RunLogWriteError
 from dqcontrol.runs.metrics import Metrics, compute_metrics
@@ -47,6 +48,7 @@ from dqcontrol.runs.stream import DEFAULT_CHUNK_S, StreamRecorder
 from dqcontrol.runs.streamed_run import end_streamed
 from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
+from dqcontrol.streaming.hook import stream_hook
 
 __all__ = ["RunResult", "run_loop"]
 
@@ -76,6 +78,9 @@ class RunResult:
     #: ``log`` holds every ``log_stride``-th sample of ``log_file`` (a long run loaded for
     #: display); 1: every sample (or no file).
     log_stride: int = 1
+    #: the run's contacts and closest distance, when measured
+    #: (:func:`~dqcontrol.sim.run_contacts.measure_contacts`); saved with the run.
+    contacts: RunContacts | None = None
 
 
 def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:
@@ -270,7 +275,12 @@ def run_loop(
     num = _sample_count(controller, max_time_s, stale_periods)
     logging = (log_file, log_chunk_s)
     run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
-    stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
+    stream = stream_hook(controller, realtime)  # a streamed controller plans in a thread
+    try:
+        stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
+    finally:
+        stream.close()
+    run.rec.meta.update(stream.meta())
     return _result(controller, driver, run.rec, stop, run)
 
 

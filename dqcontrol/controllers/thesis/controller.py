@@ -36,6 +36,7 @@ from dqcontrol.controllers.base import (
     acceleration_setting,
     check_positive,
     joint_limit_settings,
+    robot_acceleration_limit,
 )
 from dqcontrol.controllers.core.problem import DecisionLayout, DenseQP, Level
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
@@ -115,7 +116,9 @@ class TrackingController(QPController):
         velocity_limits: ``qd_max`` [rad/s], scalar or per joint; default: the URDF's.
         acceleration_limit: constant ``a_max`` [rad/s²] (scalar or per joint) or
             ``"dynamics"`` for Pinocchio's ``(τ_max - |g|)/M_jj`` at each block's state,
-            clipped to ``[acceleration_floor, acceleration_cap]``.
+            clipped to ``[acceleration_floor, acceleration_cap]``; ``None`` (default): the
+            robot's limit profile's acceleration limit, else 10 rad/s²
+            (:func:`~dqcontrol.controllers.base.robot_acceleration_limit`).
         jerk_limit: jerk bound of the applied command [rad/s³] (scalar or per joint);
             default: the robot's ``limits.qddd_max`` (no bound where it is infinite;
             docs/theory.md §8.9).
@@ -163,7 +166,7 @@ class TrackingController(QPController):
         stall_scaling: float = 0.05,
         stall_delay_s: float = 0.5,
         velocity_limits: float | np.ndarray | None = None,
-        acceleration_limit: AccelerationSetting = 10.0,
+        acceleration_limit: AccelerationSetting | None = None,
         acceleration_floor: float = 0.5,
         acceleration_cap: float = 50.0,
         jerk_limit: float | np.ndarray | None = None,
@@ -193,6 +196,7 @@ class TrackingController(QPController):
             robot, velocity_limits, position_margin_rad
         )
         self.position_margin_rad = margin
+        acceleration_limit = robot_acceleration_limit(robot, acceleration_limit, 10.0)
         self._set_acceleration(robot.nq, acceleration_limit, acceleration_floor, acceleration_cap)
         layout = self._layout(robot.nq, period_s)
         jerk = jerk_limits(jerk_setting(robot, jerk_limit), layout, period_s, qd_max, q_min, q_max)
