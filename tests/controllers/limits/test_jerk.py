@@ -253,6 +253,10 @@ def test_no_jerk_rows_without_a_finite_jerk(panda):
     assert not any(isinstance(lim, JerkLimit) for lim in ctrl.limits)
     ctrl = PathFollowingController(panda, Circle(1.0, 0.15), 0.01, jerk_limit=5000.0)
     assert sum(isinstance(lim, JerkLimit) for lim in ctrl.limits) == 1
+    franka = panda.with_limits("franka_panda")  # a profile with jerk limits
+    ctrl = LocalController(franka, Circle(1.0, 0.15), 0.01)
+    (limit,) = (lim for lim in ctrl.limits if isinstance(lim, JerkLimit))
+    np.testing.assert_array_equal(limit.jerk, PANDA_J)
 
 
 @pytest.mark.parametrize("bad", [-1.0, 0.0, np.inf, [1.0, 2.0]])
