@@ -152,6 +152,8 @@ class QPController(Controller):
             raise ParameterError("a QP controller needs at least one priority level")
         self.prediction_model = prediction
         self.layout = prediction.layout
+        #: The command applied the period before ``qd_prev`` (the jerk rows read it).
+        self.qd_before_prev = self.qd_prev.copy()
         self.levels = tuple(levels)
         self.limits = tuple(limits)
         self.s_max = float(s_max)
@@ -189,6 +191,7 @@ class QPController(Controller):
 
     # ------------------------------------------------------------------ memory
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        self.qd_before_prev = qd0.copy()  # the start without acceleration (at rest: 0)
         self.prediction_model.reset(q0, qd0)
         for term in self._resets:
             term.reset()
@@ -229,12 +232,13 @@ class QPController(Controller):
         if ctx is None:
             ctx = self._ctx = StepContext(
                 self.robot, self.trajectory, self.layout, self.period_s, q, self.qd_prev,
-                sigma, pred, xs, jacs, xd, dxd, a_max,
+                sigma, pred, xs, jacs, xd, dxd, a_max, qd_before_prev=self.qd_before_prev,
             )  # fmt: skip
             return ctx
         ctx.period_s = self.period_s
         ctx.q = q
         ctx.qd_prev = self.qd_prev
+        ctx.qd_before_prev = self.qd_before_prev
         ctx.sigma = sigma
         ctx.prediction = pred
         ctx.poses = xs
@@ -258,6 +262,7 @@ class QPController(Controller):
         ctx.period_s = self.period_s
         ctx.q = q
         ctx.qd_prev = self.qd_prev
+        ctx.qd_before_prev = self.qd_before_prev
         ctx.sigma = sigma
         if not self._constant_acceleration:
             ctx.a_max = self._acceleration(ctx.prediction.q_lin)
@@ -368,6 +373,7 @@ class QPController(Controller):
             levels_time_s=levels_time,
         )  # fmt: skip
         self._last = problem
+        self.qd_before_prev = self.qd_prev  # the step then applies qd_cmd: qd_prev moves back
         pose, target = self._reported
         sigma = self.sigma
         return self._new_result(

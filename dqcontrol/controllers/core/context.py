@@ -42,6 +42,8 @@ class StepContext:
             pull off, e.g. while a task is stalled).
         qd_measured: the measured joint velocities [rad/s] ``(n,)``, where the controller
             was given them (``None``: take ``qd_prev``, the command).
+        qd_before_prev: the command applied the period before ``qd_prev`` [rad/s] ``(n,)``
+            (the jerk of the applied command, docs/theory.md §8.11; ``None``: ``qd_prev``).
     """
 
     robot: RobotModel
@@ -61,6 +63,7 @@ class StepContext:
     lag_s: float = 0.0
     posture_scale: float = 1.0
     qd_measured: np.ndarray | None = None
+    qd_before_prev: np.ndarray | None = None
 
     @property
     def qd_now(self) -> np.ndarray:

@@ -9,7 +9,9 @@ from ``v`` at ``a`` covers ``v² / (2 a) ≤ |v| qd_max / (2 a)``, so
     q_min ≤ q_p + c qd_{p-1} ≤ q_max,     c = qd_max / (2 a_max)
 
 is sufficient (linear and conservative), and keeps the next problem's braking plan
-feasible.
+feasible. Under a jerk bound ``j̄`` the stop from ``v`` (the last interval holds its
+velocity: no acceleration) covers ``v²/(2 a) + v a/(2 j̄)``: ``c = qd_max/(2 a) + a/(2 j̄)``
+(docs/theory.md §8.11).
 
 With ``reach_rad`` (how far each state can move from its linearisation point, e.g. a trust
 region's radius), only the rows a state can reach are given; the limit is inactive (no
@@ -22,6 +24,7 @@ import numpy as np
 
 from dqcontrol.controllers.core.context import StepContext
 from dqcontrol.controllers.core.problem import DecisionLayout, Inequality
+from dqcontrol.controllers.limits.jerk import terminal_jerk_distance
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.position_kernels import states_and_terminal_into
 from dqcontrol.controllers.linalg.gram import frozen
@@ -39,6 +42,7 @@ class PredictedPositionLimit(Limit):
         terminal: add the terminal braking rows.
         reach_rad: per state, how far it can move from its linearisation point [rad]
             (``None``: unknown, every row is given).
+        jerk_max: the jerk bound [rad/s³] per joint for the terminal rows (``None``: none).
     """
 
     name = "predicted_position"
@@ -52,8 +56,10 @@ class PredictedPositionLimit(Limit):
         *,
         terminal: bool = True,
         reach_rad: np.ndarray | None = None,
+        jerk_max: np.ndarray | None = None,
     ) -> None:
         self.layout = layout
+        self.jerk_max = jerk_max
         self.reach_rad = None if reach_rad is None else np.asarray(reach_rad, dtype=float)
         self.q_min = np.asarray(q_min, dtype=float)
         self.q_max = np.asarray(q_max, dtype=float)
@@ -81,6 +87,7 @@ class PredictedPositionLimit(Limit):
             self.qd_max,
             terminal=self.terminal,
             reach_rad=self.reach_rad,
+            jerk_max=self.jerk_max,
         )
 
     def _matrix(self, weights: np.ndarray) -> np.ndarray:
@@ -107,6 +114,8 @@ class PredictedPositionLimit(Limit):
         if key[0] is not c or key[1] is not a_max:
             n = self.layout.num_joints
             coeff = self.qd_max / (2.0 * a_max[-1])
+            if self.jerk_max is not None:
+                coeff = coeff + terminal_jerk_distance(a_max[-1], self.jerk_max)
             last = c[-n:].copy()
             last.ravel()[self._terminal_entries] += coeff
             self._terminal_key = (c, a_max)

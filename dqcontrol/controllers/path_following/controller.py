@@ -37,6 +37,7 @@ from dqcontrol.controllers.core.problem import Level, Problem, Residual
 from dqcontrol.controllers.core.state_rows import state_rows_into
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.applied_box import AppliedCommandBox
+from dqcontrol.controllers.limits.jerk import jerk_limits, jerk_setting
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.phase_end import PhaseEndLimit
 from dqcontrol.controllers.limits.phase_rest import PhaseRestLimit
@@ -148,6 +149,8 @@ class PathFollowingController(QPController):
             within the limits, :class:`~dqcontrol.controllers.limits.phase_rest.
             PhaseRestLimit`) or ``"at_speed"`` (the thesis's convention: the task ends at
             the nominal speed; :meth:`request_stop` then brings the arm to rest).
+        jerk_limit: jerk bound of the commanded velocity [rad/s³] (scalar or per joint);
+            default: the robot's ``limits.qddd_max`` (no jerk rows where it is infinite).
         torque_limit_fraction: bound the joint torques of the plan through the inverse
             dynamics to this share of the URDF's effort limits (``None``: no torque rows).
         servo_time_constant_s: the joints follow each new velocity command as a first-order
@@ -192,6 +195,7 @@ class PathFollowingController(QPController):
         posture_gain_per_s: float = 1.0,
         posture_reference: Literal["start"] | np.ndarray = "start",
         end: Literal["rest", "at_speed"] = "rest",
+        jerk_limit: float | np.ndarray | None = None,
         torque_limit_fraction: float | None = None,
         servo_time_constant_s: float = 0.0,
         tuning: PathFollowingTuning | None = None,
@@ -222,6 +226,7 @@ class PathFollowingController(QPController):
             robot, velocity_limits, position_margin_rad
         )
         self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)
+        self.jerk_max = jerk_setting(robot, jerk_limit)
         self._set_servo(servo_time_constant_s, breaks)
         self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference
@@ -338,8 +343,23 @@ class PathFollowingController(QPController):
             AppliedCommandBox(layout, self.q_min, self.q_max, self.qd_max, self.period_s),
             ScalingRange(layout, 0.0, self.s_max),
             AccelerationLimit(layout, self.period_s, coupling, self._reserve()),
+            *jerk_limits(
+                self.jerk_max,
+                layout,
+                self.period_s,
+                self.qd_max,
+                self.q_min,
+                self.q_max,
+                coupling,
+                self.acceleration_cap if self.a_const is None else self.a_const,
+            ),  # fmt: skip
             PredictedPositionLimit(
-                layout, self.q_min, self.q_max, self.qd_max, reach_rad=self._trust.radii_rad
+                layout,
+                self.q_min,
+                self.q_max,
+                self.qd_max,
+                reach_rad=self._trust.radii_rad,
+                jerk_max=self.jerk_max,
             ),
             PhaseEndLimit(layout),
             self._trust,
@@ -430,7 +450,7 @@ class PathFollowingController(QPController):
             s_prev=self._s_prev,
             lag_s=self._steps * self.period_s - self.sigma,
             posture_scale=self._posture_scale(),
-            qd_measured=self.prediction_model.qd_measured,
+            qd_measured=self.prediction_model.qd_measured, qd_before_prev=self.qd_before_prev,
         )  # fmt: skip
 
     def _constant_a_max(self, a_const: np.ndarray, p: int) -> np.ndarray:

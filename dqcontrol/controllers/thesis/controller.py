@@ -41,6 +41,7 @@ from dqcontrol.controllers.base import (
 from dqcontrol.controllers.core.problem import DecisionLayout, DenseQP, Level
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.command_box import CommandBoxLimit
+from dqcontrol.controllers.limits.jerk import jerk_limits, jerk_setting
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
@@ -118,6 +119,9 @@ class TrackingController(QPController):
             clipped to ``[acceleration_floor, acceleration_cap]``; ``None`` (default): the
             robot's limit profile's acceleration limit, else 10 rad/s²
             (:func:`~dqcontrol.controllers.base.robot_acceleration_limit`).
+        jerk_limit: jerk bound of the applied command [rad/s³] (scalar or per joint);
+            default: the robot's ``limits.qddd_max`` (no bound where it is infinite;
+            docs/theory.md §8.11).
         braking_aware: add the stop-before-the-limit position bound (docs/theory.md §5).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
             [rad] (default 5 mrad: a velocity servo lags its command, so a joint braked to
@@ -165,6 +169,7 @@ class TrackingController(QPController):
         acceleration_limit: AccelerationSetting | None = None,
         acceleration_floor: float = 0.5,
         acceleration_cap: float = 50.0,
+        jerk_limit: float | np.ndarray | None = None,
         braking_aware: bool = True,
         position_margin_rad: float = 5e-3,
         measurement_delay_periods: int = 0,
@@ -194,6 +199,7 @@ class TrackingController(QPController):
         acceleration_limit = robot_acceleration_limit(robot, acceleration_limit, 10.0)
         self._set_acceleration(robot.nq, acceleration_limit, acceleration_floor, acceleration_cap)
         layout = self._layout(robot.nq, period_s)
+        jerk = jerk_limits(jerk_setting(robot, jerk_limit), layout, period_s, qd_max, q_min, q_max)
         prediction = ThesisPrediction(
             layout, period_s, phase_prediction if self.scaling else "nominal"
         )
@@ -202,7 +208,7 @@ class TrackingController(QPController):
         predicted.values = applied.values  # one set of bounds (in-place edits included)
         self._joint_boxes = (applied, predicted)
         levels = self._compose_levels(layout, period_s, tuple(extra_terms))
-        limits = self._compose_limits(layout, period_s) + tuple(extra_limits)
+        limits = self._compose_limits(layout, period_s) + jerk + tuple(extra_limits)
         if self.a_const is not None:
             self._a_batch = np.tile(self.a_const, (self.p, 1))
         self.compose(prediction, levels, limits, backend, solver_settings)
