@@ -7,6 +7,8 @@
 * Hypothesis profile ``ci`` (loaded by default): derandomised (seeded), no deadline (the
   first call of a Pinocchio function can be slow) and ~100 examples per property. Select
   another profile with ``pytest --hypothesis-profile=<name>``.
+* Under pytest-xdist (``-n 2`` in pyproject's addopts) a wall-clock test runs alone
+  (``wall_clock_lock.py``).
 """
 
 from __future__ import annotations
@@ -33,6 +35,23 @@ settings.register_profile(
 )
 settings.register_profile("thorough", deadline=None, max_examples=2000)
 settings.load_profile("ci")
+
+from wall_clock_lock import held, is_wall_clock, lock_folder  # noqa: E402 - tests/ on the path
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers", "wall_clock: keeps or measures wall time; runs alone under pytest-xdist"
+    )
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
+    folder = lock_folder(item.config)
+    if folder is None:
+        return (yield)
+    with held(folder, exclusive=is_wall_clock(item)):
+        return (yield)
 
 
 @pytest.fixture(scope="session")

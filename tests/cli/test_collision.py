@@ -58,7 +58,12 @@ def test_the_help_gives_the_forms_and_units(capsys):
         assert form in out
 
 
-def test_run_with_an_obstacle_reports_distance_and_contacts(capsys, tmp_path):
+def test_run_with_an_obstacle_reports_distance_and_contacts(capsys, tmp_path, monkeypatch):
+    import dqcontrol.viz.figures as figures
+
+    # the figures do not draw obstacles and are tested in tests/cli/test_cli.py; here the
+    # report, the saved run and the replay (a third of the run's time is the figures)
+    monkeypatch.setattr(figures, "plot_run", lambda *a, **k: [])
     code = main(
         [
             "run", "--simulator", "kinematic", "--controllers", "pf", "--period", "0.01",
