@@ -42,3 +42,21 @@ def test_noise_near_the_limits_stops_still():
     r = run_case(_case("near_limits_noise", "circle", "kinematic"))
     _judged(r)
     assert r.status in ("stopped", "completed"), r.row()
+
+
+class _FirstTwoSeconds(CaseSpec):
+    """A case cut at 2 s (the joint reaches its limit at 1.75 s)."""
+
+    max_time_s = 2.0
+
+
+def test_delay_near_the_limits_keeps_the_true_joints_inside_in_mujoco():
+    """Near the limits with a 2-period delay (compensated) the servo's lag must not carry
+    a joint past its limit: the sinusoid's first swing brings joint 6 to its lower limit at
+    1.36 rad/s. The campaign tells the controller the MuJoCo servo it drives (τ_v), whose
+    lag its prediction then counts."""
+    base = _case("near_limits_delay_2", "sinusoid", "mujoco")
+    spec = _FirstTwoSeconds(base.controller, base.trajectory, base.fault, "mujoco", 4.0)
+    r = run_case(spec)
+    assert r.raised == "" and not r.nan_seen, r.row()
+    assert r.q_violations_true == 0, r.row()
