@@ -3,6 +3,9 @@ controllers, and the cases where it once failed the campaign's judgement now pas
 
 from __future__ import annotations
 
+import csv
+
+from dqcontrol.cli import main
 from dqcontrol.faults.campaign import CaseSpec, run_case
 from dqcontrol.faults.scenarios import (
     CONTROLLERS,
@@ -34,6 +37,21 @@ def test_path_following_is_a_campaign_controller():
     assert CONTROLLERS[PF].qp and CONTROLLERS[PF].num_instants == 10
     assert PF in QUICK_CONTROLLERS
     assert PF in load_study("faults").controllers
+
+
+def test_the_cli_runs_it(tmp_path, capsys):
+    code = main(
+        ["faults", "--simulator", "kinematic", "--controllers", PF, "--faults",
+         "nominal,qp_crossed", "--trajectories", "circle", "--out", str(tmp_path),
+         "--workers", "1", "--no-progress"]
+    )  # fmt: skip
+    assert code == 0
+    rows = list(csv.DictReader(open(tmp_path / "faults.csv", encoding="utf-8")))
+    assert [(r["fault"], r["controller"], r["status"]) for r in rows] == [
+        ("nominal", PF, "completed"),
+        ("qp_crossed", PF, "completed"),
+    ]
+    assert "2/2 cases without violation" in capsys.readouterr().out
 
 
 def test_noise_near_the_limits_stops_still():
