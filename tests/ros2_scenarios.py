@@ -1,4 +1,4 @@
-"""ROS 2 scenarios for tests/test_ros2_nodes.py, run INSIDE a network namespace that has only
+"""ROS 2 scenarios for tests/ros2/test_nodes.py, run INSIDE a network namespace that has only
 the loopback interface (the test starts this file through ``unshare -n``; it refuses to run
 elsewhere). Each scenario starts ``dqcontrol ros2 sim`` and ``dqcontrol ros2 control`` as
 separate processes, plays its part with a node of its own (paths, bad joint states,

@@ -2,6 +2,9 @@
 ``--tool``, shared by every subcommand that builds a robot, and the same robot rebuilt from
 a saved run's ``meta``.
 
+``--limits`` puts a limit profile on the robot (a shipped name or a ``FILE.toml``,
+:mod:`dqcontrol.model.limit_profile`); the run's ``meta`` records it.
+
 ``--robot`` names the thesis's LBR4p (``lbr4p``), the Franka Panda of example-robot-data
 with its fingers locked (``panda``), any robot of example-robot-data (``erd:NAME``) or a
 URDF file. Errors in these options reach the user as :class:`ValueError` messages that
@@ -20,7 +23,9 @@ __all__ = [
     "check_mujoco_meshes",
     "ERD_PREFIX",
     "RobotRequest",
+    "add_limits_option",
     "add_robot_options",
+    "limits_help",
     "erd_robot_names",
     "erd_urdf",
     "load_robot",
@@ -81,8 +86,24 @@ def parse_package_dir(text: str) -> str:
     return str(path.resolve())
 
 
+def limits_help() -> str:
+    """The help of ``--limits``, listing the shipped profiles."""
+    from dqcontrol.model.limit_profile import profile_names
+
+    return (
+        "joint limit profile of the robot: urdf (the URDF's own limits, default), "
+        f"{', '.join(n for n in profile_names() if n != 'urdf')}, or a FILE.toml"
+    )
+
+
+def add_limits_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """Add ``--limits NAME|FILE.toml``."""
+    parser.add_argument("--limits", metavar="NAME|FILE.toml", default=None, help=limits_help())
+
+
 def add_robot_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """Add ``--robot``, ``--ee-frame``, ``--lock``, ``--package-dir`` and ``--tool``."""
+    """Add ``--robot``, ``--ee-frame``, ``--lock``, ``--package-dir``, ``--tool`` and
+    ``--limits``."""
     parser.add_argument("--robot", default="lbr4p", metavar="ROBOT", help=ROBOT_HELP)
     parser.add_argument(
         "--ee-frame",
@@ -114,6 +135,7 @@ def add_robot_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup)
         help="control a tool frame offset from the end-effector frame: X,Y,Z [m] in that "
         "frame, then roll, pitch, yaw [rad] (e.g. --tool 0,0,0.1)",
     )
+    add_limits_option(parser)
 
 
 # ---------------------------------------------------------------------- the request
@@ -127,6 +149,7 @@ class RobotRequest:
         locked_joints: ``(joint, position)`` pairs [rad or m].
         package_dirs: folders for ``package://`` URIs.
         tool: ``(x, y, z[, roll, pitch, yaw])`` [m, rad] from the end-effector frame.
+        limits: the limit profile (a name or a ``FILE.toml``; ``None``: the URDF's).
     """
 
     spec: str = "lbr4p"
@@ -134,6 +157,7 @@ class RobotRequest:
     locked_joints: tuple[tuple[str, float], ...] = ()
     package_dirs: tuple[str, ...] = ()
     tool: tuple[float, ...] | None = None
+    limits: str | None = None
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RobotRequest:
@@ -144,6 +168,7 @@ class RobotRequest:
             locked_joints=tuple(args.lock),
             package_dirs=tuple(args.package_dir),
             tool=args.tool,
+            limits=getattr(args, "limits", None),
         )
 
     @classmethod
@@ -161,6 +186,7 @@ class RobotRequest:
             locked_joints=tuple((k, float(v)) for k, v in meta.get("locked_joints", {}).items()),
             package_dirs=tuple(meta.get("package_dirs", ())),
             tool=tuple(float(v) for v in tool) if tool is not None else None,
+            limits=meta.get("limits"),
         )
 
     def to_meta(self, kind: dict, ee_frame: str) -> dict:
@@ -172,7 +198,14 @@ class RobotRequest:
             meta["package_dirs"] = list(self.package_dirs)
         if self.tool is not None:
             meta["tool"] = list(self.tool)
+        if self.limits is not None:
+            meta["limits"] = _profile_meta(self.limits)
         return meta
+
+
+def _profile_meta(limits: str) -> str:
+    """A profile's name, or its file's absolute path (rebuilt from another folder)."""
+    return str(Path(limits).expanduser().resolve()) if limits.endswith(".toml") else limits
 
 
 def robot_label(meta: dict) -> str:
@@ -336,6 +369,11 @@ def load_robot(request: RobotRequest):
         raise ValueError(f"{option}: {exc}") from None
     except (URDFError, ParameterError) as exc:
         raise ValueError(f"--robot {request.spec}: {exc}") from None
+    if request.limits is not None:
+        try:
+            robot = robot.with_limits(request.limits)
+        except ParameterError as exc:
+            raise ValueError(f"--limits: {exc}") from None
     lim = robot.limits
     bounded = np.isfinite(lim.q_min) & np.isfinite(lim.q_max)
     middle = np.zeros(robot.nq)

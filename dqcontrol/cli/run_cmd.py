@@ -40,6 +40,7 @@ from dqcontrol.cli.run_output import (
     progress_bar,
     progress_callback,
     show_progress,
+    with_contacts,
     write_results,
 )
 from dqcontrol.experiments.thesis import THESIS_VELOCITY_LIMITS
@@ -72,6 +73,7 @@ examples:
   dqcontrol run --trajectory sinusoid --duration 4 --controllers local,p6,p10,pf
   dqcontrol run --period 0.001                      the 1 kHz controller
   dqcontrol run --robot panda --simulator kinematic
+  dqcontrol run --robot panda --limits franka_panda --period 0.001 --controllers pf
   dqcontrol run --robot my_arm.urdf --ee-frame tool0 --q0=0,-0.5,0,-1.5,0,1,0 \
       --package-dir ~/ws/src
   dqcontrol run --robot erd:ur5 --ee-frame tool0 --q0=0,-1.2,1.5,-1.9,-1.57,0
@@ -192,7 +194,8 @@ def _check_options(args) -> tuple:
     spec = args.velocity_limits
     if spec is None:
         thesis_arm = robot_meta["robot"] == "lbr4p" and n == len(THESIS_VELOCITY_LIMITS)
-        spec = "thesis" if thesis_arm else "urdf"
+        spec = "thesis" if thesis_arm and robot.limit_profile == "urdf" else "urdf"
+    _note_period(args, robot)
     if spec == "thesis":
         if n != len(THESIS_VELOCITY_LIMITS):
             parser.error(
@@ -227,6 +230,22 @@ def _check_options(args) -> tuple:
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)
     return robot, q0, robot_meta, velocity
+
+
+def _note_period(args, robot) -> None:
+    """A note on stderr when the limit profile's robot does not accept ``--period``."""
+    if args.limits is None:
+        return
+    from dqcontrol.model.limit_profile import load_profile
+
+    profile = load_profile(args.limits)
+    if not profile.accepts_period(args.period):
+        accepted = ", ".join(f"{p:g}" for p in profile.periods_s)
+        print(
+            f"dqcontrol run: note: the robot of limit profile {profile.name!r} accepts control "
+            f"periods of {accepted} s, not --period {args.period:g}",
+            file=sys.stderr,
+        )
 
 
 def _collision_model(args, robot, q0):
@@ -292,6 +311,7 @@ def _main(args: argparse.Namespace) -> int:
             _run_controller(label, args, robot, q0, robot_meta, velocity, viewer, out)
             for label in args.controllers
         ]
+        runs = with_contacts(runs, robot, args._collision)
         written = _write_results(runs, robot, out, args, name)
         _print_summary(args, name, robot, runs)
         print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
@@ -435,7 +455,7 @@ def _print_summary(args: argparse.Namespace, name: str, robot, runs: list) -> No
             "with the obstacles)"
         )
         for label, result, _ in runs:
-            print("  " + collision_report(label, robot, collision, result.log.q))
+            print("  " + collision_report(label, result))
 
 
 def _replay_last(viewer, runs: list, args: argparse.Namespace) -> None:

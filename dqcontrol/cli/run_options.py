@@ -174,16 +174,19 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
         "--velocity-limits",
         metavar="LIMITS",
         help="joint velocity bounds [rad/s]: 'thesis' (pi*[1,1,1,1,2.5,2.5,2.5], default for "
-        "the LBR4p with all 7 joints), 'urdf' (default otherwise) or comma-separated values",
+        "the LBR4p with all 7 joints and no --limits), 'urdf' (the robot's: the URDF's, or "
+        "the --limits profile's; default otherwise) or comma-separated values",
     )
     g.add_argument(
         "--acceleration-limit",
         type=positive_float("rad/s^2"),
         default=None,
         metavar="A",
-        help="joint acceleration bound [rad/s^2] of every controller (default: each "
-        f"controller's own: {THESIS_ACCELERATION_LIMIT:g} for the thesis's controllers, the "
-        "dynamics-aware bound from the robot's inertia and effort limits for path following)",
+        help="joint acceleration bound [rad/s^2] of every controller (default: the --limits "
+        "profile's where it gives one, else each controller's own: "
+        f"{THESIS_ACCELERATION_LIMIT:g} for the thesis's controllers, the dynamics-aware bound "
+        "from the robot's inertia and effort limits for path following, capped by the "
+        "profile's)",
     )
 
 

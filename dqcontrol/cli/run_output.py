@@ -23,6 +23,7 @@ __all__ = [
     "progress_bar",
     "progress_callback",
     "show_progress",
+    "with_contacts",
     "write_results",
 ]
 
@@ -104,23 +105,32 @@ def metrics_table(rows: list[tuple[str, object]]) -> str:
     return "\n".join(lines)
 
 
-def collision_report(label: str, robot, collision, qs) -> str:
-    """One line per run: the smallest distance over the run and the contacts of its
-    configurations in the MuJoCo model with the obstacles."""
-    import numpy as np
+def with_contacts(runs: list, robot, collision) -> list:
+    """``runs`` with each result's contacts measured over its log's samples
+    (:func:`~dqcontrol.sim.run_contacts.measure_contacts`), to print and to save; unchanged
+    without a collision model, and a run without samples keeps none."""
+    import dataclasses
 
-    from dqcontrol.sim.mjcf_builder import replay_contacts
+    from dqcontrol.sim.run_contacts import measure_contacts
 
-    qs = np.atleast_2d(qs)
-    if qs.shape[0] == 0:
+    if collision is None:
+        return runs
+    measured = []
+    for label, result, traj in runs:
+        if len(result.log):
+            contacts = measure_contacts(robot, collision, result.log.q, result.log.t_s)
+            result = dataclasses.replace(result, contacts=contacts)
+        measured.append((label, result, traj))
+    return measured
+
+
+def collision_report(label: str, result) -> str:
+    """One line per run: its smallest distance, its contacts with the obstacles and itself
+    in the MuJoCo model, and the closest pair (:meth:`RunContacts.summary
+    <dqcontrol.runs.contacts.RunContacts.summary>`)."""
+    if result.contacts is None:
         return f"{label}: no samples"
-    closest = min(collision.min_distance(q) for q in qs)
-    contacts = replay_contacts(robot, collision.obstacles, qs)
-    return (
-        f"{label}: min distance {1e3 * closest:.1f} mm; contacts robot-obstacle "
-        f"{contacts.obstacle}, self {contacts.self_contact}, deepest "
-        f"{1e3 * contacts.deepest_m:.1f} mm"
-    )
+    return f"{label}: {result.contacts.summary()}"
 
 
 # ---------------------------------------------------------------------- the viewer

@@ -18,12 +18,20 @@ format of docs/drivers.md — sends a reset, then one velocity command per contr
 the server steps the simulation one period per command and answers with the state. It
 describes itself (robot, joints, period, drive, payload, versions) to a client that asks;
 dqcontrol run --connect records that in the run log (meta "server"). Bad packets are
-answered with an error and counted, never fatal. Ctrl-C stops it."""
+answered with an error and counted, never fatal. Ctrl-C stops it.
+
+Like a real arm, it checks every command: with --limits PROFILE the velocity,
+acceleration and jerk of the commands (the arm at rest at each reset) and the position of
+the simulated arm against the profile; without, the velocity against the URDF's limits.
+The first violation fires the reflex: the arm is stopped, the command answered with an
+ERROR naming the violation (kind, joint, value, limit), and every later motion command
+refused until the next RESET."""
 
 _EPILOG = """\
 examples:
   dqcontrol sim-server --port 5555
-  dqcontrol sim-server --port 5555 --period 0.01 --motor torque --payload 3"""
+  dqcontrol sim-server --port 5555 --period 0.01 --motor torque --payload 3
+  dqcontrol sim-server --robot panda --limits franka_panda --period 0.001"""
 
 
 def register(subparsers) -> None:
@@ -53,6 +61,7 @@ def _main(args: argparse.Namespace) -> int:
     from dqcontrol.cli.robot_options import RobotRequest, check_mujoco_meshes, load_robot
     from dqcontrol.sim import JointDriver, MujocoDriver, PayloadDriver
     from dqcontrol.sim.bridge import SimServer
+    from dqcontrol.sim.reflexes import Reflexes
 
     check_simulator("mujoco", "the simulation server")
     try:
@@ -62,14 +71,20 @@ def _main(args: argparse.Namespace) -> int:
     check_mujoco_meshes(args._parser, robot)
     if args.payload < 0.0:
         args._parser.error(f"--payload must be >= 0 kg, got {args.payload}")
+    _check_period(args)
     driver: JointDriver = MujocoDriver(robot, args.period, motor=args.motor)
     if args.payload > 0.0:
         driver = PayloadDriver(driver, args.payload)
     description = {"robot": robot.model.name, "robot_spec": args.robot, "ee_frame": robot.ee_frame}
-    with SimServer(driver, f"tcp://{args.host}:{args.port}", description) as server:
+    reflexes = Reflexes.of_robot(
+        robot, driver.joint_names, args.period, velocity_only=args.limits is None
+    )
+    address = f"tcp://{args.host}:{args.port}"
+    with SimServer(driver, address, description, reflexes) as server:
         print(
             f"dqcontrol sim-server: {robot.model.name} ({len(driver.joint_names)} joints, "
-            f"T = {args.period:g} s, {args.motor} drive) on {server.address}",
+            f"T = {args.period:g} s, {args.motor} drive, reflexes: {reflexes.profile} "
+            f"limits) on {server.address}",
             flush=True,
         )
         try:
@@ -79,3 +94,18 @@ def _main(args: argparse.Namespace) -> int:
         rejected = dict(server.rejected)
         print(f"served {server.served} messages; rejected {rejected or 'none'}", file=sys.stderr)
     return 0
+
+
+def _check_period(args: argparse.Namespace) -> None:
+    """A parser error (exit 2) when the profile's robot does not accept ``--period``."""
+    if args.limits is None:
+        return
+    from dqcontrol.model.limit_profile import load_profile
+
+    profile = load_profile(args.limits)  # loaded (and checked) with the robot already
+    if not profile.accepts_period(args.period):
+        accepted = ", ".join(f"{p:g}" for p in profile.periods_s)
+        args._parser.error(
+            f"--period {args.period:g}: the robot of limit profile {profile.name!r} accepts "
+            f"control periods of {accepted} s"
+        )

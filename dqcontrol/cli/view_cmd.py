@@ -85,11 +85,13 @@ def _main(args: argparse.Namespace) -> int:
 
     from dqcontrol.cli.robot_options import robot_from_meta
     from dqcontrol.cli.run_cmd import trajectory_from_meta
+    from dqcontrol.runs.contacts import contacts_text, loaded_contacts
     from dqcontrol.sim.bridge import run_origin
 
-    log = _load_log(json_path)
+    log, record = _load_log(json_path)
     meta = log.meta
     print(f"run {name}: states from {run_origin(meta)}", flush=True)
+    print(contacts_text(record), flush=True)
     trajectory = trajectory_from_meta(meta, log)
     path_points = trajectory.path_positions(1000) if trajectory is not None else None
     out = Path(args.out) if args.out else json_path.parent
@@ -97,6 +99,7 @@ def _main(args: argparse.Namespace) -> int:
     if args.html or viewer_on:
         robot = robot_from_meta(meta)
     written = _write_files(args, log, robot, trajectory, path_points, out, name)
+    written += _write_contacts(args, log, loaded_contacts(record), out, name)
     if written:
         print(f"wrote {len(written)} file{'s' if len(written) != 1 else ''} to {out}/")
     if viewer_on:
@@ -124,9 +127,9 @@ def _check_options(args: argparse.Namespace) -> tuple[Path, str, bool]:
 
 
 def _load_log(json_path: Path):
-    """The log of the saved run (decimated to :data:`DISPLAY_SAMPLES` if longer), a line
-    on stderr if it was cut short; :class:`~dqcontrol.errors.ParameterError` if it cannot
-    be read or has no samples."""
+    """The log of the saved run (decimated to :data:`DISPLAY_SAMPLES` if longer) and its
+    record, a line on stderr if it was cut short;
+    :class:`~dqcontrol.errors.ParameterError` if it cannot be read or has no samples."""
     from dqcontrol.errors import ParameterError
     from dqcontrol.runs.storage import load_run
 
@@ -140,7 +143,7 @@ def _load_log(json_path: Path):
         print(f"{record['samples']} samples, every {record['stride']}th shown", flush=True)
     if len(log) == 0:
         raise ParameterError(f"the run {json_path} has no samples")
-    return log
+    return log, record
 
 
 def _write_files(args, log, robot, trajectory, path_points, out: Path, name: str) -> list[Path]:
@@ -161,6 +164,26 @@ def _write_files(args, log, robot, trajectory, path_points, out: Path, name: str
             )
         )
     return written
+
+
+def _write_contacts(args, log, contacts, out: Path, name: str) -> list[Path]:
+    """With ``--figures``, the contacts figure of a run saved with contacts per sample."""
+    if not args.figures or contacts is None or contacts.per_sample is None:
+        return []
+    if len(contacts.per_sample["contacts_closest_m"]) != len(log):
+        return []
+    from dqcontrol.viz.contacts_figure import plot_contacts
+
+    fmt = "svg" if args.svg else "png"
+    safety = log.meta.get("safety_distance_m")
+    return [
+        plot_contacts(
+            contacts,
+            log.t_s,
+            out / f"{name}_contacts.{fmt}",
+            safety_distance_m=float(safety) if safety is not None else None,
+        )
+    ]
 
 
 def _replay(args: argparse.Namespace, log, robot, path_points, name: str) -> None:

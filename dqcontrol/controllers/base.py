@@ -31,6 +31,7 @@ __all__ = [
     "StepDiagnostics",
     "StepResult",
     "acceleration_setting",
+    "robot_acceleration_limit",
     "check_position_margin",
     "check_positive",
     "joint_limit_settings",
@@ -165,6 +166,24 @@ def acceleration_setting(
             f"acceleration_floor ({floor}) must be ≤ acceleration_cap ({cap}) [rad/s²]"
         )
     return None, floor_v, cap_v
+
+
+def robot_acceleration_limit(robot: RobotModel, acceleration_limit, default):
+    """A controller's ``acceleration_limit`` when the user gave one, else the robot's: its
+    limit profile's ``qdd_max`` [rad/s²] where finite, ``default`` for the other joints
+    (``default`` alone when the profile gives none, e.g. the URDF's limits). With a
+    ``"dynamics"`` default the robot's model caps the bound itself
+    (:meth:`~dqcontrol.model.robot.RobotModel.acceleration_limits`)."""
+    if acceleration_limit is not None:
+        return acceleration_limit
+    qdd_max = robot.limits.qdd_max
+    assert qdd_max is not None, "JointLimits fills it"
+    finite = np.isfinite(qdd_max)
+    if isinstance(default, str) or not finite.any():
+        return default
+    return np.where(
+        finite, qdd_max, np.broadcast_to(np.asarray(default, dtype=float), qdd_max.shape)
+    )
 
 
 def check_position_margin(margin_rad: float, q_min: np.ndarray, q_max: np.ndarray) -> float:

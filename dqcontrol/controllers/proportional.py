@@ -12,7 +12,7 @@ arithmetic, so it is written for few calls: both Hamilton matrices from the targ
 one product, the box in one compiled call (:func:`_clip_to_box`: the joint box and the
 acceleration bound with its conflict rule, the kernels of the QP controllers' limits,
 ``joint_box.near_limit_box`` and ``intersect_hard``), the results built without per-field
-``__setattr__``. ``tests/test_proportional_fast.py`` checks it against the plain
+``__setattr__``. ``tests/controllers/test_proportional.py`` checks it against the plain
 computation.
 """
 
@@ -32,6 +32,7 @@ from dqcontrol.controllers.base import (
     check_positive,
     fast_constructor,
     per_joint,
+    robot_acceleration_limit,
 )
 from dqcontrol.controllers.core.bounds import braking_constants, command_box
 from dqcontrol.controllers.core.box_rules import joint_boxes, joint_constants, project
@@ -116,7 +117,8 @@ class ProportionalController(Controller):
         gain_per_s: ``K`` [1/s]; keep ``T K`` well below 2 (docs/theory.md §4.3).
         damping: ``λ`` of the damped pseudo-inverse (dimensionless, ≥ 0).
         velocity_limits: ``qd_max`` [rad/s] (default: the URDF's).
-        acceleration_limit: ``a_max`` [rad/s²] for the clipping box.
+        acceleration_limit: ``a_max`` [rad/s²] for the clipping box; ``None`` (default): the
+            robot's limit profile's acceleration limit, else 10 rad/s².
         braking_aware: add the stop-before-the-limit position bound (bounds.py).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
             [rad] (default 5 mrad, see
@@ -136,7 +138,7 @@ class ProportionalController(Controller):
         gain_per_s: float = 10.0,
         damping: float = 1e-3,
         velocity_limits: float | np.ndarray | None = None,
-        acceleration_limit: float | np.ndarray = 10.0,
+        acceleration_limit: float | np.ndarray | None = None,
         braking_aware: bool = True,
         position_margin_rad: float = 5e-3,
         measurement_delay_periods: int = 0,
@@ -148,7 +150,8 @@ class ProportionalController(Controller):
         lim = robot.limits
         qd_max = lim.qd_max if velocity_limits is None else velocity_limits
         self.qd_max = per_joint("velocity_limits", qd_max, self.n, "rad/s")
-        self.a_max = per_joint("acceleration_limit", acceleration_limit, self.n, "rad/s²")
+        a_max = robot_acceleration_limit(robot, acceleration_limit, 10.0)
+        self.a_max = per_joint("acceleration_limit", a_max, self.n, "rad/s²")
         margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
         self.position_margin_rad = margin
         self.q_min, self.q_max = lim.q_min + margin, lim.q_max - margin

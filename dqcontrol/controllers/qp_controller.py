@@ -39,6 +39,7 @@ from dqcontrol.controllers.base import (
     StepResult,
     fast_constructor,
     per_joint,
+    robot_acceleration_limit,
 )
 from dqcontrol.controllers.core.block_assembly import BlockAssembly, overrides
 from dqcontrol.controllers.core.box_rules import clip_solution
@@ -98,7 +99,8 @@ class QPController(Controller):
             ``solver_settings`` for it.
         s_max: the largest time scaling the applied ``s`` is clipped to.
         acceleration_limit: ``a_max`` [rad/s²] of every block (scalar or per joint), in the
-            step context (subclasses may compute it per state instead).
+            step context (subclasses may compute it per state instead); ``None``: the
+            robot's limit profile's, else 10 rad/s².
 
     Attributes:
         backend: the :class:`~dqcontrol.controllers.backends.base.Backend` every QP of a
@@ -122,12 +124,17 @@ class QPController(Controller):
         solver: str | None = None,
         solver_settings: dict | None = None,
         s_max: float = 1.0,
-        acceleration_limit: float | np.ndarray = 10.0,
+        acceleration_limit: float | np.ndarray | None = None,
         measurement_delay_periods: int = 0,
     ) -> None:
         super().__init__(robot, trajectory, period_s, measurement_delay_periods)
         if prediction is not None:
-            a_max = per_joint("acceleration_limit", acceleration_limit, self.n, "rad/s²")
+            a_max = per_joint(
+                "acceleration_limit",
+                robot_acceleration_limit(robot, acceleration_limit, 10.0),
+                self.n,
+                "rad/s²",
+            )
             self._a_batch = np.tile(a_max, (prediction.layout.num_blocks, 1))
             self.compose(prediction, levels, limits, solver, solver_settings, s_max)
 

@@ -36,6 +36,7 @@ from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URD
 from dqcontrol.model.chain_batch import ChainBatch
 from dqcontrol.model.chain_dynamics import ChainDynamics, acceleration_bounds
 from dqcontrol.model.fast import UncheckedModel
+from dqcontrol.model.limit_profile import LimitProfile, fitted_limits, load_profile
 from dqcontrol.model.pinocchio_model import angle_model, build_angle_model, lock_joints
 from dqcontrol.model.urdf_source import URDFSource, read_urdf
 
@@ -88,7 +89,10 @@ class RobotModel:
         ee_frame: name of the end-effector frame (a ``tool`` offset adds ``<ee>_tool``).
         nq: number of controlled joints ``n``.
         joint_names: names of the controlled joints, in ``q`` order.
-        limits: :class:`JointLimits` from the URDF.
+        limits: :class:`JointLimits`: the URDF's, or those of a limit profile
+            (:meth:`with_limits`).
+        limit_profile: the name of the profile :attr:`limits` come from (``"urdf"``: the
+            URDF's own).
         source: the URDF text and path (the simulator and the viewer read the same file).
         base_placement: pose of the URDF root in the world [``pin.SE3``].
         locked_joints: joints held fixed, name → position.
@@ -142,6 +146,8 @@ class RobotModel:
             qd_max=np.array(model.velocityLimit, dtype=float),
             effort_max=np.array(model.effortLimit, dtype=float),
         )
+        self.limit_profile = "urdf"
+        self._qdd_cap: np.ndarray | None = None  # the profile's acceleration, where finite
         self._one_dof = model.nv == 1
         # closed-form batched kinematics (None: loop on Pinocchio). Its tables are read from
         # the model here, once: a model edited in place afterwards needs a new RobotModel.
@@ -162,6 +168,7 @@ class RobotModel:
         tool: pin.SE3 | np.ndarray | None = None,
         locked_joints: dict[str, float] | None = None,
         package_dirs: Sequence[str | os.PathLike] | None = None,
+        limits: str | os.PathLike | LimitProfile | None = None,
     ) -> RobotModel:
         """Load a robot from a URDF file path or XML string.
 
@@ -175,6 +182,9 @@ class RobotModel:
             locked_joints: joints to hold fixed (e.g. gripper fingers), name → position
                 [rad or m].
             package_dirs: folders where ``package://`` mesh URIs resolve.
+            limits: a limit profile (a shipped name, a ``FILE.toml`` or a
+                :class:`~dqcontrol.model.limit_profile.LimitProfile`) that replaces the
+                URDF's limits (:meth:`with_limits`); ``None``: the URDF's.
 
         A ``continuous`` joint is a revolute joint without position limit; its coordinate in
         ``q`` is its angle [rad] (:mod:`dqcontrol.model.pinocchio_model`).
@@ -198,7 +208,7 @@ class RobotModel:
         tool_se3 = _to_se3(tool, "tool") if tool is not None else None
         if tool_se3 is not None:
             ee_frame = _add_tool_frame(model, ee_frame, tool_se3)
-        return cls(
+        robot = cls(
             model,
             ee_frame,
             source=source,
@@ -206,6 +216,53 @@ class RobotModel:
             locked_joints=locked_joints,
             tool_placement=tool_se3,
         )
+        return robot if limits is None else robot.with_limits(limits)
+
+    def with_limits(self, profile: str | os.PathLike | LimitProfile) -> RobotModel:
+        """The same robot with the joint limits of a limit profile (a new model; this one
+        is unchanged).
+
+        The profile is put on the robot, not on each controller, because one robot
+        description feeds the controllers, the simulator's reflexes, the checker and the
+        viewer: a controller built on the returned model takes its position, velocity and
+        acceleration bounds from the profile unless given others, and no part of a run can
+        use other limits than another (docs/user_guide.md, "Robot limit profiles"). The
+        dynamics-aware acceleration bound (:meth:`acceleration_limits`) is capped by the
+        profile's acceleration limit.
+
+        Args:
+            profile: a shipped profile's name
+                (:func:`~dqcontrol.model.limit_profile.profile_names`), the path of a
+                ``FILE.toml`` or a loaded :class:`~dqcontrol.model.limit_profile.LimitProfile`;
+                ``"urdf"`` keeps the URDF's limits.
+
+        Raises:
+            ProfileError: an unknown name or a bad file; a profile for other joints (both
+                lists in the message) or looser than the URDF in any entry (the joint, the
+                entry and both values).
+        """
+        if not isinstance(profile, LimitProfile):
+            profile = load_profile(profile)
+        urdf = (
+            np.array(self.model.lowerPositionLimit, dtype=float),
+            np.array(self.model.upperPositionLimit, dtype=float),
+            np.array(self.model.velocityLimit, dtype=float),
+        )
+        q_min, q_max, qd_max, qdd_max, qddd_max = fitted_limits(profile, self.joint_names, urdf)
+        robot = RobotModel(
+            self.model,
+            self.ee_frame,
+            source=self.source,
+            base_placement=self.base_placement,
+            locked_joints=self.locked_joints,
+            tool_placement=self.tool_placement,
+        )
+        robot.limits = JointLimits(
+            q_min, q_max, qd_max, self.limits.effort_max.copy(), qdd_max, qddd_max
+        )
+        robot.limit_profile = profile.name
+        robot._qdd_cap = qdd_max if np.isfinite(qdd_max).any() else None
+        return robot
 
     # ------------------------------------------------------------------ input checks
     def check_q(self, q: np.ndarray, name: str = "q") -> np.ndarray:
@@ -388,6 +445,8 @@ class RobotModel:
         ``a_max_j = (effort_fraction·τ_max_j - |g_j(q)|) / M_jj(q)``, clipped to
         ``[floor_rad_s2, cap_rad_s2]``: the acceleration joint j can reach alone with the
         torque left after holding gravity. It replaces the thesis's estimate (eq. 4.14).
+        With a limit profile (:meth:`with_limits`) it is then capped by the profile's
+        acceleration limit ``limits.qdd_max``.
         """
         q = self.check_q(q)
         return self._acceleration_limits(q, effort_fraction, floor_rad_s2, cap_rad_s2)
@@ -415,6 +474,8 @@ class RobotModel:
         if not positive:
             for row in diag:  # the first configuration with a massless joint
                 self._check_inertias(row)
+        if self._qdd_cap is not None:  # never above the profile's acceleration limit
+            np.minimum(bounds, self._qdd_cap, out=bounds)
         return bounds
 
     @staticmethod

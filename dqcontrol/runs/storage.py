@@ -10,7 +10,11 @@ A run ``name`` in ``folder`` is two files:
 
 * ``name.npz`` — :meth:`RunLog.arrays` (``np.savez_compressed``, loadable without pickle);
 * ``name.json`` — ``{"format", "version", "name", "npz", "meta", "metrics", "interrupted",
-  "note"}``. Written after the ``.npz``, so a ``.json`` on disk always has its arrays.
+  "note", "contacts"}``. Written after the ``.npz``, so a ``.json`` on disk always has its
+  arrays. ``"contacts"`` is the run's :class:`~dqcontrol.runs.contacts.RunContacts`
+  (``{"checked": false}`` when they were not measured), whose per-sample columns
+  (:data:`~dqcontrol.runs.contacts.CONTACT_COLUMNS`) go in the ``.npz``; a file saved
+  before contacts were recorded has neither and loads as before.
   Non-finite floats (e.g. the peak torque of a kinematic run, NaN) are stored as ``null``
   (strict JSON, readable by any tool) and come back as ``None``.
 """
@@ -28,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from dqcontrol.errors import ParameterError
+from dqcontrol.runs.contacts import CONTACT_COLUMNS
 from dqcontrol.runs.log import RunLog
 
 __all__ = [
@@ -143,10 +148,12 @@ def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, ...]:
     folder = Path(folder)
     log: RunLog = result.log
     streamed = getattr(result, "log_file", None)
+    contacts = getattr(result, "contacts", None)
     written: list[Path] = []
     if getattr(result, "log_stride", 1) == 1:
         buffer = io.BytesIO()
         arrays: dict[str, Any] = log.arrays()  # as keywords, which numpy's stubs type narrowly
+        arrays.update(_contact_columns(contacts, len(log)))
         np.savez_compressed(buffer, **arrays)
         written.append(atomic_write_bytes(folder / f"{name}.npz", buffer.getvalue()))
     record = {
@@ -158,7 +165,10 @@ def save_run(result, folder: str | os.PathLike, name: str) -> tuple[Path, ...]:
         "metrics": jsonable(result.metrics.as_dict()),
         "interrupted": bool(result.interrupted),
         "note": str(result.note),
+        "contacts": jsonable(contacts.as_record()) if contacts else {"checked": False},
     }
+    if contacts and not (written and _contact_columns(contacts, len(log))):
+        record["contacts"]["per_sample"] = None
     if streamed is not None:
         log_path = Path(streamed)
         same = log_path.parent.resolve() == folder.resolve()
@@ -195,8 +205,10 @@ def load_run(path: str | os.PathLike, max_samples: int | None = None) -> tuple[R
     else its streamed ``log``), an ``.mcap`` alone
     (:func:`~dqcontrol.runs.streamed_run.load_streamed`). Returns the
     :class:`RunLog` (with its ``meta``) and the run record (``meta``, ``metrics``,
-    ``interrupted``, ``note`` …; for a streamed run also ``complete``: ``False`` when the
-    file was cut short).
+    ``interrupted``, ``note``, ``contacts`` when saved with them, and their per-sample
+    columns from the ``.npz`` as ``contact_columns`` …; for a streamed run also
+    ``complete``: ``False`` when the file was cut short).
+    :func:`~dqcontrol.runs.contacts.loaded_contacts` reads the contacts of a record.
 
     Args:
         path: the run.
@@ -222,4 +234,16 @@ def load_run(path: str | os.PathLike, max_samples: int | None = None) -> tuple[R
     with np.load(npz_path, allow_pickle=False) as data:
         arrays = {k: data[k] for k in data.files}
     log = RunLog.from_arrays(arrays, record.get("meta") or {})
+    columns = {k: arrays[k] for k in CONTACT_COLUMNS if k in arrays}
+    if columns:
+        record["contact_columns"] = columns
     return log, record
+
+
+def _contact_columns(contacts, samples: int) -> dict[str, np.ndarray]:
+    """The per-sample contact columns to store in the ``.npz``: those of ``contacts`` when
+    they cover the log's ``samples``, else none."""
+    per_sample = getattr(contacts, "per_sample", None)
+    if not per_sample or any(len(per_sample[k]) != samples for k in CONTACT_COLUMNS):
+        return {}
+    return {k: np.asarray(per_sample[k]) for k in CONTACT_COLUMNS}

@@ -1,8 +1,8 @@
 """Closed loops: one control loop (:func:`run_loop`) against a joint driver — ideal kinematic,
 MuJoCo, a position-only interface, fault wrappers (measurement noise and delay, an unknown
-payload, lower torque limits) or a simulation in another process
-(:class:`BridgeDriver`, :class:`SimServer`) — and its thin names for the kinematic loop and
-the MuJoCo simulation."""
+payload, lower torque limits, a real arm's reflexes: :class:`ReflexDriver`) or a simulation
+in another process (:class:`BridgeDriver`, :class:`SimServer`) — and its thin names for the
+kinematic loop and the MuJoCo simulation."""
 
 from dqcontrol.sim.bridge import BridgeDriver, SimServer
 from dqcontrol.sim.driver import (
@@ -27,6 +27,8 @@ from dqcontrol.sim.model_faults import (
 )
 from dqcontrol.sim.mujoco_loop import run_mujoco
 from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation, ServoGains
+from dqcontrol.sim.reflexes import ReflexDriver, ReflexError, Reflexes
+from dqcontrol.sim.run_contacts import measure_contacts
 
 __all__ = [
     "BridgeDriver",
@@ -42,6 +44,9 @@ __all__ = [
     "NotASimulatorError",
     "PayloadDriver",
     "PositionInterface",
+    "ReflexDriver",
+    "ReflexError",
+    "Reflexes",
     "RunResult",
     "ServoGains",
     "SimServer",
@@ -50,6 +55,7 @@ __all__ = [
     "TorqueLimitDriver",
     "VelocityFromPosition",
     "joint_map",
+    "measure_contacts",
     "run_kinematic",
     "run_loop",
     "run_mujoco",

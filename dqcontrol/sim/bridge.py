@@ -18,7 +18,9 @@ Wire format, version 1 (every number little-endian; docs/drivers.md has the tabl
   1 = brake, 2 = hold (zero velocity); answered by ``STATE``;
 - ``STATE`` (5, server → client): ``t`` [s], ``q[n]``, ``qd[n]``, ``torque[n]``,
   ``torque_peak[n]``, all ``f64``; its sequence number is that of the message it answers;
-- ``ERROR`` (6, server → client): the reason, UTF-8; status: the reason's code;
+- ``ERROR`` (6, server → client): the reason, UTF-8; status: the reason's code (1: a bad
+  packet, 2: the driver failed, 3: a reflex — the command was refused, the arm is stopped,
+  motion is refused until ``RESET``; its sequence number is that of the command);
 - ``DESCRIBE`` (7, client → server): the header only; answered by ``DESCRIPTION`` (8): a
   JSON object, UTF-8, describing what is served (:meth:`SimServer.describe`: robot, joints,
   period, simulator, drive, faults, server and protocol versions). A server that does not
@@ -28,7 +30,9 @@ Both ends reject a packet of the wrong length, magic, version, kind or joint cou
 non-finite number, or (client) with a sequence number other than the one awaited (a
 duplicate, a reordered or a late reply), and count it by reason; neither ever raises on
 one. The server answers a repeated command (same sequence number as the last executed)
-with the same state, without stepping again.
+with the same state, without stepping again. A server with reflexes
+(:class:`~dqcontrol.sim.reflexes.Reflexes`) checks every command like a real arm; the
+client raises :class:`ReflexError` at a reflex.
 """
 
 from __future__ import annotations
@@ -38,17 +42,20 @@ import struct
 import threading
 import time
 from collections import Counter
+from typing import Any
 
 import numpy as np
 
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.sim.mujoco_sim import Measurement
+from dqcontrol.sim.reflexes import ReflexDriver, ReflexError, Reflexes
 
 __all__ = [
     "HEADER",
     "PROTOCOL_VERSION",
     "BridgeDriver",
     "BridgeError",
+    "ReflexError",
     "SimServer",
     "decode",
     "encode_command",
@@ -62,6 +69,8 @@ MAGIC = b"DQ"
 HEADER = struct.Struct("<2sBBIHH")
 HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION = 1, 2, 3, 4, 5, 6, 7, 8
 TRACK, BRAKE, HOLD = 0, 1, 2
+#: ``ERROR`` status of a reflex (a refused command; the arm stopped until ``RESET``).
+REFLEX = 3
 _KINDS = {HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION}
 
 
@@ -184,6 +193,8 @@ class SimServer:
             says which).
         description: entries added to :meth:`describe` (e.g. the robot's name); JSON
             values.
+        reflexes: check every command like a real arm
+            (:class:`~dqcontrol.sim.reflexes.Reflexes`); ``None``: execute any command.
 
     Raises:
         ParameterError: a description that JSON cannot carry.
@@ -193,12 +204,17 @@ class SimServer:
     """
 
     def __init__(
-        self, driver, address: str = "tcp://127.0.0.1:0", description: dict | None = None
+        self,
+        driver,
+        address: str = "tcp://127.0.0.1:0",
+        description: dict | None = None,
+        reflexes: Reflexes | None = None,
     ) -> None:
         zmq = _zmq()
-        self.driver = driver
+        self.driver: Any = driver if reflexes is None else ReflexDriver(driver, reflexes)
         self.joint_names = tuple(driver.joint_names)
         self.n = len(self.joint_names)
+        self.reflexes = reflexes
         self._description = dict(description or {})
         self._described = self._encode_description()
         self._ctx = zmq.Context.instance()
@@ -302,6 +318,9 @@ class SimServer:
         except PacketError as exc:
             self.rejected[exc.reason] += 1
             return _header(ERROR, 0, 0, 1) + exc.reason.encode()
+        except ReflexError as exc:
+            self.rejected["reflex"] += 1
+            return _header(ERROR, seq, 0, REFLEX) + str(exc).encode()
         except Exception as exc:  # noqa: BLE001 - the server reports, it does not stop
             self.rejected["driver error"] += 1
             return _header(ERROR, 0, 0, 2) + f"{type(exc).__name__}: {exc}".encode()
@@ -336,6 +355,8 @@ class BridgeDriver:
             duplicated, reordered or late replies, ``"wrong length"``, ``"wrong version"``,
             ``"non-finite value"``, ``"wrong joint count"``, ``"server error: …"`` ...).
         timeouts: commands whose state did not arrive within ``timeout_s``.
+        reflex: the server's message when its reflex fired (``""``: it did not); a
+            command it refuses raises :class:`ReflexError`.
     """
 
     def __init__(
@@ -350,6 +371,7 @@ class BridgeDriver:
         self._sock.connect(self.address)
         self.rejected: Counter[str] = Counter()
         self.timeouts = 0
+        self.reflex = ""
         self._seq = 0
         self._last: Measurement | None = None
         self.n = 0
@@ -373,8 +395,12 @@ class BridgeDriver:
         return {"simulator": "bridge", "address": self.address, "server": dict(self.server)}
 
     def report(self) -> dict:
-        """Counters for the run log: rejected packets by reason, timeouts."""
-        return {"rejected": dict(self.rejected), "timeouts": self.timeouts}
+        """Counters for the run log: rejected packets by reason, timeouts, and the server's
+        reflex (``"reflex"``, only when one fired)."""
+        report: dict = {"rejected": dict(self.rejected), "timeouts": self.timeouts}
+        if self.reflex:
+            report["reflex"] = self.reflex
+        return report
 
     def close(self) -> None:
         """Close the connection (idempotent)."""
@@ -393,10 +419,13 @@ class BridgeDriver:
                 self.timeouts += 1
                 return None
             try:
-                kind, got, _status, body = decode(self._sock.recv(), self.n or None)
+                kind, got, status, body = decode(self._sock.recv(), self.n or None)
             except PacketError as exc:
                 self.rejected[exc.reason] += 1
                 continue
+            if kind == ERROR and status == REFLEX and got == seq:
+                self.reflex = str(body)
+                raise ReflexError(f"the sim-server's {body}")
             if kind == ERROR:
                 self.rejected[f"server error: {body}"] += 1
                 if error_ends:
@@ -429,6 +458,7 @@ class BridgeDriver:
 
     def reset(self, q0: np.ndarray) -> Measurement:
         """Reset the served simulation at ``q0`` [rad] (server's joint order)."""
+        self.reflex = ""
         self._state(_header(RESET, self._next(), self.n) + _floats(q0))
         if self._last is None:
             raise BridgeError(f"no answer to reset from {self.address}")

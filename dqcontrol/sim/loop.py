@@ -40,6 +40,7 @@ from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.base import Controller, StepResult, check_positive
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
+from dqcontrol.runs.contacts import RunContacts
 from dqcontrol.runs.log import LogRecorder, RunLog
 from dqcontrol.runs.mcap_log import RunLogWriteError
 from dqcontrol.runs.metrics import Metrics, compute_metrics
@@ -76,6 +77,9 @@ class RunResult:
     #: ``log`` holds every ``log_stride``-th sample of ``log_file`` (a long run loaded for
     #: display); 1: every sample (or no file).
     log_stride: int = 1
+    #: the run's contacts and closest distance, when measured
+    #: (:func:`~dqcontrol.sim.run_contacts.measure_contacts`); saved with the run.
+    contacts: RunContacts | None = None
 
 
 def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:

@@ -53,6 +53,7 @@ __all__ = [
     "SpecOptions",
     "add_obstacles",
     "build_spec",
+    "contact_model",
     "count_contacts",
     "replay_contacts",
     "prepare_urdf_xml",
@@ -463,12 +464,12 @@ def count_contacts(model: mujoco.MjModel, data: mujoco.MjData) -> ContactCount:
     return ContactCount(obstacle, self_contact, deepest)
 
 
-def replay_contacts(
-    robot: RobotModel, obstacles: tuple[Obstacle, ...], qs: np.ndarray
-) -> ContactCount:
-    """Contacts of a run's configurations ``qs`` ``(N, n)`` [rad] in the robot's MuJoCo model
-    with ``obstacles`` (positions set, ``mj_forward``; no dynamics): the contacts summed over
-    the samples and the deepest penetration [m]."""
+def contact_model(
+    robot: RobotModel, obstacles: tuple[Obstacle, ...]
+) -> tuple[mujoco.MjModel, mujoco.MjData, list[int]]:
+    """The robot's MuJoCo model with ``obstacles``, for contact queries at given
+    configurations (no dynamics): the model, its data and the ``qpos`` address of each of
+    ``robot.joint_names``."""
     n = robot.nq
     effort = np.asarray(robot.limits.effort_max, dtype=float)
     effort = np.where(np.isfinite(effort) & (effort > 0.0), effort, 1.0)  # unused: no dynamics
@@ -480,9 +481,18 @@ def replay_contacts(
             "robot has no URDF source (build it with RobotModel.from_urdf or a loader)"
         )
     model = build_spec(robot, prepare_urdf_xml(robot.source), options).compile()
-    data = mujoco.MjData(model)
     joint = mujoco.mjtObj.mjOBJ_JOINT
-    adr = [model.jnt_qposadr[mujoco.mj_name2id(model, joint, j)] for j in robot.joint_names]
+    adr = [int(model.jnt_qposadr[mujoco.mj_name2id(model, joint, j)]) for j in robot.joint_names]
+    return model, mujoco.MjData(model), adr
+
+
+def replay_contacts(
+    robot: RobotModel, obstacles: tuple[Obstacle, ...], qs: np.ndarray
+) -> ContactCount:
+    """Contacts of a run's configurations ``qs`` ``(N, n)`` [rad] in the robot's MuJoCo model
+    with ``obstacles`` (positions set, ``mj_forward``; no dynamics): the contacts summed over
+    the samples and the deepest penetration [m]."""
+    model, data, adr = contact_model(robot, obstacles)
     obstacle = self_contact = 0
     deepest = 0.0
     for q in np.atleast_2d(qs):

@@ -49,7 +49,7 @@ T = 1 ms controller sees a first-order lag of a few periods (industrial velocity
 30–100 Hz of bandwidth, τ = 1.6–5 ms). ``τ_i = 50 ms`` — a constant disturbance torque
 (e.g. an unknown payload) is rejected with poles at about -22 and -178 rad/s. As gains:
 ``kv(q) = (M_nom(q) + diag(armature)) / τ_v`` [N·m·s/rad] and ``ki(q) = kv(q) / τ_i``
-[N·m/rad] (:meth:`MujocoSimulation.servo_gains`). ``tests/test_mujoco_sim.py`` measures the
+[N·m/rad] (:meth:`MujocoSimulation.servo_gains`). ``tests/sim/test_mujoco_sim.py`` measures the
 step response and the holding drift.
 
 Computed torque (``motor="torque"``)

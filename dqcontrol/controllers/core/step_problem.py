@@ -7,8 +7,8 @@ level assembles straight from its terms and limits (``None`` when there are seve
 levels, or the terms are not block diagonal); :meth:`StepProblem.problem` gives the
 :class:`~dqcontrol.controllers.core.problem.Problem` of every level, built once when
 asked. Both come from the same terms and limits and hold the same numbers
-(tests/test_core_limits.py); the bounds the applied command is clipped to, and the joints
-whose hard bound won a conflict, are read from the block form where there is one.
+(tests/controllers/limits/test_limits.py); the bounds the applied command is clipped to, and
+the joints whose hard bound won a conflict, are read from the block form where there is one.
 """
 
 from __future__ import annotations

@@ -36,6 +36,7 @@ from dqcontrol.controllers.base import (
     acceleration_setting,
     check_positive,
     joint_limit_settings,
+    robot_acceleration_limit,
 )
 from dqcontrol.controllers.core.problem import DecisionLayout, DenseQP, Level
 from dqcontrol.controllers.limits.acceleration import AccelerationLimit
@@ -114,7 +115,9 @@ class TrackingController(QPController):
         velocity_limits: ``qd_max`` [rad/s], scalar or per joint; default: the URDF's.
         acceleration_limit: constant ``a_max`` [rad/s²] (scalar or per joint) or
             ``"dynamics"`` for Pinocchio's ``(τ_max - |g|)/M_jj`` at each block's state,
-            clipped to ``[acceleration_floor, acceleration_cap]``.
+            clipped to ``[acceleration_floor, acceleration_cap]``; ``None`` (default): the
+            robot's limit profile's acceleration limit, else 10 rad/s²
+            (:func:`~dqcontrol.controllers.base.robot_acceleration_limit`).
         braking_aware: add the stop-before-the-limit position bound (docs/theory.md §5).
         position_margin_rad: the position bounds stop this far inside the URDF's limits
             [rad] (default 5 mrad: a velocity servo lags its command, so a joint braked to
@@ -159,7 +162,7 @@ class TrackingController(QPController):
         stall_scaling: float = 0.05,
         stall_delay_s: float = 0.5,
         velocity_limits: float | np.ndarray | None = None,
-        acceleration_limit: AccelerationSetting = 10.0,
+        acceleration_limit: AccelerationSetting | None = None,
         acceleration_floor: float = 0.5,
         acceleration_cap: float = 50.0,
         braking_aware: bool = True,
@@ -188,6 +191,7 @@ class TrackingController(QPController):
             robot, velocity_limits, position_margin_rad
         )
         self.position_margin_rad = margin
+        acceleration_limit = robot_acceleration_limit(robot, acceleration_limit, 10.0)
         self._set_acceleration(robot.nq, acceleration_limit, acceleration_floor, acceleration_cap)
         layout = self._layout(robot.nq, period_s)
         prediction = ThesisPrediction(
