@@ -31,6 +31,7 @@ medians over repeated runs; the machine is shared, so they move by ±10–20 % b
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -843,6 +844,57 @@ def bench_run_log(samples: int = 20_000, period_s: float = 0.001) -> dict:
     }
 
 
+def bench_streaming(seconds: float = 2.0, period_s: float = PERIOD_S) -> dict:
+    """The path-following controller planned in its own process and streamed at 1 kHz on
+    the wall clock (docs/theory.md §12): the plan period chosen from the measured step
+    time (twice its p99, a whole number of periods), the streamer's and the planner's step
+    times, late commands and lateness, and a sleeper's host stalls beside them."""
+    from dqcontrol.streaming import streamed
+    from dqcontrol.streaming.planner import choose_plan_period
+    from dqcontrol.streaming.timing import time_on_wall_clock
+
+    robot = load_lbr4p()
+    probe = _make("path_following", robot, Circle(seconds), period_s, DEFAULT_SOLVER)
+    probe.reset(LBR4P_Q0)
+    q, times = LBR4P_Q0.copy(), []
+    for _ in range(60):
+        start = time.perf_counter()
+        q = q + period_s * probe.step(q).qd_command
+        times.append(time.perf_counter() - start)
+    plan_period = choose_plan_period(times[10:], period_s)
+    planner = _make("path_following", robot, Circle(seconds), plan_period, DEFAULT_SOLVER)
+    controller = streamed(planner, period_s, acceleration_max=10.0, jerk_max=5000.0)
+    timing = time_on_wall_clock(controller, LBR4P_Q0, seconds)
+    report = controller.report()
+    return {
+        "plan_period_s": plan_period,
+        "streamer_step_median_us": report["streamer_step_median_us"],
+        "planner_step_median_ms": report["planner_step_median_ms"],
+        "plans_used": report["plans_used"],
+        "plans_refused": report["plans_refused"],
+        **dataclasses.asdict(timing),
+    }
+
+
+def _streaming_lines(res: dict | None) -> list[str]:
+    """The streamed controller on the wall clock."""
+    if not res:
+        return []
+    return [
+        "",
+        f"streamed path following at 1 kHz (plan period {1e3 * res['plan_period_s']:g} ms, "
+        f"planner in its own process): streamer step median "
+        f"{res['streamer_step_median_us']:.1f} µs, planner step median "
+        f"{res['planner_step_median_ms']:.2f} ms, plans used {res['plans_used']}, refused "
+        f"{res['plans_refused']}",
+        f"  wall clock: {res['late']} of {res['samples']} commands late "
+        f"({res['late_during_host_stalls']} during host stalls ≥ 2.5 ms), lateness median "
+        f"{res['lateness_median_ms']:.3f} ms, p99 {res['lateness_p99_ms']:.2f} ms, max "
+        f"{res['lateness_max_ms']:.2f} ms; sleeper's host stalls: {res['host_stalls']}, p99 "
+        f"{res['host_stall_p99_ms']:.2f} ms, max {res['host_stall_max_ms']:.2f} ms",
+    ]
+
+
 def _run_log_lines(res: dict | None) -> list[str]:
     """The streamed run log's cost per sample and its size on disk."""
     if not res:
@@ -892,6 +944,7 @@ def run_all(quick: bool = False) -> dict:
         out["collision"] = bench_collision()
         out["collision"]["pf10_whole_circle"] = bench_collision_circle()
     out["run_log"] = bench_run_log(samples=3000 if quick else 20_000)
+    out["streaming"] = bench_streaming(seconds=0.5 if quick else 2.0)
     out["targets"] = _targets(out)
     return out
 
@@ -911,6 +964,7 @@ def format_report(res: dict) -> str:
     lines += _path_following_lines(res.get("path_following"))
     lines += _collision_lines(res.get("collision"))
     lines += _run_log_lines(res.get("run_log"))
+    lines += _streaming_lines(res.get("streaming"))
     return "\n".join(lines)
 
 

@@ -43,6 +43,13 @@ from dqcontrol.cli.run_output import (
     with_contacts,
     write_results,
 )
+from dqcontrol.cli.stream_options import (
+    check_stream_options,
+    measured_plan_period,
+    planner_acceleration,
+    stream_summary,
+    streamed_from_args,
+)
 from dqcontrol.experiments.thesis import THESIS_VELOCITY_LIMITS
 from dqcontrol.registry import CONTROLLER_HELP
 
@@ -148,7 +155,13 @@ def make_controller(name: str, robot, trajectory, args, velocity_limits):
         from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
 
         shared["servo_time_constant_s"] = SERVO_TIME_CONSTANT_S
-    return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+    plan_period = getattr(args, "plan_period", None)
+    if plan_period is None:
+        return build_controller(name, robot, trajectory, args.period, shared=shared, **extra)
+    if args.acceleration_limit is not None:
+        shared["acceleration_limit"] = planner_acceleration(args)
+    planner = build_controller(name, robot, trajectory, plan_period, shared=shared, **extra)
+    return streamed_from_args(planner, args)
 
 
 def run_connected(args, controller, q0, meta: dict, on_progress, log_file=None):
@@ -229,6 +242,10 @@ def _check_options(args) -> tuple:
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)
+    check_stream_options(args)
+    if args.plan_period == "auto":
+        args.plan_period = measured_plan_period(args, robot, q0, velocity)
+        print(f"dqcontrol run: --plan-period auto: {args.plan_period:g} s", file=sys.stderr)
     return robot, q0, robot_meta, velocity
 
 
@@ -370,6 +387,8 @@ def _run_controller(
         result = _simulate(args, controller, q0, meta, viewer, on_progress, out / f"{label}.mcap")
     finally:
         bar.close()
+    if "stream" in result.log.meta:
+        print(f"{label}: {stream_summary(result.log.meta['stream'])}")
     if result.note:
         print(f"{label}: {result.note}", file=sys.stderr)
     return label, result, controller.trajectory

@@ -12,6 +12,7 @@ import math
 
 from dqcontrol.cli.common import add_out_option, add_progress_option
 from dqcontrol.cli.robot_options import add_robot_options
+from dqcontrol.cli.stream_options import add_stream_options
 from dqcontrol.experiments.thesis import (
     THESIS_ACCELERATION_LIMIT,
     THESIS_HORIZON_S,
@@ -188,6 +189,7 @@ def add_controller_options(parser: argparse.ArgumentParser) -> None:
         "from the robot's inertia and effort limits for path following, capped by the "
         "profile's)",
     )
+    add_stream_options(g)
 
 
 def add_collision_options(parser: argparse.ArgumentParser) -> None:

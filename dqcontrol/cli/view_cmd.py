@@ -87,11 +87,15 @@ def _main(args: argparse.Namespace) -> int:
     from dqcontrol.cli.run_cmd import trajectory_from_meta
     from dqcontrol.runs.contacts import contacts_text, loaded_contacts
     from dqcontrol.sim.bridge import run_origin
+    from dqcontrol.viz.stop_marks import stop_summary
 
     log, record = _load_log(json_path)
     meta = log.meta
     print(f"run {name}: states from {run_origin(meta)}", flush=True)
     print(contacts_text(record), flush=True)
+    stop = stop_summary(log)
+    if stop:
+        print(stop, flush=True)
     trajectory = trajectory_from_meta(meta, log)
     path_points = trajectory.path_positions(1000) if trajectory is not None else None
     out = Path(args.out) if args.out else json_path.parent

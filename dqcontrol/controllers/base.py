@@ -259,6 +259,9 @@ class Controller(ABC):
 
     #: Short name used in logs and tables.
     name: str = "controller"
+    #: Whether :meth:`request_stop` is handled by the controller's own steps (else by a
+    #: path-following controller's stop on the same task).
+    stops_itself: bool = False
 
     def __init__(
         self,
@@ -295,6 +298,9 @@ class Controller(ABC):
         self._sent: deque[np.ndarray] = deque(maxlen=max(self.measurement_delay_periods, 1))
         self._reset_done = False
         self._q_shape = (self.n,)
+        #: Whether a stop was requested (:meth:`request_stop`) since the last reset.
+        self.stopping = False
+        self._stop_delegate: Controller | None = None
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray | None = None, sigma0: float = 0.0) -> None:
         """Start a new run from joint positions ``q0`` [rad] (and velocity ``qd0`` [rad/s]).
@@ -312,10 +318,28 @@ class Controller(ABC):
         self.qd_prev = qd0.copy()
         self._sent.clear()
         self._reset_done = True
+        self.stopping = False
+        self._stop_delegate = None
         self._reset_memory(q0, qd0)
 
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:  # noqa: B027
         """Hook for controllers with more memory (the predictive horizon); none by default."""
+
+    def request_stop(self) -> None:
+        """Bring the arm to rest along the path, as fast as the limits allow
+        (docs/theory.md §8.10): every later :meth:`step` brakes the phase to ``s = 0`` with
+        the path kept. Here, the steps are those of a path-following controller on the same
+        task, robot, period and bounds, started at this controller's phase and last command
+        (:func:`~dqcontrol.controllers.stop_delegate.stop_delegate`); a controller that
+        stops by itself (``stops_itself``) overrides :meth:`_begin_stop`."""
+        if not self._reset_done:
+            raise ConfigurationError("call reset(q0) before request_stop()")
+        if not self.stopping:
+            self.stopping = True
+            self._begin_stop()
+
+    def _begin_stop(self) -> None:  # noqa: B027 - optional hook
+        """Hook of a controller that stops by itself: its next steps brake."""
 
     @property
     def done(self) -> bool:
@@ -343,12 +367,26 @@ class Controller(ABC):
             q = self.robot.check_q(q)
         if qd is not None:
             qd = self.robot.check_q(qd, "qd")
+        if self.stopping and not self.stops_itself:
+            return self._delegated_step(q, qd)
         if self.measurement_delay_periods and self._sent:
             q = q + self.period_s * np.sum(self._sent, axis=0)
         result = self._step(q, qd)
         self.qd_prev = result.qd_command
         if self.measurement_delay_periods:
             self._sent.append(result.qd_command)
+        self.sigma = result.sigma_next
+        return result
+
+    def _delegated_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        """A step of the stop's delegate (:meth:`request_stop`), its phase and command kept
+        as this controller's."""
+        if self._stop_delegate is None:
+            from dqcontrol.controllers.stop_delegate import stop_delegate
+
+            self._stop_delegate = stop_delegate(self, q)
+        result = self._stop_delegate.step(q, qd)
+        self.qd_prev = result.qd_command
         self.sigma = result.sigma_next
         return result
 

@@ -300,7 +300,12 @@ class Table1Case:
             kwargs["velocity_limits"] = velocity
             kwargs["acceleration_limit"] = float(settings.acceleration_limit)
         else:
-            kwargs = {"velocity_limits": velocity, **dict(settings.path_following_options)}
+            # the thesis's convention for every row: the task ends at speed
+            kwargs = {
+                "velocity_limits": velocity,
+                "end": "at_speed",
+                **dict(settings.path_following_options),
+            }
             if settings.servo_model and settings.simulator == "mujoco":
                 kwargs.setdefault("servo_time_constant_s", _mujoco_servo_time_constant_s())
         if self.controller != "local":

@@ -23,7 +23,7 @@ import numpy as np
 
 from dqcontrol.controllers.base import StepResult
 from dqcontrol.errors import ParameterError
-from dqcontrol.runs.log import RunLog
+from dqcontrol.runs.log import RunLog, stream_values
 
 __all__ = ["SampleBlock", "decode_block", "encode_block", "field_layout"]
 
@@ -53,6 +53,7 @@ def field_layout(num_joints: int) -> list[tuple[str, str, int]]:
         ("fallback", "|b1", 0),
         ("relaxed", "|b1", 0),
         ("saturated", "|b1", 0),
+        ("stopping", "|b1", 0),
     ]
 
 
@@ -91,6 +92,7 @@ class SampleBlock:
         result: StepResult,
         torque: np.ndarray | None = None,
         torque_peak: np.ndarray | None = None,
+        stopping: bool = False,
     ) -> None:
         """Write one sample in the next row (as :meth:`~dqcontrol.runs.log.LogRecorder.record`)."""
         k, c, d = self.count, self.columns, result.diagnostics
@@ -114,7 +116,21 @@ class SampleBlock:
         c["fallback"][k] = d.fallback
         c["relaxed"][k] = d.relaxed
         c["saturated"][k] = d.saturated
+        stream = stream_values(result)
+        if stream is not None:
+            self._record_stream(k, stream)
+        c["stopping"][k] = stopping
         self.count = k + 1
+
+    def _record_stream(self, k: int, values: tuple[int, float, float]) -> None:
+        """A streamed controller's plan id, plan age and lateness: their columns are made
+        at its first sample (a run's samples all come from one controller)."""
+        c = self.columns
+        if "plan_id" not in c:
+            for name, dt in (("plan_id", "<i8"), ("plan_age_s", "<f8"), ("lateness_s", "<f8")):
+                self.layout.append((name, dt, 0))
+                c[name] = _empty(dt, 0, self.capacity)
+        c["plan_id"][k], c["plan_age_s"][k], c["lateness_s"][k] = values
 
     def status_names(self) -> list[str]:
         """The block's distinct solver statuses, in the order of their codes."""

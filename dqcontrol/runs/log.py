@@ -12,7 +12,19 @@ import numpy as np
 
 from dqcontrol.controllers.base import StepResult
 
-__all__ = ["LogRecorder", "RunLog"]
+__all__ = ["LogRecorder", "RunLog", "STREAM_FIELDS", "stream_values"]
+
+#: The fields only a streamed controller's samples have.
+STREAM_FIELDS = ("plan_id", "plan_age_s", "lateness_s")
+
+
+def stream_values(result: StepResult) -> tuple[int, float, float] | None:
+    """``(plan_id, plan_age_s, lateness_s)`` of a streamed controller's step, else ``None``."""
+    d = result.diagnostics
+    plan_id = getattr(d, "plan_id", None)
+    if plan_id is None:
+        return None
+    return plan_id, d.plan_age_s, d.lateness_s  # type: ignore[attr-defined]
 
 
 @dataclass
@@ -28,6 +40,13 @@ class RunLog:
         solver_status: status string per sample. iterations, solve_time_s, step_time_s.
         fallback, relaxed, saturated: per-sample flags.
         meta: free-form description (robot, trajectory, controller, parameters, simulator).
+        plan_id, plan_age_s, lateness_s: a streamed controller's samples only (``None``
+            otherwise): the plan each command came from, the time since that plan's
+            measurement [s] and, on the wall clock, how long after its place on the grid the
+            command was ready [s] (NaN in stepped runs); docs/theory.md §12.4.
+        stopping: per-sample flag: the sample belongs to a stop (the controller's stop was
+            requested: the end of the task, Ctrl-C, the watchdog, a driver error or the
+            caller); all False when not given.
     """
 
     t_s: np.ndarray
@@ -48,19 +67,35 @@ class RunLog:
     relaxed: np.ndarray
     saturated: np.ndarray
     meta: dict = field(default_factory=dict)
+    plan_id: np.ndarray | None = None
+    plan_age_s: np.ndarray | None = None
+    lateness_s: np.ndarray | None = None
+    stopping: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.stopping is None:
+            self.stopping = np.zeros(self.t_s.shape, dtype=bool)
 
     def __len__(self) -> int:
         return int(self.t_s.size)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The array fields by name (for ``np.savez``)."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "meta"}
+        """The array fields by name (for ``np.savez``; the stream's only where present)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "meta"}
+        return {name: value for name, value in out.items() if value is not None}
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], meta: dict | None = None) -> RunLog:
         """Rebuild a log from :meth:`arrays` (e.g. a loaded ``.npz``)."""
-        names = [f.name for f in fields(cls) if f.name != "meta"]
-        return cls(**{k: np.asarray(arrays[k]) for k in names}, meta=dict(meta or {}))
+        names = [f.name for f in fields(cls) if f.name not in ("meta", "stopping", *STREAM_FIELDS)]
+        stream = {k: np.asarray(arrays[k]) for k in STREAM_FIELDS if k in arrays}
+        stopping = arrays.get("stopping")
+        return cls(
+            **{k: np.asarray(arrays[k]) for k in names},
+            meta=dict(meta or {}),
+            stopping=None if stopping is None else np.asarray(stopping, dtype=bool),
+            **stream,
+        )
 
 
 class LogRecorder:
@@ -70,6 +105,7 @@ class LogRecorder:
         self.n = num_joints
         self.meta = dict(meta or {})
         self._rows: list[tuple] = []
+        self._stream: list[tuple[int, float, float]] = []
 
     def __len__(self) -> int:
         return len(self._rows)
@@ -82,9 +118,14 @@ class LogRecorder:
         result: StepResult,
         torque: np.ndarray | None = None,
         torque_peak: np.ndarray | None = None,
+        stopping: bool = False,
     ) -> None:
-        """Append sample k: the measurement it was computed from and the controller output."""
+        """Append sample k: the measurement it was computed from and the controller output
+        (``stopping``: the sample belongs to a stop)."""
         d = result.diagnostics
+        stream = stream_values(result)
+        if stream is not None:
+            self._stream.append(stream)
         self._rows.append(
             (
                 t_s,
@@ -106,6 +147,7 @@ class LogRecorder:
                 d.fallback,
                 d.relaxed,
                 d.saturated,
+                bool(stopping),
             )
         )
 
@@ -122,9 +164,17 @@ class LogRecorder:
                 solver_status=np.zeros(0, dtype="U32"), iterations=np.zeros(0, dtype=int),
                 solve_time_s=empty, step_time_s=empty, fallback=np.zeros(0, dtype=bool),
                 relaxed=np.zeros(0, dtype=bool), saturated=np.zeros(0, dtype=bool),
-                meta=self.meta,
+                meta=self.meta, stopping=np.zeros(0, dtype=bool),
             )  # fmt: skip
         cols = list(zip(*self._rows, strict=True))
+        stream = {}
+        if len(self._stream) == len(self._rows):
+            ids, ages, late = zip(*self._stream, strict=True)
+            stream = {
+                "plan_id": np.array(ids, dtype=np.int64),
+                "plan_age_s": np.array(ages, dtype=float),
+                "lateness_s": np.array(late, dtype=float),
+            }
         return RunLog(
             t_s=np.array(cols[0], dtype=float),
             sigma=np.array(cols[1], dtype=float),
@@ -144,4 +194,6 @@ class LogRecorder:
             relaxed=np.array(cols[15], dtype=bool),
             saturated=np.array(cols[16], dtype=bool),
             meta=self.meta,
+            stopping=np.array(cols[17], dtype=bool),
+            **stream,
         )

@@ -1,6 +1,8 @@
 """Run metrics (docs/theory.md §9), computed from a :class:`~dqcontrol.runs.log.RunLog`.
 
-All metrics are taken over the control samples until σ reaches ``T_tot`` (the task).
+All metrics are taken over the control samples until σ reaches ``T_tot`` or a stop begins
+(the task); the ``stop_*`` ones over the samples of the stop (flagged ``stopping`` in the
+log, docs/theory.md §8.10).
 """
 
 from __future__ import annotations
@@ -68,6 +70,17 @@ class Metrics:
     nan_seen: bool
     solve_time_median_s: float
     step_time_median_s: float
+    #: the stop's samples, its duration [s], how far the phase advanced during it [s of
+    #: nominal time], how far the tool travelled [m], its largest deviation from the path
+    #: [m], its samples beyond the velocity or acceleration bound, and the largest
+    #: ``|qd_command|`` of its last sample [rad/s] (0: ended at rest).
+    stop_samples: int = 0
+    stop_duration_s: float = 0.0
+    stop_phase_advance_s: float = 0.0
+    stop_tool_travel_m: float = 0.0
+    stop_path_deviation_max_m: float = 0.0
+    stop_limit_violations: int = 0
+    stop_last_command_rad_s: float = 0.0
 
     def as_dict(self) -> dict:
         """Plain-Python dictionary (JSON-ready)."""
@@ -102,6 +115,9 @@ def _task_end(log: RunLog, duration: float, period_s: float) -> tuple[bool, int]
     reached = np.flatnonzero(log.sigma + period_s * log.s >= duration - 1e-12)
     completed = reached.size > 0
     end = int(reached[0]) + 1 if completed else len(log)
+    stops = np.flatnonzero(log.stopping)
+    if stops.size and stops[0] < end:
+        return False, int(stops[0])
     return completed, end
 
 
@@ -152,6 +168,31 @@ def _acceleration_excess(
     return acc - a_lim
 
 
+def _stop_metrics(log: RunLog, trajectory: Trajectory, bounds: BoundSpec, period_s: float) -> dict:
+    """The ``stop_*`` metrics over the samples flagged ``stopping`` (none: zeros)."""
+    idx = np.flatnonzero(log.stopping)
+    if not idx.size:
+        return {}
+    tool = translation(log.pose[idx])
+    dev = trajectory.path_deviation(tool)
+    qd_cmd = log.qd_command
+    acc = _acceleration_excess(qd_cmd, bounds, period_s, len(log))[idx]
+    vel = np.abs(qd_cmd[idx]) - bounds.qd_max
+    beyond = np.any(vel > VIOLATION_TOL, axis=1) | np.any(
+        acc > VIOLATION_TOL * max(1.0, 1.0 / period_s), axis=1
+    )
+    last = idx[-1]
+    return {
+        "stop_samples": int(idx.size),
+        "stop_duration_s": float(idx.size * period_s),
+        "stop_phase_advance_s": float(log.sigma[last] + period_s * log.s[last] - log.sigma[idx[0]]),
+        "stop_tool_travel_m": float(np.sum(np.linalg.norm(np.diff(tool, axis=0), axis=1))),
+        "stop_path_deviation_max_m": _nanmax(np.asarray(dev)),
+        "stop_limit_violations": int(np.count_nonzero(beyond)),
+        "stop_last_command_rad_s": float(np.max(np.abs(qd_cmd[last]))),
+    }
+
+
 def compute_metrics(
     log: RunLog, trajectory: Trajectory, bounds: BoundSpec, period_s: float
 ) -> Metrics:
@@ -200,4 +241,5 @@ def compute_metrics(
         nan_seen=_nan_seen(log),
         solve_time_median_s=_median(log.solve_time_s[sl]),
         step_time_median_s=_median(log.step_time_s[sl]),
+        **_stop_metrics(log, trajectory, bounds, period_s),
     )

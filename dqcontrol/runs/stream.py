@@ -85,6 +85,7 @@ class StreamRecorder:
         result: StepResult,
         torque: np.ndarray | None = None,
         torque_peak: np.ndarray | None = None,
+        stopping: bool = False,
     ) -> None:
         """Append one sample (as :meth:`~dqcontrol.runs.log.LogRecorder.record`).
 
@@ -92,7 +93,7 @@ class StreamRecorder:
             RunLogWriteError: an earlier block could not be written.
         """
         block = self._current
-        block.record(t_s, q, qd_measured, result, torque, torque_peak)
+        block.record(t_s, q, qd_measured, result, torque, torque_peak, stopping)
         if block.full:
             self._hand_off()
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from dqcontrol.dq.algebra import pose_error, translation
 from dqcontrol.runs.metrics import VIOLATION_TOL, BoundSpec, Metrics
+from dqcontrol.runs.stop_totals import StopTotals
 from dqcontrol.trajectories import Trajectory
 
 __all__ = ["MEDIAN_KEEP", "streamed_metrics"]
@@ -69,6 +70,8 @@ class _Pass:
         self.exec_time = float("nan")
         self.kept: dict[str, list[np.ndarray]] | None = {name: [] for name in _TIMING}
         self.timing_nan = dict.fromkeys(_TIMING, False)
+        self.stopped = False
+        self.stop = StopTotals(trajectory, bounds_for, period_s)
 
     def add(self, block: dict[str, np.ndarray]) -> None:
         count = len(block["t_s"])
@@ -80,6 +83,7 @@ class _Pass:
             and np.all(np.isfinite(block["pose"]))
         )
         self.last_sigma_next = float(block["sigma"][-1] + self.period_s * block["s"][-1])
+        self.stop.add(block)
         if self.end is None:
             task = self._task_part(block, count)
             if task:
@@ -90,6 +94,10 @@ class _Pass:
         """How many of the block's samples belong to the task (sets ``end`` when it ends)."""
         duration = self.trajectory.duration
         reached = np.flatnonzero(block["sigma"] + self.period_s * block["s"] >= duration - 1e-12)
+        stops = np.flatnonzero(block.get("stopping", np.zeros(count, dtype=bool)))
+        if stops.size and (not reached.size or stops[0] <= reached[0]):
+            self.end, self.stopped = self.samples + int(stops[0]), True
+            return int(stops[0])
         if not reached.size:
             return count
         task = int(reached[0]) + 1
@@ -246,7 +254,7 @@ def streamed_metrics(
     for block in blocks():
         one.add(block)
     t, duration = one.totals, trajectory.duration
-    completed = one.end is not None
+    completed = one.end is not None and not one.stopped
     medians = _medians(one, blocks)
     torque_ok = t.torque_values > 0 and t.torque_finite
     return Metrics(
@@ -279,4 +287,5 @@ def streamed_metrics(
         nan_seen=one.nan_seen,
         solve_time_median_s=medians["solve_time_s"],
         step_time_median_s=medians["step_time_s"],
+        **one.stop.figures(),
     )

@@ -16,9 +16,12 @@ only the run's own objects. The loop holds one BLAS thread for its whole length
 (:func:`~dqcontrol.controllers.single_blas_thread`), so that no step switches the libraries
 itself. A watchdog ends the run on a stale measurement (no newer sample for
 ``stale_periods`` periods), a missed deadline (wall-clock mode), the end of the task or the
-time limit, or Ctrl-C; with ``brake=True`` it then brings the command to zero within the
-controller's acceleration limit (``|Δu| ≤ a_max T`` per period) and holds. Braking happens
-after the last logged sample: the log and the metrics are those of the task.
+time limit, or Ctrl-C; a driver error ends it too. With ``brake=True`` every one of these
+then brings the arm to rest along the path (:mod:`dqcontrol.sim.path_stop`): the
+controller's stop is requested and it is stepped until at rest, those samples logged with
+the ``stopping`` flag. Only where the controller has no solution does the loop fall back to
+bringing each joint's command to zero within the acceleration limit (``|Δu| ≤ a_max T`` per
+period), after the last logged sample, ``meta["stop"]["ramp"]`` saying why; then it holds.
 """
 
 from __future__ import annotations
@@ -48,6 +51,8 @@ from dqcontrol.runs.stream import DEFAULT_CHUNK_S, StreamRecorder
 from dqcontrol.runs.streamed_run import end_streamed
 from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
+from dqcontrol.sim.path_stop import stop_along_path
+from dqcontrol.streaming.hook import stream_hook
 
 __all__ = ["RunResult", "run_loop"]
 
@@ -68,8 +73,9 @@ class RunResult:
     note: str = ""
     #: why the run was cut short: ``""`` (it was not), ``"user"`` (Ctrl-C),
     #: ``"simulation"`` (the driver or simulator failed; the note says how), ``"stale"``
-    #: (no fresh measurement), ``"deadline"`` (a step missed its period in wall-clock mode)
-    #: or ``"log"`` (the streamed run log could not be written).
+    #: (no fresh measurement), ``"deadline"`` (a step missed its period in wall-clock mode),
+    #: ``"request"`` (the controller's stop was requested, e.g. from ``on_sample``) or
+    #: ``"log"`` (the streamed run log could not be written).
     reason: str = ""
     #: the streamed run log (``run_loop(log_file=...)``); ``log`` then holds only the
     #: samples of its last block(s), the file all of them (:func:`~dqcontrol.runs.load_run`).
@@ -83,11 +89,13 @@ class RunResult:
 
 
 def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:
-    """One step of a deep copy of ``controller`` (loads the compiled kernels; the controller
-    itself is untouched). Returns ``""`` or why it was skipped."""
+    """One step of a deep copy of ``controller``, then one of its stop (loads the compiled
+    kernels; the controller itself is untouched). Returns ``""`` or why it was skipped."""
     memo = {id(m): m for m in list(sys.modules.values())}  # modules are shared, not copied
     try:
         twin = copy.deepcopy(controller, memo)
+        twin.step(q.copy(), qd.copy())
+        twin.request_stop()  # and its stop (a delegate's first steps load their own kernels)
         twin.step(q.copy(), qd.copy())
     except Exception as exc:  # noqa: BLE001 - a warm-up never stops the run
         return f"skipped: {type(exc).__name__}: {exc}"
@@ -250,8 +258,11 @@ def run_loop(
             :data:`SPIN_S`); ending after ``start + (k + 1) T`` stops the run (``"deadline"``);
             the GC sees only the run's objects (``gc.freeze``). Else: as fast as it answers.
         stale_periods: stop (``reason = "stale"``) after this many periods with no new
-            measurement.
-        brake: after the run, ramp the command to zero within the acceleration limit, hold.
+            measurement; until then (and during the stop) the controller is given the last
+            measured ``q`` moved by the commands sent since (dead reckoning).
+        brake: after the run, bring the arm to rest along the path (the controller's stop,
+            logged), the joint-space ramp only where that has no solution; then hold.
+            ``False``: the run ends with its last command.
         warm_up: step a copy of the controller once before the first command.
         log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md); the
             result's ``log`` then holds only the last samples. ``None``: all in memory.
@@ -274,7 +285,12 @@ def run_loop(
     num = _sample_count(controller, max_time_s, stale_periods)
     logging = (log_file, log_chunk_s)
     run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
-    stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
+    stream = stream_hook(controller, realtime)  # a streamed controller plans in a thread
+    try:
+        stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
+    finally:
+        stream.close()
+    run.rec.meta.update(stream.meta())
     return _result(controller, driver, run.rec, stop, run)
 
 
@@ -334,15 +350,24 @@ def _sample_count(controller: Controller, max_time_s: float | None, stale_period
 
 def _stop_and_brake(run: _Samples, brake: bool) -> dict:
     """``meta["stop"]``: why the run ended, the timing on the wall clock
-    (:meth:`_Clock.report`), and the periods of braking (done here, after the last logged
-    sample)."""
+    (:meth:`_Clock.report`), the periods of the stop along the path (logged) and those of
+    the joint-space ramp (``brake_periods``, after the last logged sample) with why
+    (``ramp``)."""
     clock = run.clock
     stop: dict = {"reason": run.reason or "end", "brake_periods": 0, **clock.report()}
-    if brake and run.reason != "simulation":
+    if not brake:
+        return stop
+    rate = _brake_rate(run.controller, run.q)
+    path = stop_along_path(run, rate, record=run.reason != "log")
+    stop.update(stop_periods=path.periods, at_rest=path.at_rest, ramp=path.ramp)
+    if not path.at_rest:
         stop["brake_periods"] = _brake_and_hold(
             run.driver, np.array(run.command, dtype=float),
-            _brake_rate(run.controller, run.q), run.order.to_driver, clock,
+            rate, run.order.to_driver, clock,
         )  # fmt: skip
+    else:
+        with contextlib.suppress(KeyboardInterrupt, DQControlError):
+            run.driver.hold()
     return stop
 
 
@@ -406,6 +431,8 @@ class _Samples:
         self.rec, self.clock, self.meas = rec, clock, meas
         self.q, self.qd = order.to_model(meas)
         self.command = np.zeros(controller.robot.nq)
+        #: where the commands sent since the last fresh measurement took the arm [rad]
+        self.drift_rad = np.zeros(controller.robot.nq)
         self.interrupted, self.note, self.reason = False, "", ""
 
     def loop(self, num: int, stale_periods: int, on_sample, on_progress) -> None:
@@ -441,14 +468,23 @@ class _Samples:
                 on_sample(k, driver, result)
             if on_progress is not None:
                 on_progress(float(result.sigma_next), duration)
-            if controller.done:
-                return
             if nxt.t_s > newest:
                 newest, unchanged = nxt.t_s, 0
+                self.drift_rad[:] = 0.0
             else:
                 unchanged += 1
+                self.drift_rad += controller.period_s * self.command
             self.meas = nxt
             self.q, self.qd = self.order.to_model(nxt)
+            if unchanged:  # not renewed: where the commands since took the arm
+                self.q = self.q + self.drift_rad
+            if controller.done:
+                return
+            if controller.stopping:
+                self._stop("request", (
+                    f"stop requested after {len(rec)} samples (σ = {controller.sigma:.4f} s)"
+                ))  # fmt: skip
+                return
             if not clock.wait():
                 self._stop("deadline", (
                     f"stopped after {len(rec)} samples: sample {k} ended "

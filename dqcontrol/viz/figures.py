@@ -39,6 +39,7 @@ from dqcontrol.extras import missing_extra
 from dqcontrol.runs.log import RunLog
 from dqcontrol.runs.storage import atomic_write_bytes
 from dqcontrol.trajectories import Trajectory
+from dqcontrol.viz.stop_marks import mark_stop_on_path, shade_stop
 
 try:
     from matplotlib.figure import Figure
@@ -157,6 +158,7 @@ def _fig_path_2d(log: RunLog, ref: np.ndarray, trajectory: Trajectory | None) ->
     ax.plot(r2[:, 0], r2[:, 1], label="reference", **_REF_STYLE)
     ax.plot(p2[:, 0], p2[:, 1], color="C3", linewidth=1.5, label="end effector")
     ax.plot(p2[:1, 0], p2[:1, 1], "o", color="C3", markersize=4)
+    mark_stop_on_path(ax, log, p2)
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax.set_aspect("equal", adjustable="datalim")
@@ -223,6 +225,7 @@ def _fig_joint_velocities(log: RunLog) -> Figure:
             for sign in (-1, 1):
                 ax.axhline(sign * lim[j], color="0.5", linewidth=0.8, linestyle=":")
         ax.set_ylabel(f"$\\dot q_{j + 1}$ [rad/s]")
+        shade_stop(ax, log, log.t_s, label=j == 0)
         ax.grid(True, alpha=0.3)
     for ax in axes[-cols:]:
         ax.set_xlabel("t [s]")
@@ -236,6 +239,7 @@ def _fig_joint_lines(log: RunLog, values: np.ndarray, ylabel: str, what: str) ->
     ax = fig.add_subplot()
     for j in range(values.shape[1]):
         ax.plot(log.t_s, values[:, j], linewidth=1.3, label=f"joint {j + 1}")
+    shade_stop(ax, log, log.t_s)
     ax.set_xlabel("t [s]")
     ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
@@ -250,6 +254,8 @@ def _fig_scaling(log: RunLog) -> Figure:
     ax_s.plot(log.t_s, log.s, color="C2", linewidth=1.4, drawstyle="steps-post")
     ax_s.set_ylabel("s")
     ax_s.set_ylim(-0.05, 1.05)
+    shade_stop(ax_s, log, log.t_s)
+    shade_stop(ax_sigma, log, log.t_s, label=False)
     ax_s.grid(True, alpha=0.3)
     ax_sigma.plot(log.t_s, log.t_s, label="σ = t", **_REF_STYLE)
     ax_sigma.plot(log.t_s, log.sigma, color="C0", linewidth=1.4, label="σ(t)")

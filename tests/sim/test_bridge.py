@@ -287,9 +287,12 @@ def test_dropped_answers_make_the_loop_brake_and_hold(lbr4p):
         client.close()
     assert res.reason == "stale" and res.log.meta["stop"]["reason"] == "stale"
     assert "not renewed for 3 periods" in res.note and took < 5.0
-    assert len(res.log) == 8 + 2  # the last two samples from a measurement 1-2 periods old
-    brake = res.log.meta["stop"]["brake_periods"]
-    assert brake >= 1 and len(server.commands) == len(res.log) + brake + 1  # + the hold
+    task = int(np.count_nonzero(~res.log.stopping))
+    assert task == 8 + 2  # the last two samples from a measurement 1-2 periods old
+    stop = res.log.meta["stop"]
+    assert stop["at_rest"] and stop["stop_periods"] == len(res.log) - task >= 1
+    # every sample's command (the stop's too, from dead reckoning), then the hold
+    assert len(server.commands) == len(res.log) + stop["brake_periods"] + 1
     assert not server.commands[-1].any() and not server.commands[-2].any()
     _assert_safe(server.commands, lbr4p)
 
@@ -308,7 +311,7 @@ def test_a_server_that_disappears(lbr4p):
             LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0, on_sample=vanish
         )
         client.close()
-    assert res.reason == "stale" and len(res.log) <= 9
+    assert res.reason == "stale" and np.count_nonzero(~res.log.stopping) <= 9
     assert res.log.meta["driver_report"]["timeouts"] >= 3
 
 
@@ -382,7 +385,7 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
 
     def serve():
         codes.append(
-            main(["sim-server", "--port", str(port), "--max-messages", "45", "--payload", "3"])
+            main(["sim-server", "--port", str(port), "--max-messages", "80", "--payload", "3"])
         )
         done.set()
 
@@ -395,11 +398,11 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
     assert server["robot"] == "lbr4p" and server["robot_spec"] == "lbr4p"
     assert server["motor"] == "velocity" and server["simulator"] == "mujoco"
     assert server["payload_kg"] == 3.0  # through PayloadDriver
-    # hello, describe, reset, the samples, the brake, hold
+    # hello, describe, reset, the samples (the stop's too), the ramp, hold
     sent = 3 + len(res.log) + res.log.meta["stop"]["brake_periods"] + 1
-    assert res.metrics.completed and sent < 45
+    assert res.metrics.completed and sent < 80
     sock = _raw(f"tcp://127.0.0.1:{port}")
-    for _ in range(45 - sent):  # the server stops after its 45th message
+    for _ in range(80 - sent):  # the server stops after its 80th message
         sock.send(_header(1, 0, 0))
         assert sock.poll(5000)
         sock.recv()

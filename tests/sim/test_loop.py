@@ -161,7 +161,12 @@ def test_a_joint_mismatch_stops_before_any_command(lbr4p, names, fragment):
     assert drv.calls == []
 
 
-def test_a_stale_measurement_brakes_within_the_acceleration_limit_and_holds(lbr4p):
+def _task(log):
+    """The samples of the task (before any stop)."""
+    return int(np.count_nonzero(~log.stopping))
+
+
+def test_a_stale_measurement_stops_within_the_acceleration_limit_and_holds(lbr4p):
     ctrl = LocalController(lbr4p, Circle(1.0), 0.05, acceleration_limit=10.0)
     drv = Recording(KinematicDriver(lbr4p, 0.05))
     drv.freeze_after = 8
@@ -169,11 +174,14 @@ def test_a_stale_measurement_brakes_within_the_acceleration_limit_and_holds(lbr4
     assert res.interrupted and res.reason == "stale" and "not renewed for 3" in res.note
     writes = [u for c, u in drv.calls if c == "write"]
     # samples 0-8 from fresh measurements, 9-10 from one up to 2 periods old; not 3
-    assert len(res.log) == 11 and res.log.t_s[-1] == res.log.t_s[8]
-    brake = writes[len(res.log) :]
-    assert res.log.meta["stop"] == {"reason": "stale", "brake_periods": len(brake)}
-    steps = np.diff(np.vstack([writes[len(res.log) - 1]] + brake), axis=0)
-    assert np.abs(steps).max() <= 10.0 * 0.05 + 1e-12 and not brake[-1].any()
+    task = _task(res.log)
+    assert task == 11 and res.log.t_s[task - 1] == res.log.t_s[8]
+    assert not res.log.stopping[:task].any() and res.log.stopping[task:].all()
+    stop = res.log.meta["stop"]
+    assert stop["reason"] == "stale" and stop["at_rest"] and stop["brake_periods"] == 0
+    assert stop["stop_periods"] == len(res.log) - task == len(writes) - task
+    steps = np.diff(np.vstack(writes[task - 1 :]), axis=0)
+    assert np.abs(steps).max() <= 10.0 * 0.05 + 1e-12 and not writes[-1].any()
     assert drv.calls[-1] == ("hold", None)
 
 
@@ -186,21 +194,25 @@ def test_ctrl_c_brakes_and_holds_and_keeps_the_samples(lbr4p):
             raise KeyboardInterrupt
 
     res = run_loop(ctrl, drv, q0=LBR4P_Q0, on_sample=interrupt)
-    assert res.reason == "user" and len(res.log) == 7
+    assert res.reason == "user" and _task(res.log) == 7
     assert res.note == "interrupted by the user after 7 samples"
     writes = np.array([u for c, u in drv.calls if c == "write"])
     assert np.abs(np.diff(writes[6:], axis=0)).max() <= 4.0 * 0.05 + 1e-12
     assert not writes[-1].any() and drv.calls[-1] == ("hold", None)
-    assert res.log.meta["stop"]["brake_periods"] == len(writes) - 7
+    assert res.log.meta["stop"]["stop_periods"] == len(writes) - 7 == len(res.log) - 7
 
 
 def test_the_end_of_the_task_brakes_after_the_log(lbr4p):
     free = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
     drv = Recording(KinematicDriver(lbr4p, 0.05))
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), drv, q0=LBR4P_Q0)
-    _assert_same_log(free.log, res.log)
+    task = _task(res.log)
+    assert task == len(free.log)
+    np.testing.assert_array_equal(res.log.qd_command[:task], free.log.qd_command)
     assert res.log.meta["stop"]["reason"] == "end" and not res.interrupted
-    assert res.log.meta["stop"]["brake_periods"] >= 1 and drv.calls[-1] == ("hold", None)
+    assert res.log.meta["stop"]["stop_periods"] == len(res.log) - task >= 1
+    assert res.log.meta["stop"]["at_rest"] and drv.calls[-1] == ("hold", None)
+    assert not res.log.qd_command[-1].any() and res.metrics.stop_samples == len(res.log) - task
     assert free.log.meta["stop"] == {"reason": "end", "brake_periods": 0}
 
 
@@ -216,7 +228,7 @@ def test_a_missed_deadline_stops_the_wall_clock_loop(lbr4p):
         on_sample=slow,
         realtime=True,
     )
-    assert res.reason == "deadline" and len(res.log) == 4 and "after its deadline" in res.note
+    assert res.reason == "deadline" and _task(res.log) == 4 and "after its deadline" in res.note
     assert res.log.meta["stop"]["lateness_max_ms"] > 10.0
     assert res.log.meta["stop"]["missed_deadlines"] == 1
 
@@ -322,8 +334,8 @@ def test_a_position_only_arm_runs_from_where_it_is(lbr4p, tmp_path):
     arm = PositionArm(names, LBR4P_Q0[::-1])
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), VelocityFromPosition(arm, 0.05))
     ref = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
-    assert res.metrics.completed and len(res.log) == len(ref.log)
-    np.testing.assert_allclose(res.log.q, ref.log.q, atol=1e-12)
+    assert res.metrics.completed and _task(res.log) == len(ref.log)
+    np.testing.assert_allclose(res.log.q[: len(ref.log)], ref.log.q, atol=1e-12)
     assert res.log.meta["interface"] == "position"
     save_run(res, tmp_path, "position")
     log, record = load_run(tmp_path / "position")
@@ -339,7 +351,7 @@ def test_q0_needs_a_driver_that_can_be_reset(lbr4p):
         run_loop(LocalController(lbr4p, Circle(1.0), 0.05), arm, stale_periods=0)
 
 
-def test_a_simulation_error_ends_the_run_without_braking(lbr4p):
+def test_a_lasting_simulation_error_ends_the_run_with_a_hold(lbr4p):
     sim = MujocoSimulation(lbr4p)
 
     class Failing(SimulationDriver):
@@ -352,7 +364,10 @@ def test_a_simulation_error_ends_the_run_without_braking(lbr4p):
 
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), Failing(sim, 0.05), q0=LBR4P_Q0)
     assert res.reason == "simulation" and "the physics blew up" in res.note
-    assert res.log.meta["stop"] == {"reason": "simulation", "brake_periods": 0}
+    stop = res.log.meta["stop"]
+    assert stop["reason"] == "simulation" and stop["brake_periods"] == 0
+    assert stop["stop_periods"] == 0 and not stop["at_rest"]
+    assert stop["ramp"].startswith("driver error during the stop")
 
 
 def test_wall_clock_figures_keep_bounded_memory():

@@ -39,6 +39,7 @@ from dqcontrol.controllers.limits.acceleration import AccelerationLimit
 from dqcontrol.controllers.limits.applied_box import AppliedCommandBox
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.phase_end import PhaseEndLimit
+from dqcontrol.controllers.limits.phase_rest import PhaseRestLimit
 from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
 from dqcontrol.controllers.limits.torque import TorqueLimit
@@ -57,6 +58,7 @@ from dqcontrol.controllers.prediction.consistent import (
 )
 from dqcontrol.controllers.prediction.distance import max_abs_difference
 from dqcontrol.controllers.qp_controller import QPController, Remedy, Solved
+from dqcontrol.controllers.terms.braking import BrakingTerm
 from dqcontrol.controllers.terms.damping import DampingTerm
 from dqcontrol.controllers.terms.path_error import PROJECTOR_BASIS, PathErrorTerm
 from dqcontrol.controllers.terms.posture import PostureTerm
@@ -83,6 +85,10 @@ STALL_SCALING = 0.01
 STALL_DELAY_S = 0.5
 #: Factor on the path level's tolerance while stalled.
 STALL_TIGHTENING = 0.01
+#: Weight of the joint velocities beside the braking rows during a stop: with the level's
+#: usual ``μ`` the tool brakes faster by moving the joints in the path's null space, which
+#: then take as long again to stop (docs/theory.md §8.10).
+STOP_DAMPING = 1e-2
 #: The step's message after the path level was infeasible, by what regained feasibility
 #: (the slack in mrad is formatted in).
 _LOOSENED = "predicted position bounds loosened by {:g} mrad to regain feasibility"
@@ -107,6 +113,23 @@ def _tightened(levels: tuple[Level, ...]) -> tuple[Level, ...]:
     return (dataclasses.replace(path, tolerance=STALL_TIGHTENING * path.tolerance), *levels[1:])
 
 
+def _braking(levels: tuple[Level, ...], layout) -> tuple[Level, ...]:
+    """The levels of a stop: the progress level's progress term replaced by a braking one,
+    its damping by :data:`STOP_DAMPING` and its smoothing of ``s`` dropped (the stop is as
+    fast as the limits allow)."""
+    path, progress, *rest = levels
+
+    def stop_term(term: Term) -> Term:
+        if isinstance(term, ProgressTerm):
+            return BrakingTerm(layout)
+        if isinstance(term, DampingTerm):
+            return DampingTerm(layout, STOP_DAMPING)
+        return term
+
+    terms = tuple(stop_term(t) for t in progress.terms if not isinstance(t, ScalingSmoothnessTerm))
+    return (path, dataclasses.replace(progress, terms=terms), *rest)
+
+
 class PathFollowingController(QPController):
     """Path first, progress second, posture third, over a consistent prediction.
 
@@ -122,6 +145,10 @@ class PathFollowingController(QPController):
         s_max: largest time scaling (1; up to 1.5 lets a late task catch up).
         posture_gain_per_s: rate of the pull towards the start posture [1/s].
         posture_reference: ``"start"`` (the configuration at reset) or a configuration.
+        end: ``"rest"`` (default: the phase velocity brakes to 0 exactly at ``σ = T_tot``
+            within the limits, :class:`~dqcontrol.controllers.limits.phase_rest.
+            PhaseRestLimit`) or ``"at_speed"`` (the thesis's convention: the task ends at
+            the nominal speed; :meth:`request_stop` then brings the arm to rest).
         torque_limit_fraction: bound the joint torques of the plan through the inverse
             dynamics to this share of the URDF's effort limits (``None``: no torque rows).
         servo_time_constant_s: the joints follow each new velocity command as a first-order
@@ -146,6 +173,7 @@ class PathFollowingController(QPController):
     """
 
     name = "path_following"
+    stops_itself = True
     prediction_model: ConsistentPrediction
 
     def __init__(
@@ -164,6 +192,7 @@ class PathFollowingController(QPController):
         s_max: float = 1.0,
         posture_gain_per_s: float = 1.0,
         posture_reference: Literal["start"] | np.ndarray = "start",
+        end: Literal["rest", "at_speed"] = "rest",
         torque_limit_fraction: float | None = None,
         servo_time_constant_s: float = 0.0,
         tuning: PathFollowingTuning | None = None,
@@ -199,11 +228,12 @@ class PathFollowingController(QPController):
         self._posture_reference = posture_reference
         levels = self._levels(tuple(extra_terms))
         self._stalled_levels = _tightened(levels)
+        self._stop_levels = _braking(_tightened(levels), self.layout)
         self._stall_steps = int(np.ceil(STALL_DELAY_S / self.period_s - 1e-9))
         self._a_max_key: tuple = (None, np.zeros((0, self.n)))
         self._memo = KinematicsMemo(self.robot)
         prediction = self.prediction_model
-        limits = self._limits() + tuple(extra_limits)
+        limits = self._limits() + self._end_limits(end) + tuple(extra_limits)
         self.compose(prediction, levels, limits, solver, solver_settings, self.s_max)
         self._reset_state()
 
@@ -316,6 +346,35 @@ class PathFollowingController(QPController):
             self._trust,
         )
 
+    def _end_limits(self, end: str) -> tuple[Limit, ...]:
+        """The rows that end the task at rest (``end="rest"``), or none (``"at_speed"``)."""
+        if end not in ("rest", "at_speed"):
+            raise ParameterError(f"end must be 'rest' or 'at_speed', got {end!r}")
+        self.end = end
+        self._rest: PhaseRestLimit | None = None
+        if end == "at_speed":
+            return ()
+        self._rest = PhaseRestLimit(self.layout, self.s_max, self.tuning.rest_deceleration_share)
+        return (self._rest,)
+
+    def _posture_scale(self) -> float:
+        """The share of the posture pull in force: none while stopping or stalled; towards
+        a rest at the end, the share of its speed the phase may keep
+        (:meth:`PhaseRestLimit.speed_share`), so that the motion in the path's null space
+        comes to rest with the phase."""
+        if self.stopping or self._stalled():
+            return 0.0
+        if self._rest is None:
+            return 1.0
+        return self._rest.speed_share(self.trajectory, self.sigma)
+
+    # ------------------------------------------------------------------ the stop
+    def _begin_stop(self) -> None:
+        """The progress level's goal becomes ``s → 0`` (the path level kept, its band as
+        narrow as while stalled; the posture level holds the arm still): the arm brakes
+        along the path (docs/theory.md §8.10)."""
+        self._levels_now = self._stop_levels
+
     # ------------------------------------------------------------------ memory
     def _reset_state(self) -> None:
         self._steps = 0
@@ -371,7 +430,7 @@ class PathFollowingController(QPController):
             self.sigma, pred, xs, jacs, xd, dxd, a_max,
             s_prev=self._s_prev,
             lag_s=self._steps * self.period_s - self.sigma,
-            posture_scale=0.0 if self._stalled() else 1.0,
+            posture_scale=self._posture_scale(),
             qd_measured=self.prediction_model.qd_measured,
         )  # fmt: skip
 
@@ -469,7 +528,10 @@ class PathFollowingController(QPController):
         self._stalled_steps = 0 if moving else self._stalled_steps + 1
         self._poor = result.diagnostics.fallback
         # the path's band narrower while the task is stalled
-        self._levels_now = self._stalled_levels if self._stalled() else self.levels
+        if self.stopping:
+            self._levels_now = self._stop_levels
+        else:
+            self._levels_now = self._stalled_levels if self._stalled() else self.levels
         return result
 
     def _pose_target(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

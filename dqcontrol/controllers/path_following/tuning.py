@@ -52,6 +52,8 @@ class PathFollowingTuning:
         position_slack_rad: when the predicted position rows leave no feasible plan, they
             are tried this much looser [rad] before they are dropped (docs/theory.md §8.6);
             keep it below the controller's position margin.
+        rest_deceleration_share: share of each joint's acceleration bound the braking of
+            the phase at the task's end may use, in ``(0, 1]`` (docs/theory.md §8.9).
     """
 
     path_tolerance: float = 1e-6
@@ -67,6 +69,7 @@ class PathFollowingTuning:
     trust_growth_time_s: float = 0.05
     path_full_weight_time_s: float = 0.05
     position_slack_rad: float = 1e-3
+    rest_deceleration_share: float = 0.5
 
     def __post_init__(self) -> None:
         units = {
@@ -75,9 +78,14 @@ class PathFollowingTuning:
             "relinearise_threshold_rad": "rad",
             "trust_radius_rad": "rad", "trust_radius_phase_s": "s", "trust_growth_time_s": "s",
             "path_full_weight_time_s": "s", "position_slack_rad": "rad",
+            "rest_deceleration_share": "-",
         }  # fmt: skip
         for name, unit in units.items():
             object.__setattr__(self, name, check_positive(name, getattr(self, name), unit))
+        if self.rest_deceleration_share > 1.0:
+            raise ParameterError(
+                f"rest_deceleration_share must be in (0, 1], got {self.rest_deceleration_share!r}"
+            )
         reserve = self.acceleration_reserve
         if reserve is not None:
             reserve = check_positive("acceleration_reserve", reserve, "-")

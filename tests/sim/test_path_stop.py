@@ -1,0 +1,248 @@
+"""The closed loop's stop along the path (dqcontrol/sim/path_stop.py): every way a run ends
+brings the arm to rest on the path within the limits, the stop's samples flagged.
+
+The Panda with Franka's velocity and acceleration limits, the path-following controller on
+a 15 cm circle of 1 s at T = 10 ms in the kinematic loop (a short MuJoCo case at the end).
+The checks are independent of the controller: the commands the driver received (their
+differences against ``a_max T``, the last one exactly zero) and the tool's distance from
+the path at every sample and after the last command (the driver's own state).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from dqcontrol.controllers import LocalController
+from dqcontrol.controllers.path_following.controller import PathFollowingController
+from dqcontrol.dq.algebra import translation
+from dqcontrol.errors import DQControlError
+from dqcontrol.model import PANDA_Q0
+from dqcontrol.sim import KinematicDriver, MujocoDriver, run_loop
+from dqcontrol.trajectories import Circle
+
+T = 0.01
+VELOCITY = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+ACCELERATION = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
+KINEMATIC_GOAL_M = 1e-4
+MUJOCO_GOAL_M = 5e-4
+
+
+class Wrapped:
+    """A driver that records what it is sent and can fail: its measurement frozen after
+    ``freeze_after`` writes, or one :class:`DQControlError` at write ``fail_at``."""
+
+    def __init__(self, inner, freeze_after: int | None = None, fail_at: int | None = None):
+        self.inner, self.joint_names = inner, inner.joint_names
+        self.freeze_after, self.fail_at = freeze_after, fail_at
+        self.writes: list[np.ndarray] = []
+        self.holds = 0
+        self._frozen = None
+
+    def reset(self, q0):
+        return self.inner.reset(q0)
+
+    def read(self):
+        if self._frozen is not None:
+            return self._frozen
+        m = self.inner.read()
+        if self.freeze_after is not None and len(self.writes) >= self.freeze_after:
+            self._frozen = m
+        return m
+
+    def write(self, u):
+        if self.fail_at is not None and len(self.writes) == self.fail_at:
+            self.fail_at = None
+            raise DQControlError("the link to the arm dropped a packet")
+        self.writes.append(np.array(u, dtype=float))
+        self.inner.write(u)
+
+    def hold(self):
+        self.holds += 1
+        self.inner.hold()
+
+
+def _pf(panda, **kw):
+    return PathFollowingController(
+        panda, Circle(1.0, radius_m=0.15), T, velocity_limits=VELOCITY,
+        acceleration_limit=ACCELERATION, **kw,
+    )  # fmt: skip
+
+
+def _request_at(controller, sigma: float):
+    def on_sample(_k, _driver, result) -> None:
+        if result.sigma_next >= sigma and not controller.stopping:
+            controller.request_stop()
+
+    return on_sample
+
+
+def _interrupt_at(k_stop: int):
+    def on_sample(k, _driver, _result) -> None:
+        if k == k_stop:
+            raise KeyboardInterrupt
+
+    return on_sample
+
+
+def _scenario(panda, name: str):
+    if name == "local_request":
+        ctrl = LocalController(
+            panda, Circle(1.0, radius_m=0.15), T, velocity_limits=VELOCITY,
+            acceleration_limit=ACCELERATION,
+        )  # fmt: skip
+    else:
+        ctrl = _pf(panda)
+    drv = Wrapped(KinematicDriver(panda, T))
+    kw: dict = {}
+    if name in ("request", "local_request"):
+        kw["on_sample"] = _request_at(ctrl, 0.5)
+    elif name == "ctrl_c":
+        kw["on_sample"] = _interrupt_at(45)
+    elif name == "stale":
+        drv.freeze_after = 45
+    elif name == "driver_error":
+        drv.fail_at = 45
+    result = run_loop(ctrl, drv, q0=PANDA_Q0, **kw)
+    return result, ctrl, drv
+
+
+SCENARIOS = {
+    "end": "end",
+    "request": "request",
+    "ctrl_c": "user",
+    "stale": "stale",
+    "driver_error": "simulation",
+    "local_request": "request",
+}
+
+
+@pytest.fixture(scope="module")
+def runs(panda):
+    return {name: _scenario(panda, name) for name in SCENARIOS}
+
+
+def _tool_deviation(controller, driver, q_rows: np.ndarray) -> np.ndarray:
+    poses = controller.robot.fast.poses(np.atleast_2d(q_rows))
+    return controller.trajectory.path_deviation(translation(poses))
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_every_stop_ends_at_rest_on_the_path_within_the_limits(runs, name):
+    result, ctrl, drv = runs[name]
+    log, stop = result.log, result.log.meta["stop"]
+    assert stop["reason"] == SCENARIOS[name] and stop["at_rest"] and stop["ramp"] == ""
+    assert stop["brake_periods"] == 0 and drv.holds == 1
+    writes = np.array(drv.writes)
+    assert not writes[-1].any()  # the last command is exactly zero
+    steps = np.abs(np.diff(np.vstack([np.zeros(7), writes]), axis=0))
+    assert np.all(steps <= ACCELERATION * T * (1 + 1e-9) + 1e-12)
+    assert np.all(np.abs(writes) <= VELOCITY + 1e-12)
+    # the tool on the path at every logged sample (the local controller's own task may
+    # deviate more: its stop does not add to that) and where the arm came to rest
+    deviation = _tool_deviation(ctrl, drv, log.q)
+    first = int(np.argmax(log.stopping))
+    start = deviation[first] if name == "local_request" else 0.0
+    assert np.max(deviation[first:]) <= max(start, KINEMATIC_GOAL_M)
+    if name != "local_request":
+        assert np.max(deviation) <= KINEMATIC_GOAL_M
+    assert _tool_deviation(ctrl, drv, drv.inner.read().q)[0] <= KINEMATIC_GOAL_M
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_the_stop_samples_are_flagged_and_counted(runs, name):
+    result, _ctrl, drv = runs[name]
+    log, m = result.log, result.metrics
+    first = int(np.argmax(log.stopping))
+    assert log.stopping.any() and log.stopping[first:].all() and not log.stopping[:first].any()
+    assert m.stop_samples == log.stopping.sum() == result.log.meta["stop"]["stop_periods"]
+    assert m.stop_duration_s == pytest.approx(m.stop_samples * T)
+    assert m.stop_limit_violations == 0 and m.stop_last_command_rad_s == 0.0
+    if name != "local_request":  # its task's own deviation: see above
+        assert m.stop_path_deviation_max_m <= KINEMATIC_GOAL_M
+    assert len(drv.writes) == len(log)  # every command sent is logged
+    if name != "end":  # mid-task: the phase still advanced while braking
+        assert m.stop_phase_advance_s > 0.0 and m.stop_tool_travel_m > 0.0
+
+
+def test_the_task_ends_at_rest_at_its_end(runs):
+    result, ctrl, drv = runs["end"]
+    log = result.log
+    task = ~log.stopping
+    assert result.metrics.completed and not result.interrupted
+    # the phase velocity brakes to zero at the end: its last values decrease to 0
+    s_task = log.s[task]
+    assert np.all(np.diff(s_task[-10:]) <= 1e-12) and s_task[-1] < 0.1
+    assert log.sigma[-1] == pytest.approx(1.0, abs=1e-12)
+    end = translation(ctrl.trajectory.target(1.0)[None])[0]
+    tool = translation(ctrl.robot.fast.poses(drv.inner.read().q[None]))[0]
+    assert np.linalg.norm(tool - end) <= KINEMATIC_GOAL_M
+
+
+def test_the_thesis_convention_ends_at_speed(panda):
+    ctrl = _pf(panda, end="at_speed")
+    result = run_loop(ctrl, KinematicDriver(panda, T), q0=PANDA_Q0, brake=False)
+    assert result.metrics.completed and np.max(np.abs(result.log.qd_command[-1])) > 0.3
+    assert not result.log.stopping.any()
+
+
+def test_without_a_solution_the_joint_ramp_takes_over_and_says_so(panda):
+    ctrl = _pf(panda)
+    drv = Wrapped(KinematicDriver(panda, T))
+    step = ctrl.step
+
+    def failing(q, qd=None):
+        result = step(q, qd)
+        if ctrl.stopping:
+            diag = dataclasses.replace(result.diagnostics, fallback=True)
+            return dataclasses.replace(result, diagnostics=diag)
+        return result
+
+    ctrl.step = failing  # type: ignore[method-assign]
+    result = run_loop(ctrl, drv, q0=PANDA_Q0, on_sample=_request_at(ctrl, 0.5))
+    stop = result.log.meta["stop"]
+    assert stop["ramp"].startswith("no QP solution") and not stop["at_rest"]
+    assert stop["brake_periods"] >= 1 and not drv.writes[-1].any()
+    steps = np.abs(np.diff(np.array(drv.writes), axis=0))
+    assert np.all(steps <= ACCELERATION * T * (1 + 1e-9) + 1e-12)
+
+
+def test_a_missed_deadline_stops_along_the_path(panda):
+    import threading
+
+    ctrl = _pf(panda)
+    drv = Wrapped(KinematicDriver(panda, T))
+
+    def slow(k, _driver, _result) -> None:
+        if k == 30:
+            threading.Event().wait(3 * T)
+
+    result = run_loop(ctrl, drv, q0=PANDA_Q0, on_sample=slow, realtime=True)
+    assert result.reason == "deadline" and result.log.meta["stop"]["at_rest"]
+    assert not drv.writes[-1].any() and result.log.stopping.any()
+    assert np.max(_tool_deviation(ctrl, drv, result.log.q)) <= KINEMATIC_GOAL_M
+
+
+def test_a_stop_in_mujoco_keeps_the_path(panda):
+    ctrl = _pf(panda)
+    drv = Wrapped(MujocoDriver(panda, T))
+    result = run_loop(ctrl, drv, q0=PANDA_Q0, on_sample=_request_at(ctrl, 0.4))
+    stop = result.log.meta["stop"]
+    assert stop["reason"] == "request" and stop["at_rest"] and not drv.writes[-1].any()
+    assert result.metrics.path_deviation_max_m <= MUJOCO_GOAL_M
+    assert result.metrics.stop_path_deviation_max_m <= MUJOCO_GOAL_M
+
+
+def test_rest_to_rest_in_mujoco(panda):
+    ctrl = _pf(panda)
+    drv = Wrapped(MujocoDriver(panda, T))
+    result = run_loop(ctrl, drv, q0=PANDA_Q0)
+    m = result.metrics
+    assert m.completed and result.log.meta["stop"]["at_rest"] and not drv.writes[-1].any()
+    assert m.path_deviation_max_m <= MUJOCO_GOAL_M
+    assert m.stop_path_deviation_max_m <= MUJOCO_GOAL_M
+    end = translation(ctrl.trajectory.target(1.0)[None])[0]
+    tool = translation(result.log.pose[-1:])[0]
+    assert np.linalg.norm(tool - end) <= KINEMATIC_GOAL_M
