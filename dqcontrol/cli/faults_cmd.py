@@ -59,7 +59,7 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--quick",
         action="store_true",
-        help="reduced campaign (4 controllers, the circle, one fault of each kind)",
+        help="reduced campaign (5 controllers, the circle, one fault of each kind)",
     )
     parser.add_argument(
         "--simulator",

@@ -67,6 +67,7 @@ from dqcontrol.runs.metrics import VIOLATION_TOL
 from dqcontrol.sim.kinematic import RunResult
 from dqcontrol.sim.loop import run_loop
 from dqcontrol.sim.measurement_faults import FaultyDriver
+from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
 from dqcontrol.trajectories.base import Trajectory
 
 __all__ = [
@@ -171,11 +172,14 @@ def _build_trajectory(spec: CaseSpec, robot: RobotModel, q0: np.ndarray):
 
 
 def _build_controller(spec: CaseSpec, robot: RobotModel, trajectory) -> Controller:
-    """The case's controller, told of the fault as :meth:`Fault.controller_options` says;
+    """The case's controller, told of the fault as :meth:`Fault.controller_options` says
+    and, where it takes it, of the MuJoCo arm's velocity servo (its time constant ``τ_v``);
     solver faults in OSQP's settings, contradictory bounds through
     :func:`~dqcontrol.faults.qp_faults.contradictory`."""
     f, ctrl_spec = spec.fault, spec.controller
     extra: dict = f.controller_options()
+    if spec.simulator == "mujoco" and "servo_time_constant_s" in ctrl_spec.takes:
+        extra["servo_time_constant_s"] = SERVO_TIME_CONSTANT_S  # the servo it drives
     if ctrl_spec.qp and f.solver_settings:
         extra["solver"] = "osqp"  # the solver faults are written in OSQP's settings
         extra["solver_settings"] = dict(f.solver_settings)

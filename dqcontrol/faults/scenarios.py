@@ -51,7 +51,8 @@ NEAR_LIMIT_MARGIN_RAD = math.radians(0.8)
 
 # ----------------------------------------------------------------------------- controllers
 #: The campaign's controllers (:mod:`dqcontrol.registry` specs under the controllers' own
-#: names, which the campaign's tables use).
+#: names, which the campaign's tables use): the thesis's, the proportional one and the
+#: path-following controller (p = 10 intervals, its defaults).
 CONTROLLERS: dict[str, ControllerSpec] = {
     name: controller_spec(name).renamed(name)
     for name in (
@@ -60,10 +61,17 @@ CONTROLLERS: dict[str, ControllerSpec] = {
         "predictive_p10",
         "predictive_noscale_p6",
         "proportional",
+        "path_following",
     )
 }
 #: Controllers of the reduced (CI) campaign.
-QUICK_CONTROLLERS = ("local", "predictive_p6", "predictive_noscale_p6", "proportional")
+QUICK_CONTROLLERS = (
+    "local",
+    "predictive_p6",
+    "predictive_noscale_p6",
+    "proportional",
+    "path_following",
+)
 
 
 # ----------------------------------------------------------------------------- trajectories

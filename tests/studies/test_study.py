@@ -98,7 +98,7 @@ def test_shipped_faults_study_is_the_fault_campaign():
     study = load_study("faults")
     cases = study_cases(study)
     assert cases == campaign.campaign_cases(simulator="mujoco")
-    assert len(cases) == 188 and len({campaign_name(c) for c in cases}) == 188
+    assert len(cases) == 228 and len({campaign_name(c) for c in cases}) == 228
     kinematic = parse_study(
         tomllib.loads(shipped_study_path("faults").read_text().replace('"mujoco"', '"kinematic"'))
     )

@@ -50,6 +50,7 @@ from dqcontrol.controllers.path_following.kernels import (
     tangent_mismatch,
 )
 from dqcontrol.controllers.path_following.kinematics_memo import KinematicsMemo
+from dqcontrol.controllers.path_following.stillness import hold_still
 from dqcontrol.controllers.path_following.tuning import PathFollowingTuning
 from dqcontrol.controllers.prediction.base import Prediction
 from dqcontrol.controllers.prediction.consistent import (
@@ -533,7 +534,10 @@ class PathFollowingController(QPController):
     def _finish(self, solved: Solved, start: float) -> StepResult:
         """The result, then what the next step needs: where the command takes the arm (the
         disturbance check), the applied ``s``, the clock and the stall count; a fallback
-        makes the next linearisation poor."""
+        makes the next linearisation poor. While stalled, a plan that does not progress
+        stands still (:func:`~.stillness.hold_still`)."""
+        if self._stalled():
+            hold_still(solved, self.n, STALL_SCALING)
         self._reported = self._pose_target(solved.problem.ctx.q)
         result = super()._finish(solved, start)
         qd_cmd, s_now = result.qd_command, result.s

@@ -33,6 +33,7 @@ import numpy as np
 
 from dqcontrol.controllers.backends.base import DEFAULT_SOLVER, check_backend_name
 from dqcontrol.controllers.base import (
+    StepResult,
     acceleration_setting,
     check_positive,
     joint_limit_settings,
@@ -45,6 +46,7 @@ from dqcontrol.controllers.limits.jerk import jerk_limits, jerk_setting
 from dqcontrol.controllers.limits.joint_box import JointBoxLimit
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
+from dqcontrol.controllers.limits.servo_lag import ServoLagMargin
 from dqcontrol.controllers.prediction.thesis import ThesisPrediction
 from dqcontrol.controllers.qp_controller import QPController
 from dqcontrol.controllers.terms.damping import DampingTerm
@@ -207,11 +209,28 @@ class TrackingController(QPController):
         predicted = JointBoxLimit(layout, q_min, q_max, qd_max, braking_aware, predicted=True)
         predicted.values = applied.values  # one set of bounds (in-place edits included)
         self._joint_boxes = (applied, predicted)
+        self._servo_lag = ServoLagMargin(
+            robot.limits.q_min, robot.limits.q_max, margin, period_s,
+            10.0 if self.a_const is None else self.a_const,
+        )  # fmt: skip
         levels = self._compose_levels(layout, period_s, tuple(extra_terms))
         limits = self._compose_limits(layout, period_s) + jerk + tuple(extra_limits)
         if self.a_const is not None:
             self._a_batch = np.tile(self.a_const, (self.p, 1))
         self.compose(prediction, levels, limits, backend, solver_settings)
+
+    # ------------------------------------------------------------------ servo lag
+    def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        """The step, the position bounds first moved by the servo's measured lag
+        (:class:`~dqcontrol.controllers.limits.servo_lag.ServoLagMargin`; not with a
+        compensated measurement delay, whose measured velocity is older than the command)."""
+        measured = None if self.measurement_delay_periods else qd
+        self._servo_lag.update(measured, self.qd_prev, self._joint_boxes[0].values)
+        return super()._step(q, qd)
+
+    def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        self._servo_lag.restore(self._joint_boxes[0].values)
+        super()._reset_memory(q0, qd0)
 
     # ------------------------------------------------------------------ settings
     def _check_choices(self, phase_prediction: str, priority: str) -> None:
