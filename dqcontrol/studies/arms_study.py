@@ -1,0 +1,195 @@
+"""The ``arms`` experiment: serial arms × every controller × tasks × control periods × both
+loops, every controller with its defaults, judged against the goals of docs/arms.md.
+
+The file's part: ``[[trajectories]]`` (any kind, as for ``tracking``), ``[grid]
+controllers`` (:mod:`dqcontrol.registry` names) and the ``[arms]`` table
+(:mod:`dqcontrol.studies.arms_spec`). A case runs through
+:func:`~dqcontrol.studies.arms_case.run_arms_case`; its judgement is :func:`goal_misses`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+
+from dqcontrol.experiments.tables import csv_text, markdown_table
+from dqcontrol.studies.arms_case import ArmsCase, run_arms_case
+from dqcontrol.studies.arms_spec import ArmsSettings, read_arms_settings
+from dqcontrol.studies.kinds import ExperimentKind, RunInfo
+from dqcontrol.studies.reader import TableReader
+from dqcontrol.studies.spec import RobotSpec, Study
+from dqcontrol.studies.tracking import _check_controller, _read_trajectory
+
+__all__ = ["ARMS_KIND", "GOALS", "goal_misses"]
+
+#: The goals: the path-following controller's largest path deviation at the samples [m] by
+#: loop, the execution time against the TOPP-RA bound, and the share of the effort limit
+#: that counts as saturated.
+GOALS = {
+    "pf_deviation_m": {"kinematic": 0.1e-3, "mujoco": 0.5e-3},
+    "execution_ratio": 1.3,
+    "torque_saturated": 0.999,
+}
+#: The rotation error beyond which a path-following case misses its goal [rad].
+_PF_ROTATION_RAD = math.radians(0.1)
+#: Below this ``σ_min`` a run passed near a singular configuration (docs/theory.md §8.3).
+_NEAR_SINGULAR = 0.04
+
+COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("arm", "arm", "s"),
+    ("task", "task", "s"),
+    ("loop", "loop", "s"),
+    ("T_ms", "T [ms]", "g"),
+    ("controller", "controller", "s"),
+    ("done", "done", "s"),
+    ("dev_mm", "dev. max [mm]", ".3f"),
+    ("between_mm", "between [mm]", ".3f"),
+    ("rot_deg", "rot. max [deg]", ".3f"),
+    ("exec_bound", "exec./TOPP-RA", ".2f"),
+    ("torque_ratio", "τ/τ_max", ".2f"),
+    ("violations", "viol. p/v/a", "s"),
+    ("fallbacks", "fallbacks", "d"),
+    ("goals", "goals", "s"),
+)
+
+
+def _cases(study: Study) -> list[ArmsCase]:
+    settings: ArmsSettings = study.settings
+    return [
+        ArmsCase(arm.name, task.name, sim, period, controller, duration)
+        for arm in settings.arms
+        for task in settings.tasks
+        for sim in settings.simulators
+        for period in settings.periods_s
+        for controller in study.controllers
+        for duration in study.trajectory(task.trajectory).durations_s
+    ]
+
+
+def _crossings(m: dict) -> int:
+    return int(m["position_violations"]) + int(m["velocity_violations"])
+
+
+def _causes(result: dict) -> list[str]:
+    """What was measured that explains a miss: contacts, saturation, a near-singular pass."""
+    causes = []
+    contacts = result.get("contacts")
+    if contacts and contacts["samples"]:
+        causes.append(
+            f"contact {', '.join(contacts['pairs'])} at {contacts['samples']} samples, "
+            f"{1e3 * contacts['deepest_m']:.1f} mm deep"
+        )
+    if result["torque_ratio"] >= GOALS["torque_saturated"]:
+        causes.append(f"joint {result['torque_joint'] + 1} at its effort limit")
+    if result.get("sigma_min", math.inf) < _NEAR_SINGULAR:
+        causes.append(f"σ_min {result['sigma_min']:.3f} on the way")
+    if result["bound_note"]:
+        causes.append(result["bound_note"])
+    return causes
+
+
+def goal_misses(result: dict) -> list[str]:
+    """The goals a case misses (empty: it meets them all)."""
+    case, m = result["case"], result["metrics"]
+    done = bool(m["completed"]) and not result["interrupted"]
+    misses = []
+    if not done:
+        misses.append(f"not completed ({result['note'] or 'time limit'})")
+    if _crossings(m):
+        misses.append(f"{_crossings(m)} samples beyond a position/velocity bound")
+    if result["torque_ratio"] >= GOALS["torque_saturated"]:
+        misses.append("torque saturated")
+    ratio = m["execution_time_s"] / result["bound_s"] if result["bound_s"] > 0 else math.nan
+    if done and ratio > GOALS["execution_ratio"]:
+        misses.append(f"execution {ratio:.2f}× the TOPP-RA bound")
+    if case["controller"] == "pf" and done:
+        limit = GOALS["pf_deviation_m"][case["simulator"]]
+        if not m["path_deviation_max_m"] <= limit:
+            misses.append(f"deviation {1e3 * m['path_deviation_max_m']:.2f} mm > {1e3 * limit} mm")
+    return misses
+
+
+def table_row(result: dict) -> dict:
+    """A row of the study's table (keys of :data:`COLUMNS`)."""
+    case, m = result["case"], result["metrics"]
+    misses = goal_misses(result)
+    goals = "ok" if not misses else "; ".join(misses + [f"cause: {c}" for c in _causes(result)])
+    bound = result["bound_s"]
+    return {
+        "arm": case["arm"],
+        "task": case["task"],
+        "loop": case["simulator"],
+        "T_ms": 1e3 * case["period_s"],
+        "controller": case["controller"],
+        "done": "yes" if m["completed"] and not result["interrupted"] else "NO",
+        "dev_mm": 1e3 * m["path_deviation_max_m"],
+        "between_mm": 1e3 * result["between_deviation_max_m"],
+        "rot_deg": math.degrees(m["rotation_error_max_rad"]),
+        "exec_bound": m["execution_time_s"] / bound if bound > 0 else math.nan,
+        "torque_ratio": result["torque_ratio"],
+        "violations": "/".join(
+            str(m[k])
+            for k in ("position_violations", "velocity_violations", "acceleration_violations")
+        ),  # fmt: skip
+        "fallbacks": m["fallbacks"],
+        "goals": goals,
+    }
+
+
+def _summary(results: list[dict]) -> list[str]:
+    pf = [r for r in results if r["case"]["controller"] == "pf"]
+    missed = [r for r in results if goal_misses(r)]
+    crossing = [r for r in results if _crossings(r["metrics"])]
+    return [
+        f"- {len(results)} cases, {len(results) - len(missed)} meet every goal; "
+        f"path-following: {sum(not goal_misses(r) for r in pf)} of {len(pf)}",
+        f"- cases with a true-state position or velocity bound crossed: {len(crossing)}",
+    ]
+
+
+def _render(study: Study, results: list[dict], info: RunInfo) -> dict[str, str]:
+    rows = [table_row(r) for r in results]
+    lines = [
+        f"# Study {study.name}",
+        "",
+        *([study.description, ""] if study.description else []),
+        f"Generated by `{info.command}` from `{Path(study.source).name}`; executor "
+        f"{info.executor}, wall time {info.wall_time_s:.0f} s for {len(rows)} of "
+        f"{info.total_cases} cases.",
+        "",
+        *_summary(results),
+    ]
+    if info.interrupted:
+        lines += ["", "**Interrupted: only the cases that completed are listed.**"]
+    lines += ["", markdown_table(rows, COLUMNS)]
+    return {"md": "\n".join(lines) + "\n", "csv": csv_text(rows, COLUMNS)}
+
+
+def _job(study: Study, save_dir: str | None):
+    return functools.partial(run_arms_case, study=study, save_dir=save_dir)
+
+
+def _cost(case: ArmsCase) -> float:
+    """Control steps, a MuJoCo step counting as four kinematic ones."""
+    return case.duration_s / case.period_s * (4.0 if case.simulator == "mujoco" else 1.0)
+
+
+def _read_robot(top: TableReader, base_dir: Path) -> RobotSpec:
+    return RobotSpec()  # the arms are in [arms]
+
+
+ARMS_KIND = ExperimentKind(
+    name="arms",
+    read_robot=_read_robot,
+    check_controller=_check_controller,
+    read_trajectory=_read_trajectory,
+    read_settings=read_arms_settings,
+    cases=_cases,
+    case_name=lambda case: case.name,
+    job=_job,
+    record=lambda result: result,
+    render=_render,
+    cost=_cost,
+    own_tables=("arms",),
+)
