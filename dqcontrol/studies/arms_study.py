@@ -67,6 +67,11 @@ def _cases(study: Study) -> list[ArmsCase]:
     ]
 
 
+def _num(value) -> float:
+    """A measured number, NaN where the record holds none (JSON writes NaN as null)."""
+    return math.nan if value is None else float(value)
+
+
 def _crossings(m: dict) -> int:
     return int(m["position_violations"]) + int(m["velocity_violations"])
 
@@ -80,12 +85,12 @@ def _causes(result: dict) -> list[str]:
             f"contact {', '.join(contacts['pairs'])} at {contacts['samples']} samples, "
             f"{1e3 * contacts['deepest_m']:.1f} mm deep"
         )
-    if result["torque_ratio"] >= GOALS["torque_saturated"]:
+    if _num(result["torque_ratio"]) >= GOALS["torque_saturated"]:
         causes.append(f"joint {result['torque_joint'] + 1} at its effort limit")
-    if result.get("sigma_min", math.inf) < _NEAR_SINGULAR:
+    if _num(result.get("sigma_min")) < _NEAR_SINGULAR:
         causes.append(f"σ_min {result['sigma_min']:.3f} on the way")
     if result["bound_note"]:
-        causes.append(result["bound_note"])
+        causes.append(_short(result["bound_note"]))
     return causes
 
 
@@ -98,16 +103,28 @@ def goal_misses(result: dict) -> list[str]:
         misses.append(f"not completed ({result['note'] or 'time limit'})")
     if _crossings(m):
         misses.append(f"{_crossings(m)} samples beyond a position/velocity bound")
-    if result["torque_ratio"] >= GOALS["torque_saturated"]:
+    if _num(result["torque_ratio"]) >= GOALS["torque_saturated"]:
         misses.append("torque saturated")
-    ratio = m["execution_time_s"] / result["bound_s"] if result["bound_s"] > 0 else math.nan
+    bound = _num(result["bound_s"])
+    ratio = _num(m["execution_time_s"]) / bound if bound > 0 else math.nan
     if done and ratio > GOALS["execution_ratio"]:
         misses.append(f"execution {ratio:.2f}× the TOPP-RA bound")
     if case["controller"] == "pf" and done:
         limit = GOALS["pf_deviation_m"][case["simulator"]]
-        if not m["path_deviation_max_m"] <= limit:
+        if not _num(m["path_deviation_max_m"]) <= limit:
             misses.append(f"deviation {1e3 * m['path_deviation_max_m']:.2f} mm > {1e3 * limit} mm")
     return misses
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def _short(note: str) -> str:
+    """A TOPP-RA message up to its advice (the table's cell stays readable)."""
+    for cut in (" (limits", "; choose", " within 50 Newton"):
+        note = note.split(cut)[0]
+    return note
 
 
 def table_row(result: dict) -> dict:
@@ -115,7 +132,7 @@ def table_row(result: dict) -> dict:
     case, m = result["case"], result["metrics"]
     misses = goal_misses(result)
     goals = "ok" if not misses else "; ".join(misses + [f"cause: {c}" for c in _causes(result)])
-    bound = result["bound_s"]
+    bound = _num(result["bound_s"])
     return {
         "arm": case["arm"],
         "task": case["task"],
@@ -123,11 +140,11 @@ def table_row(result: dict) -> dict:
         "T_ms": 1e3 * case["period_s"],
         "controller": case["controller"],
         "done": "yes" if m["completed"] and not result["interrupted"] else "NO",
-        "dev_mm": 1e3 * m["path_deviation_max_m"],
-        "between_mm": 1e3 * result["between_deviation_max_m"],
-        "rot_deg": math.degrees(m["rotation_error_max_rad"]),
-        "exec_bound": m["execution_time_s"] / bound if bound > 0 else math.nan,
-        "torque_ratio": result["torque_ratio"],
+        "dev_mm": _finite(1e3 * _num(m["path_deviation_max_m"])),
+        "between_mm": _finite(1e3 * _num(result["between_deviation_max_m"])),
+        "rot_deg": _finite(math.degrees(_num(m["rotation_error_max_rad"]))),
+        "exec_bound": _finite(_num(m["execution_time_s"]) / bound) if bound > 0 else None,
+        "torque_ratio": _finite(_num(result["torque_ratio"])),
         "violations": "/".join(
             str(m[k])
             for k in ("position_violations", "velocity_violations", "acceleration_violations")
