@@ -89,7 +89,8 @@ def _run(args: argparse.Namespace) -> int:
         cases = study_cases(study)
         for case in cases:
             print(name(case))
-        print(f"{len(cases)} cases ({study.experiment}, {study.simulator})")
+        loops = getattr(study.settings, "simulators", None) or (study.simulator,)
+        print(f"{len(cases)} cases ({study.experiment}, {', '.join(loops)})")
         return 0
     result = run_with_options(study, args, _command_line(args))
     written = " and ".join(str(p) for p in result.files.values()) or "no table"
