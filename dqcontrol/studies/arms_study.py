@@ -21,18 +21,14 @@ from dqcontrol.studies.reader import TableReader
 from dqcontrol.studies.spec import RobotSpec, Study
 from dqcontrol.studies.tracking import _check_controller, _read_trajectory
 
-__all__ = ["ARMS_KIND", "GOALS", "goal_misses"]
+__all__ = ["ARMS_KIND", "EXECUTION_RATIO", "PF_DEVIATION_M", "TORQUE_SATURATED", "goal_misses"]
 
 #: The goals: the path-following controller's largest path deviation at the samples [m] by
 #: loop, the execution time against the TOPP-RA bound, and the share of the effort limit
 #: that counts as saturated.
-GOALS = {
-    "pf_deviation_m": {"kinematic": 0.1e-3, "mujoco": 0.5e-3},
-    "execution_ratio": 1.3,
-    "torque_saturated": 0.999,
-}
-#: The rotation error beyond which a path-following case misses its goal [rad].
-_PF_ROTATION_RAD = math.radians(0.1)
+PF_DEVIATION_M = {"kinematic": 0.1e-3, "mujoco": 0.5e-3}
+EXECUTION_RATIO = 1.3
+TORQUE_SATURATED = 0.999
 #: Below this ``σ_min`` a run passed near a singular configuration (docs/theory.md §8.3).
 _NEAR_SINGULAR = 0.04
 
@@ -85,7 +81,7 @@ def _causes(result: dict) -> list[str]:
             f"contact {', '.join(contacts['pairs'])} at {contacts['samples']} samples, "
             f"{1e3 * contacts['deepest_m']:.1f} mm deep"
         )
-    if _num(result["torque_ratio"]) >= GOALS["torque_saturated"]:
+    if _num(result["torque_ratio"]) >= TORQUE_SATURATED:
         causes.append(f"joint {result['torque_joint'] + 1} at its effort limit")
     if _num(result.get("sigma_min")) < _NEAR_SINGULAR:
         causes.append(f"σ_min {result['sigma_min']:.3f} on the way")
@@ -103,14 +99,14 @@ def goal_misses(result: dict) -> list[str]:
         misses.append(f"not completed ({result['note'] or 'time limit'})")
     if _crossings(m):
         misses.append(f"{_crossings(m)} samples beyond a position/velocity bound")
-    if _num(result["torque_ratio"]) >= GOALS["torque_saturated"]:
+    if _num(result["torque_ratio"]) >= TORQUE_SATURATED:
         misses.append("torque saturated")
     bound = _num(result["bound_s"])
     ratio = _num(m["execution_time_s"]) / bound if bound > 0 else math.nan
-    if done and ratio > GOALS["execution_ratio"]:
+    if done and ratio > EXECUTION_RATIO:
         misses.append(f"execution {ratio:.2f}× the TOPP-RA bound")
     if case["controller"] == "pf" and done:
-        limit = GOALS["pf_deviation_m"][case["simulator"]]
+        limit = PF_DEVIATION_M[case["simulator"]]
         if not _num(m["path_deviation_max_m"]) <= limit:
             misses.append(f"deviation {1e3 * m['path_deviation_max_m']:.2f} mm > {1e3 * limit} mm")
     return misses
