@@ -150,15 +150,61 @@ def table_row(result: dict) -> dict:
     }
 
 
-def _summary(results: list[dict]) -> list[str]:
+SUMMARY_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("loop", "loop", "s"),
+    ("T_ms", "T [ms]", "g"),
+    ("cases", "cases", "d"),
+    ("ok", "meet every goal", "d"),
+    ("pf_done", "pf completed", "s"),
+    ("pf_dev_mm", "pf dev. max [mm] (completed)", ".3f"),
+    ("pf_exec", "pf exec./TOPP-RA max", ".2f"),
+    ("crossing", "cases with a bound crossed", "s"),
+    ("saturated", "cases with τ at its limit", "s"),
+)
+
+
+def _by_controller(results: list[dict]) -> str:
+    """``n (controller, ...)`` of the given cases, or 0."""
+    if not results:
+        return "0"
+    names = sorted({r["case"]["controller"] for r in results})
+    return f"{len(results)} ({', '.join(names)})"
+
+
+def _summary_row(loop: str, period_s: float, results: list[dict]) -> dict:
     pf = [r for r in results if r["case"]["controller"] == "pf"]
-    missed = [r for r in results if goal_misses(r)]
-    crossing = [r for r in results if _crossings(r["metrics"])]
-    return [
-        f"- {len(results)} cases, {len(results) - len(missed)} meet every goal; "
-        f"path-following: {sum(not goal_misses(r) for r in pf)} of {len(pf)}",
-        f"- cases with a true-state position or velocity bound crossed: {len(crossing)}",
-    ]
+    done = [r for r in pf if r["metrics"]["completed"] and not r["interrupted"]]
+    devs = [_num(r["metrics"]["path_deviation_max_m"]) for r in done]
+    execs = [_num(r["metrics"]["execution_time_s"]) / _num(r["bound_s"]) for r in done]
+    execs = [e for e in execs if math.isfinite(e)]
+    return {
+        "loop": loop,
+        "T_ms": 1e3 * period_s,
+        "cases": len(results),
+        "ok": sum(not goal_misses(r) for r in results),
+        "pf_done": f"{len(done)} of {len(pf)}",
+        "pf_dev_mm": 1e3 * max(devs) if devs else None,
+        "pf_exec": max(execs) if execs else None,
+        "crossing": _by_controller([r for r in results if _crossings(r["metrics"])]),
+        "saturated": _by_controller(
+            [r for r in results if _num(r["torque_ratio"]) >= TORQUE_SATURATED]
+        ),
+    }
+
+
+def _summary(results: list[dict]) -> list[str]:
+    """One row per loop and period: the goals met, the path-following controller's figures,
+    the cases that crossed a bound or saturated a joint (and by which controllers)."""
+    keys = sorted(
+        {(r["case"]["simulator"], r["case"]["period_s"]) for r in results},
+        key=lambda k: (k[0], -k[1]),
+    )
+    rows = [
+        _summary_row(loop, period, [r for r in results if
+                     (r["case"]["simulator"], r["case"]["period_s"]) == (loop, period)])
+        for loop, period in keys
+    ]  # fmt: skip
+    return [markdown_table(rows, SUMMARY_COLUMNS)]
 
 
 def _render(study: Study, results: list[dict], info: RunInfo) -> dict[str, str]:
