@@ -90,7 +90,7 @@ def _bound_s(robot, trajectory, q0: np.ndarray, v_max: np.ndarray) -> tuple[floa
                 acceleration_limit="dynamics", torque_limits="urdf",
             )  # fmt: skip
             cache[key] = (bound.duration_s, "")
-        except DQControlError as exc:
+        except (DQControlError, ValueError, RuntimeError) as exc:  # toppra's own failures too
             cache[key] = (math.nan, f"no TOPP-RA bound: {exc}")
     return cache[key]
 
