@@ -18,7 +18,8 @@ OUT/<name>_cases/<case>.json (an interrupt loses nothing that finished); the tab
 OUT/<name>.md and OUT/<name>.csv.
 
 STUDY is the path of a .toml file or the name of a shipped study: 'table1' (the thesis's
-Table 1, as `dqcontrol table1`) or 'faults' (the fault campaign, as `dqcontrol faults`).
+Table 1, as `dqcontrol table1`), 'faults' (the fault campaign, as `dqcontrol faults`) or
+'arms' (serial arms of example-robot-data × every controller, docs/arms.md).
 The format is described in docs/user_guide.md."""
 
 _EPILOG = """\
@@ -42,7 +43,7 @@ def register(subparsers) -> None:
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("study", metavar="STUDY", help="a .toml study file, or: table1, faults")
+    p.add_argument("study", metavar="STUDY", help="a .toml study file, or: table1, faults, arms")
     add_out_option(p, None, "results folder (default: the study's [output] folder)")
     p.add_argument(
         "--workers",
@@ -88,7 +89,8 @@ def _run(args: argparse.Namespace) -> int:
         cases = study_cases(study)
         for case in cases:
             print(name(case))
-        print(f"{len(cases)} cases ({study.experiment}, {study.simulator})")
+        loops = getattr(study.settings, "simulators", None) or (study.simulator,)
+        print(f"{len(cases)} cases ({study.experiment}, {', '.join(loops)})")
         return 0
     result = run_with_options(study, args, _command_line(args))
     written = " and ".join(str(p) for p in result.files.values()) or "no table"

@@ -17,8 +17,9 @@ Reproduce the thesis's Table 1: the circle at T_tot = 8, 4, 2, 1 s and the sinus
 T = 0.05 s, tau_p = 1 s, the thesis's bounds (|qd| <= pi*[1,1,1,1,2.5,2.5,2.5] rad/s,
 |qdd| <= 10 rad/s^2), start configuration LBR4P_Q0, the library's gains (K = 10 1/s).
 Beside them, the path-following controller (rows 'path-following'; p = 10 intervals, the
-same T, tau_p and velocity bounds, |qdd| <= 5 rad/s^2: the largest of those measured that
-keeps MuJoCo's servos below their torque limits).
+same T, tau_p and velocity bounds, otherwise its defaults: its dynamics-aware acceleration
+limit, which behind MuJoCo's 5 ms servos at T = 0.05 s is 5 rad/s^2 on this arm, the
+largest of those measured that keeps the servos below their torque limits).
 
 Every row also has the TOPP-RA lower bound of its task's execution time under its own
 velocity and acceleration bounds (speed cap s <= 1; NaN with a note if toppra is not

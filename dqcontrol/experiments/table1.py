@@ -101,14 +101,12 @@ QUICK_PERIODS = {"circle": (1.0,), "sinusoid": (2.0,)}
 #: The "short periods" at which the thesis claims that p = 10 beats Local.
 SHORT_PERIODS = {"circle": (4.0, 2.0, 1.0), "sinusoid": (8.0, 4.0, 2.0)}
 #: Keyword arguments of the path-following rows besides the thesis's velocity bounds,
-#: ``T``, ``τ_p`` and p = 10: a constant acceleration bound of 5 rad/s². Behind a velocity
-#: servo of time constant ``τ_v`` a command step ``Δ`` asks for ``Δ/τ_v`` at once, so the
-#: controller's dynamics-aware default is scaled by ``τ_v/T`` there: at ``τ_v = 5 ms`` and
-#: ``T = 50 ms``, its 50 rad/s² cap becomes these 5 rad/s², the figure at which MuJoCo's
-#: servos stay below their torque limits in every case (docs/table1_analysis.md). A
-#: constant makes the time-optimal bound's limit the same as the controller's, and the
-#: kinematic loop's rows the same limit as MuJoCo's.
-PATH_FOLLOWING_OPTIONS: tuple[tuple[str, object], ...] = (("acceleration_limit", 5.0),)
+#: ``T``, ``τ_p`` and p = 10: none, the controller's defaults. Behind a velocity servo of
+#: time constant ``τ_v`` a command step ``Δ`` asks for ``Δ/τ_v`` at once, so the
+#: controller's dynamics-aware acceleration limit is scaled by ``τ_v/T``: at ``τ_v = 5 ms``
+#: and ``T = 50 ms`` its 50 rad/s² cap becomes 5 rad/s² on the LBR4p, the figure at which
+#: MuJoCo's servos stay below their torque limits in every case (docs/table1_analysis.md).
+PATH_FOLLOWING_OPTIONS: tuple[tuple[str, object], ...] = ()
 #: Path samples of the time-optimal bound (0: not computed).
 BOUND_SAMPLES = 2001
 

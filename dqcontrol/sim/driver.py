@@ -155,6 +155,9 @@ class KinematicDriver:
     Torques are NaN (no dynamics).
     """
 
+    #: The joints reach each command at once (no servo lag).
+    ideal_tracking = True
+
     def __init__(self, robot: RobotModel, period_s: float) -> None:
         if not isinstance(robot, RobotModel):
             raise ParameterError(f"robot must be a RobotModel, got {type(robot).__name__}")

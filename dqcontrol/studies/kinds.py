@@ -3,14 +3,16 @@
 An :class:`ExperimentKind` is what a study needs of an experiment: how to read its part of
 the study file (robot, trajectories, controller names, its own table), how to expand the
 grid into cases, the job that runs one case in a worker, and how to write the case's record
-and the study's tables. Three are known:
+and the study's tables. Four are known:
 
 - ``tracking`` (:mod:`dqcontrol.studies.tracking`) — any robot, trajectory and registered
   controller; the metrics of docs/theory.md §9;
 - ``table1`` (:mod:`dqcontrol.studies.table1_study`) — the cases of
   :mod:`dqcontrol.experiments.table1`, with its settings and report;
 - ``faults`` (:mod:`dqcontrol.studies.faults_study`) — the cases of
-  :mod:`dqcontrol.faults.campaign`, with its faults and report.
+  :mod:`dqcontrol.faults.campaign`, with its faults and report;
+- ``arms`` (:mod:`dqcontrol.studies.arms_study`) — serial arms × controllers × tasks ×
+  periods × both loops, with every controller's defaults, judged against docs/arms.md.
 
 Every job runs its case through :func:`~dqcontrol.sim.run_loop`: ``tracking`` and
 ``table1`` through :func:`dqcontrol.experiments.runner.simulate`, ``faults`` with the
@@ -90,15 +92,16 @@ class ExperimentKind:
 
 
 def _experiments() -> dict[str, ExperimentKind]:
+    from dqcontrol.studies.arms_study import ARMS_KIND
     from dqcontrol.studies.faults_study import FAULTS_KIND
     from dqcontrol.studies.table1_study import TABLE1_KIND
     from dqcontrol.studies.tracking import TRACKING_KIND
 
-    return {k.name: k for k in (TRACKING_KIND, TABLE1_KIND, FAULTS_KIND)}
+    return {k.name: k for k in (TRACKING_KIND, TABLE1_KIND, FAULTS_KIND, ARMS_KIND)}
 
 
 #: The experiment names, in the order of the help texts.
-EXPERIMENTS = ("tracking", "table1", "faults")
+EXPERIMENTS = ("tracking", "table1", "faults", "arms")
 
 
 def experiment_kind(name: str, reader: TableReader | None = None) -> ExperimentKind:

@@ -31,7 +31,7 @@ __all__ = [
 ]
 
 #: The studies shipped in the package, by name (``dqcontrol study table1``).
-SHIPPED = ("table1", "faults")
+SHIPPED = ("table1", "faults", "arms")
 #: The closed loops a study can run in.
 SIMULATORS = ("mujoco", "kinematic")
 #: Table formats a study can write.

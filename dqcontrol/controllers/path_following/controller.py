@@ -293,7 +293,6 @@ class PathFollowingController(QPController):
             (
                 PathErrorTerm(PATH_WEIGHT, tuning.path_full_weight_time_s),
                 DampingTerm(layout, mu, include_scaling=True),
-                self.singularity,
             ),
             path_tol,
             "path",
