@@ -151,7 +151,9 @@ def test_the_mujoco_driver_in_this_process_with_a_profile(panda):
 
     robot, reflexes = _profiled(panda)
     driver = ReflexDriver(MujocoDriver(robot, T), reflexes)
-    controller = LocalController(robot, Circle(1.0), T)  # no jerk limit: the first step trips
+    # the controller is given the URDF's limits, not the profile's: no jerk rows, the first
+    # step trips the jerk reflex
+    controller = LocalController(panda, Circle(1.0), T)
     result = run_loop(controller, driver, q0=PANDA_Q0, warm_up=False)
     assert result.reason == "simulation" and "reflex (franka_panda limits): jerk" in result.note
     assert result.log.meta["driver_report"]["reflex"] in result.note
