@@ -38,12 +38,11 @@ REST_SHARE = 0.1
 REST_SCALING = 1e-2
 #: Longest stop [s] before the joint-space ramp takes over.
 MAX_STOP_S = 5.0
-#: Under a jerk bound, once the phase has been at rest this long [s] the joints finish
-#: with the jerk-limited braking law (:func:`~dqcontrol.sim.jerk_brake.
-#: jerk_brake_command`) from the last two commands sent: the path level alone, whose
-#: horizon does not see the jerk bound, keeps the tool swinging round the path's point.
-SETTLE_S = 0.0
-#: ... and the tool within this distance [m] of its target.
+#: Under a jerk bound, once the phase is at rest and the tool within this distance [m] of
+#: its target, the joints finish with the jerk-limited braking law
+#: (:func:`~dqcontrol.sim.jerk_brake.jerk_brake_command`) from the last two commands
+#: sent: the path level alone, whose horizon does not see the jerk bound, keeps the joints
+#: swinging round the path's point.
 FINISH_ERROR_M = 1e-4
 
 
@@ -88,13 +87,13 @@ def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathSto
     """Step ``run.controller`` with its stop requested until it is at rest (``rate``: the
     largest change of the command per period [rad/s], per joint); the samples recorded
     (``record``) with the ``stopping`` flag. Under a jerk bound the joints finish with the
-    braking law once the phase has settled on the path (:data:`SETTLE_S`). A second Ctrl-C
+    braking law once the phase is at rest on the path (:data:`FINISH_ERROR_M`). A second Ctrl-C
     or a driver error ends it (``ramp`` says which)."""
     controller, period = run.controller, run.controller.period_s
     jerk_step = np.asarray(controller.robot.limits.qddd_max, dtype=float) * period * period
     finishes = bool(np.any(np.isfinite(jerk_step)))
     before = np.array(getattr(controller, "qd_before_prev", run.command), dtype=float)
-    out, settle, still, last = PathStop(), int(np.ceil(SETTLE_S / period)), 0, None
+    out, last = PathStop(), None
     try:
         controller.request_stop()
         _latest_state(run)
@@ -106,9 +105,8 @@ def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathSto
                 if result.diagnostics.fallback:
                     out.ramp = f"no QP solution at stop sample {out.periods}: joint-space ramp"
                     return out
-                still = still + 1 if result.s <= REST_SCALING else 0
                 out.at_rest = _at_rest(result, run.command, before, rate, jerk_step)
-                if finishes and still >= settle and _on_path(result):
+                if finishes and result.s <= REST_SCALING and _on_path(result):
                     last = result
             if last is not None:
                 result = _finish(last, controller, run, before, rate, jerk_step)
