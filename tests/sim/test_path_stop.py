@@ -274,3 +274,23 @@ def test_a_thesis_controllers_end_of_task_stop_keeps_the_jerk_bound_to_rest(pand
     assert found == []
     assert result.log.meta["stop"]["at_rest"]
     assert result.log.meta["stop"]["ramp"] == ""
+
+
+def test_a_stop_at_half_the_task_keeps_the_profile_and_the_path(panda):
+    from dqcontrol.runs.check import check_run
+
+    robot = panda.with_limits("franka_panda")
+    period = 1e-3
+    controller = PathFollowingController(robot, Circle(1.0), period)
+
+    def on_sample(k, driver, result) -> None:
+        if result.sigma_next >= 0.5 and not controller.stopping:
+            controller.request_stop()
+
+    result = run_loop(controller, KinematicDriver(robot, period), q0=PANDA_Q0, on_sample=on_sample)
+    log = result.log
+    assert check_run(log, robot.limits, period_s=period) == []
+    assert log.meta["stop"]["reason"] == "request" and log.meta["stop"]["at_rest"]
+    deviation = controller.trajectory.path_deviation(translation(log.pose[log.stopping]))
+    assert np.max(deviation) <= KINEMATIC_GOAL_M
+    assert np.all(log.qd_command[-1] == 0.0)
