@@ -1,7 +1,7 @@
 """The rest-to-rest and path-maintaining-stop goals, measured (docs/theory.md §8.9–8.10).
 
-The Franka Panda with Franka's velocity and acceleration limits given to the
-path-following controller, on a circle of radius ``--radius`` [m] (or, ``--path
+The Franka Panda with the ``franka_panda`` limit profile (velocity, acceleration and jerk)
+given to the path-following controller, on a circle of radius ``--radius`` [m] (or, ``--path
 waypoints``, the user guide's four waypoints) lasting ``--duration`` [s], at
 ``T = --period`` [s], in the kinematic loop (and MuJoCo with ``--mujoco``):
 
@@ -10,7 +10,11 @@ waypoints``, the user guide's four waypoints) lasting ``--duration`` [s], at
 * a stop requested at ``σ = T_tot/2``: its duration against the fastest stop along the
   same joint path under the same limits, computed offline with TOPP-RA (zero end
   velocity; the shortest feasible stopping length found by bisection, then the fastest
-  time over lengths up to twice that).
+  time over lengths up to twice that);
+* the checker (:func:`~dqcontrol.runs.check.check_run`, the profile) on every run, its
+  summary printed;
+* the jerk bound's cost: the rest-to-rest execution time with the profile's jerk against
+  the same run without a jerk bound (kinematic loop).
 
 Prints one line per figure; ``--json FILE`` writes them. Not a unit test (it takes a few
 minutes at 1 kHz).
@@ -30,6 +34,7 @@ from dqcontrol.controllers.path_following.controller import PathFollowingControl
 from dqcontrol.dq import qfrom_axis_angle
 from dqcontrol.dq.algebra import translation
 from dqcontrol.model import PANDA_Q0
+from dqcontrol.runs.check import check_run, summary_line
 from dqcontrol.sim import KinematicDriver, MujocoDriver, run_loop
 from dqcontrol.trajectories import Circle, WaypointTrajectory
 
@@ -55,6 +60,13 @@ def _controller(robot, args, end: str = "rest") -> PathFollowingController:
         robot, _task(args), args.period,
         velocity_limits=FRANKA_VELOCITY, acceleration_limit=FRANKA_ACCELERATION, end=end,
     )  # fmt: skip
+
+
+def _checked(result, robot, args, name: str) -> int:
+    """The checker's violations of the run against the profile (its summary printed)."""
+    found = check_run(result.log, robot.limits, period_s=args.period)
+    print(summary_line(found, len(result.log), args.period, "franka_panda", name))
+    return len(found)
 
 
 def _driver(robot, args, mujoco: bool):
@@ -141,6 +153,15 @@ def _fastest_stop(sigma, q, sigma0: float, s0: float) -> tuple[float, float]:
     return min(times)
 
 
+def _execution(robot, args) -> float:
+    """The rest-to-rest execution time [s] (kinematic, no stop) on ``robot`` (with the
+    profile: its jerk bound; the URDF's limits: none; Franka's velocity and acceleration
+    either way)."""
+    run = run_loop(_controller(robot, args), KinematicDriver(robot, args.period), q0=PANDA_Q0,
+                   brake=False)  # fmt: skip
+    return run.metrics.execution_time_s
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--period", type=float, default=0.001)
@@ -150,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mujoco", action="store_true", help="also in MuJoCo")
     ap.add_argument("--json", help="write the figures here")
     args = ap.parse_args(argv)
-    robot = dqcontrol.load_panda()
+    robot = dqcontrol.load_panda().with_limits("franka_panda")
     figures: dict = {}
     for mujoco in (False, True) if args.mujoco else (False,):
         tag = "mujoco" if mujoco else "kinematic"
@@ -158,14 +179,22 @@ def main(argv: list[str] | None = None) -> int:
         start = time.perf_counter()
         end_run = run_loop(controller, _driver(robot, args, mujoco), q0=PANDA_Q0)
         figures.update(_figures(end_run, controller, f"{tag}_rest"))
+        figures[f"{tag}_rest_check_violations"] = _checked(end_run, robot, args, f"{tag}_rest")
         stop_run, controller = _stop_at_half(robot, args, mujoco)
         figures.update(_figures(stop_run, controller, f"{tag}_stop_half"))
+        figures[f"{tag}_stop_half_check_violations"] = _checked(
+            stop_run, robot, args, f"{tag}_stop_half"
+        )
         task = np.flatnonzero(~stop_run.log.stopping)[-1]
         figures[f"{tag}_stop_sigma0_s"] = float(
             stop_run.log.sigma[task] + args.period * stop_run.log.s[task]
         )
         figures[f"{tag}_stop_s0"] = float(stop_run.log.s[task])
         figures[f"{tag}_wall_s"] = time.perf_counter() - start
+    with_jerk, without = _execution(robot, args), _execution(dqcontrol.load_panda(), args)
+    figures["kinematic_rest_execution_s"] = with_jerk
+    figures["kinematic_no_jerk_execution_s"] = without
+    figures["jerk_cost_ratio"] = with_jerk / without
     sigma, q = _joint_path(robot, args)
     best, length = _fastest_stop(
         sigma, q, figures["kinematic_stop_sigma0_s"], figures["kinematic_stop_s0"]

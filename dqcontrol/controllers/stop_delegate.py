@@ -46,5 +46,8 @@ def stop_delegate(controller: Controller, q: np.ndarray) -> Controller:
         controller.robot, controller.trajectory, controller.period_s, **options
     )
     delegate.reset(q, controller.qd_prev.copy(), controller.sigma)
+    before = getattr(controller, "qd_before_prev", None)
+    if before is not None:  # the acceleration it stops from (its jerk rows read it)
+        delegate.qd_before_prev = np.array(before, dtype=float)
     delegate.request_stop()
     return delegate

@@ -246,3 +246,51 @@ def test_rest_to_rest_in_mujoco(panda):
     end = translation(ctrl.trajectory.target(1.0)[None])[0]
     tool = translation(result.log.pose[-1:])[0]
     assert np.linalg.norm(tool - end) <= KINEMATIC_GOAL_M
+
+
+# ------------------------------------------------------------------ under the jerk bound
+def _checked_run(panda, controller_class, duration_s: float):
+    """A 10 cm circle of ``duration_s`` at T = 1 ms in the kinematic loop on the Panda with the
+    ``franka_panda`` profile (velocity, acceleration and jerk), to its end and its stop:
+    the checker's violations against the profile, and the run."""
+    from dqcontrol.runs.check import check_run
+
+    robot = panda.with_limits("franka_panda")
+    period = 1e-3
+    controller = controller_class(robot, Circle(duration_s), period)
+    result = run_loop(controller, KinematicDriver(robot, period), q0=PANDA_Q0)
+    return check_run(result.log, robot.limits, period_s=period), result
+
+
+def test_a_path_following_stop_keeps_the_jerk_bound_to_rest(panda):
+    found, result = _checked_run(panda, PathFollowingController, 1.0)
+    assert found == []
+    assert result.log.meta["stop"]["at_rest"]
+    assert np.all(result.log.qd_command[-1] == 0.0)
+
+
+def test_a_thesis_controllers_end_of_task_stop_keeps_the_jerk_bound_to_rest(panda):
+    found, result = _checked_run(panda, LocalController, 0.5)
+    assert found == []
+    assert result.log.meta["stop"]["at_rest"]
+    assert result.log.meta["stop"]["ramp"] == ""
+
+
+def test_a_stop_at_half_the_task_keeps_the_profile_and_the_path(panda):
+    from dqcontrol.runs.check import check_run
+
+    robot = panda.with_limits("franka_panda")
+    period = 1e-3
+    controller = PathFollowingController(robot, Circle(1.0), period)
+
+    def on_sample(k, driver, result) -> None:
+        if result.sigma_next >= 0.5 and not controller.stopping:
+            controller.request_stop()
+
+    result = run_loop(controller, KinematicDriver(robot, period), q0=PANDA_Q0, on_sample=on_sample)
+    log = result.log
+    assert check_run(log, robot.limits, period_s=period) == []
+    assert log.meta["stop"]["reason"] == "request" and log.meta["stop"]["at_rest"]
+    deviation = controller.trajectory.path_deviation(translation(log.pose[log.stopping]))
+    assert np.max(deviation) <= KINEMATIC_GOAL_M
+    assert np.all(log.qd_command[-1] == 0.0)
