@@ -8,6 +8,7 @@ log, docs/theory.md §8.10).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import cast
 
 import numpy as np
 
@@ -115,7 +116,7 @@ def _task_end(log: RunLog, duration: float, period_s: float) -> tuple[bool, int]
     reached = np.flatnonzero(log.sigma + period_s * log.s >= duration - 1e-12)
     completed = reached.size > 0
     end = int(reached[0]) + 1 if completed else len(log)
-    stops = np.flatnonzero(log.stopping)
+    stops = np.flatnonzero(cast(np.ndarray, log.stopping))  # filled by RunLog
     if stops.size and stops[0] < end:
         return False, int(stops[0])
     return completed, end
@@ -170,7 +171,7 @@ def _acceleration_excess(
 
 def _stop_metrics(log: RunLog, trajectory: Trajectory, bounds: BoundSpec, period_s: float) -> dict:
     """The ``stop_*`` metrics over the samples flagged ``stopping`` (none: zeros)."""
-    idx = np.flatnonzero(log.stopping)
+    idx = np.flatnonzero(cast(np.ndarray, log.stopping))
     if not idx.size:
         return {}
     tool = translation(log.pose[idx])

@@ -22,7 +22,7 @@ def _reach(gap: float, jerk_step: float, period_s: float) -> float:
     if not math.isfinite(jerk_step):
         return gap / period_s
     d = jerk_step * period_s
-    m = math.floor(0.5 * (math.sqrt(1.0 + 8.0 * gap / d) - 1.0))
+    m = float(math.floor(0.5 * (math.sqrt(1.0 + 8.0 * gap / d) - 1.0)))
     m = max(m, 0.0)
     used = 0.5 * d * m * (m + 1.0)
     if used > gap:

@@ -71,7 +71,7 @@ class Plan:
 
     def _index(self, tau_s: float) -> int:
         ends = self.ends_s
-        return int(min(max(np.searchsorted(ends, tau_s, side="right") - 1, 0), ends.size - 2))
+        return int(min(max(int(np.searchsorted(ends, tau_s, side="right")) - 1, 0), ends.size - 2))
 
     def velocity(self, tau_s: float) -> np.ndarray:
         """The plan's velocity at plan time ``tau_s`` [rad/s] (zero past its end, and past

@@ -17,6 +17,7 @@ import copy
 import sys
 import time
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -95,7 +96,7 @@ class StreamedController(Controller):
         self.qdd_max = _limit(
             "acceleration_max", acceleration_max, _default_acceleration(planner), self.n
         )
-        self.qddd_max = _limit("jerk_max", jerk_max, lim.qddd_max, self.n)
+        self.qddd_max = _limit("jerk_max", jerk_max, cast(np.ndarray, lim.qddd_max), self.n)
         self.a_const = self.qdd_max if np.all(np.isfinite(self.qdd_max)) else None
         if lead_periods not in (0, num):
             raise ParameterError(

@@ -22,6 +22,7 @@ Joints without a finite jerk limit get no rows.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 
@@ -70,7 +71,8 @@ def jerk_limits(
     """``(JerkLimit(...),)``, or ``()`` without a jerk bound (``jerk`` is ``None``)."""
     if jerk is None:
         return ()
-    return (JerkLimit(layout, period_s, jerk, qd_max, q_min, q_max, horizon_s, a_bound),)
+    bound = cast("np.ndarray | None", a_bound)  # a scalar broadcasts like an array
+    return (JerkLimit(layout, period_s, jerk, qd_max, q_min, q_max, horizon_s, bound),)
 
 
 def terminal_jerk_distance(a_max: np.ndarray, jerk: np.ndarray) -> np.ndarray:

@@ -27,7 +27,7 @@ with ``w_i = dx_d/dσ(σ̂_i) + K (x_d(σ̂_i) - x̂_i)``. As a composition:
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 
@@ -211,7 +211,7 @@ class TrackingController(QPController):
         self._joint_boxes = (applied, predicted)
         self._servo_lag = ServoLagMargin(
             robot.limits.q_min, robot.limits.q_max, margin, period_s,
-            10.0 if self.a_const is None else self.a_const,
+            cast(np.ndarray, 10.0 if self.a_const is None else self.a_const),
         )  # fmt: skip
         levels = self._compose_levels(layout, period_s, tuple(extra_terms))
         limits = self._compose_limits(layout, period_s) + jerk + tuple(extra_limits)
