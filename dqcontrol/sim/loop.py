@@ -264,34 +264,38 @@ def run_loop(
             logged), the joint-space ramp only where that has no solution; then hold.
             ``False``: the run ends with its last command.
         warm_up: step a copy of the controller once before the first command.
-        log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md); the
-            result's ``log`` then holds only the last samples. ``None``: all in memory.
+        log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md; the
+            result's ``log`` keeps the last samples); ``None``: all in memory.
         log_chunk_s: longest stretch of samples [s] in one block of ``log_file``.
 
     Returns:
         :class:`RunResult`; Ctrl-C, a driver or log error and the watchdog keep the samples
-        done (``interrupted=True``, a ``note``); ``meta["stop"]`` says why it ended, how long
-        it braked and the wall clock's timing [ms] (:meth:`_Clock.report`);
-        ``meta["driver_report"]`` has the driver's counters.
+        done (``interrupted=True``, a ``note``); ``meta["stop"]``: why it ended, its stop and
+        the wall clock's timing [ms]; ``meta["driver_report"]``: the driver's counters.
 
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
-        RunLogWriteError: ``log_file`` cannot be created (a later write error stops the
-            run: ``reason = "log"``, the arm braked).
-        ParameterError: bad ``max_time_s``/``stale_periods``; ``q0`` for a driver without
-            ``reset``.
+        RunLogWriteError: ``log_file`` cannot be created (a later write error ends the run:
+            ``reason = "log"``). ParameterError: bad ``max_time_s``/``stale_periods``; ``q0``
+            for a driver without ``reset``.
     """
     order = _JointOrder(driver.joint_names, tuple(controller.robot.joint_names))
     num = _sample_count(controller, max_time_s, stale_periods)
-    logging = (log_file, log_chunk_s)
-    run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
-    stream = stream_hook(controller, realtime)  # a streamed controller plans in a thread
+    run = _started(controller, driver, order, q0, realtime, warm_up, meta, (log_file, log_chunk_s))
+    stop = _with_stream(run, realtime, num, stale_periods, on_sample, on_progress, brake)
+    return _result(controller, driver, run.rec, stop, run)
+
+
+def _with_stream(run: _Samples, realtime, num, stale_periods, on_sample, on_progress, brake):
+    """:func:`_samples_then_brake` with a streamed controller's planner running beside it
+    (stopped after; its figures added to the log's ``meta``)."""
+    stream = stream_hook(run.controller, realtime)
     try:
         stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
     finally:
         stream.close()
     run.rec.meta.update(stream.meta())
-    return _result(controller, driver, run.rec, stop, run)
+    return stop
 
 
 def _samples_then_brake(run: _Samples, num, stale_periods, on_sample, on_progress, brake) -> dict:

@@ -106,6 +106,18 @@ def _in_range(name: str, value: float, low: float, high: float, unit: str) -> fl
     return v
 
 
+def _checked_options(
+    tuning: PathFollowingTuning | None, torque_limit_fraction: float | None
+) -> tuple[PathFollowingTuning, float | None]:
+    """The tuning (default :class:`PathFollowingTuning`) and the torque share, checked."""
+    checked = PathFollowingTuning() if tuning is None else tuning
+    if not isinstance(checked, PathFollowingTuning):
+        raise ParameterError(f"tuning must be a PathFollowingTuning, got {type(tuning).__name__}")
+    if torque_limit_fraction is None:
+        return checked, None
+    return checked, _in_range("torque_limit_fraction", torque_limit_fraction, 0.0, 1.0, "-")
+
+
 def _tightened(levels: tuple[Level, ...]) -> tuple[Level, ...]:
     """The levels with the path level's band :data:`STALL_TIGHTENING` times narrower: while
     stalled, a drift within the band, step after step, would otherwise slide the tool along
@@ -213,16 +225,7 @@ class PathFollowingController(QPController):
         breaks = interval_breakpoints(num_intervals, self.horizon_s, self.period_s)
         self.num_intervals = int(num_intervals)
         self.s_max = _in_range("s_max", s_max, 1.0, 1.5, "-")
-        self.tuning = PathFollowingTuning() if tuning is None else tuning
-        if not isinstance(self.tuning, PathFollowingTuning):
-            raise ParameterError(
-                f"tuning must be a PathFollowingTuning, got {type(tuning).__name__}"
-            )
-        self.torque_limit_fraction = (
-            None
-            if torque_limit_fraction is None
-            else _in_range("torque_limit_fraction", torque_limit_fraction, 0.0, 1.0, "-")
-        )
+        self.tuning, self.torque_limit_fraction = _checked_options(tuning, torque_limit_fraction)
         self.position_margin_rad, self.q_min, self.q_max, self.qd_max = joint_limit_settings(
             robot, velocity_limits, position_margin_rad
         )

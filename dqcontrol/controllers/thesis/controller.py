@@ -194,17 +194,31 @@ class TrackingController(QPController):
         self.scaling = bool(scaling)
         self.instants_s = _instants(instants_s)
         self.p = self.instants_s.size
+        acceleration_limit = robot_acceleration_limit(robot, acceleration_limit, 10.0)
+        self._set_acceleration(robot.nq, acceleration_limit, acceleration_floor, acceleration_cap)
+        layout = self._layout(robot.nq, period_s)
+        jerk = self._joint_limits(
+            layout, velocity_limits, position_margin_rad, braking_aware, jerk_limit
+        )
+        prediction = ThesisPrediction(
+            layout, period_s, phase_prediction if self.scaling else "nominal"
+        )
+        levels = self._compose_levels(layout, period_s, tuple(extra_terms))
+        limits = self._compose_limits(layout, period_s) + jerk + tuple(extra_limits)
+        if self.a_const is not None:
+            self._a_batch = np.tile(self.a_const, (self.p, 1))
+        self.compose(prediction, levels, limits, backend, solver_settings)
+
+    def _joint_limits(
+        self, layout, velocity_limits, position_margin_rad, braking_aware, jerk_limit
+    ) -> tuple[Limit, ...]:
+        """The joint boxes of the applied command and of the predicted states (one set of
+        bounds), the servo-lag margin kept with them, and the jerk limit (returned)."""
+        robot, period_s = self.robot, self.period_s
         margin, q_min, q_max, qd_max = joint_limit_settings(
             robot, velocity_limits, position_margin_rad
         )
         self.position_margin_rad = margin
-        acceleration_limit = robot_acceleration_limit(robot, acceleration_limit, 10.0)
-        self._set_acceleration(robot.nq, acceleration_limit, acceleration_floor, acceleration_cap)
-        layout = self._layout(robot.nq, period_s)
-        jerk = jerk_limits(jerk_setting(robot, jerk_limit), layout, period_s, qd_max, q_min, q_max)
-        prediction = ThesisPrediction(
-            layout, period_s, phase_prediction if self.scaling else "nominal"
-        )
         applied = JointBoxLimit(layout, q_min, q_max, qd_max, braking_aware)
         predicted = JointBoxLimit(layout, q_min, q_max, qd_max, braking_aware, predicted=True)
         predicted.values = applied.values  # one set of bounds (in-place edits included)
@@ -213,11 +227,8 @@ class TrackingController(QPController):
             robot.limits.q_min, robot.limits.q_max, margin, period_s,
             cast(np.ndarray, 10.0 if self.a_const is None else self.a_const),
         )  # fmt: skip
-        levels = self._compose_levels(layout, period_s, tuple(extra_terms))
-        limits = self._compose_limits(layout, period_s) + jerk + tuple(extra_limits)
-        if self.a_const is not None:
-            self._a_batch = np.tile(self.a_const, (self.p, 1))
-        self.compose(prediction, levels, limits, backend, solver_settings)
+        jerk = jerk_setting(robot, jerk_limit)
+        return jerk_limits(jerk, layout, period_s, qd_max, q_min, q_max)
 
     # ------------------------------------------------------------------ servo lag
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
