@@ -366,9 +366,12 @@ def _screenshot_live(url: str, png: Path) -> np.ndarray:
 @needs_chromium
 def test_browser_draws_the_robot_of_the_live_viewer_during_a_run(lbr4p, tmp_path):
     with MeshcatViewer(lbr4p, q=LBR4P_Q0, print_url=False) as viewer:
-        controller = LocalController(lbr4p, Circle(2.0), 0.05)
-        follow = viewer.follow(controller, speed=0.15)  # a 13 s run, stopped early
+        # A 20 s task at 0.15x is over two minutes of wall time: it cannot end by itself
+        # before a browser on a loaded machine has looked; the test stops it early.
+        controller = LocalController(lbr4p, Circle(20.0), 0.05)
+        follow = viewer.follow(controller, speed=0.15)
         done, stop = threading.Event(), threading.Event()
+        errors: list[BaseException] = []
 
         def on_sample(k, sim, result):
             follow(k, sim, result)
@@ -378,6 +381,8 @@ def test_browser_draws_the_robot_of_the_live_viewer_during_a_run(lbr4p, tmp_path
         def run():
             try:
                 run_mujoco(controller, LBR4P_Q0, on_sample=on_sample)
+            except BaseException as error:  # reported by the test's thread below
+                errors.append(error)
             finally:
                 done.set()
 
@@ -390,6 +395,7 @@ def test_browser_draws_the_robot_of_the_live_viewer_during_a_run(lbr4p, tmp_path
         finally:
             stop.set()
             thread.join(timeout=30)
+        assert not errors, f"the run failed: {errors!r}"
         assert still_running, "the run ended before the browser looked"
         assert viewer.active
     robot = _orange(shot)
