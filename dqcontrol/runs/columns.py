@@ -23,7 +23,7 @@ import numpy as np
 
 from dqcontrol.controllers.base import StepResult
 from dqcontrol.errors import ParameterError
-from dqcontrol.runs.log import RunLog, stream_values
+from dqcontrol.runs.log import NO_PLAN, STREAM_FIELDS, RunLog, stream_values
 
 __all__ = ["SampleBlock", "decode_block", "encode_block", "field_layout"]
 
@@ -117,19 +117,21 @@ class SampleBlock:
         c["relaxed"][k] = d.relaxed
         c["saturated"][k] = d.saturated
         stream = stream_values(result)
-        if stream is not None:
-            self._record_stream(k, stream)
+        if stream is not None or "plan_id" in c:
+            self._record_stream(k, stream or NO_PLAN)
         c["stopping"][k] = stopping
         self.count = k + 1
 
     def _record_stream(self, k: int, values: tuple[int, float, float]) -> None:
         """A streamed controller's plan id, plan age and lateness: their columns are made
-        at its first sample (a run's samples all come from one controller)."""
+        at its first sample (the samples before it :data:`NO_PLAN`'s)."""
         c = self.columns
         if "plan_id" not in c:
             for name, dt in (("plan_id", "<i8"), ("plan_age_s", "<f8"), ("lateness_s", "<f8")):
                 self.layout.append((name, dt, 0))
                 c[name] = _empty(dt, 0, self.capacity)
+            for name, missing in zip(STREAM_FIELDS, NO_PLAN, strict=True):
+                c[name][:k] = missing
         c["plan_id"][k], c["plan_age_s"][k], c["lateness_s"][k] = values
 
     def status_names(self) -> list[str]:
@@ -197,6 +199,17 @@ def concat_arrays(parts: list[dict[str, np.ndarray]], num_joints: int) -> RunLog
         empty = {name: _empty(dt, cols, 0) for name, dt, cols in field_layout(num_joints)}
         empty[_STATUS_FIELD] = np.zeros(0, dtype="U32")
         return RunLog.from_arrays(empty)
-    merged = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+    names = list(dict.fromkeys(name for part in parts for name in part))
+    merged = {name: np.concatenate([_column(p, name) for p in parts]) for name in names}
     merged[_STATUS_FIELD] = merged[_STATUS_FIELD].astype("U32")
     return RunLog.from_arrays(merged)
+
+
+def _column(part: dict[str, np.ndarray], name: str) -> np.ndarray:
+    """``part[name]``; a stream field a block does not have (no plan gave its samples) as
+    :data:`NO_PLAN`'s value."""
+    if name in part:
+        return part[name]
+    count = len(part["t_s"])
+    value = NO_PLAN[STREAM_FIELDS.index(name)]
+    return np.full(count, value, dtype=np.int64 if name == "plan_id" else float)

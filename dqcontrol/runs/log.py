@@ -12,10 +12,12 @@ import numpy as np
 
 from dqcontrol.controllers.base import StepResult
 
-__all__ = ["LogRecorder", "RunLog", "STREAM_FIELDS", "stream_values"]
+__all__ = ["NO_PLAN", "LogRecorder", "RunLog", "STREAM_FIELDS", "stream_values"]
 
 #: The fields only a streamed controller's samples have.
 STREAM_FIELDS = ("plan_id", "plan_age_s", "lateness_s")
+#: The stream fields of a sample no plan gave (a stop another controller stepped).
+NO_PLAN = (-1, float("nan"), float("nan"))
 
 
 def stream_values(result: StepResult) -> tuple[int, float, float] | None:
@@ -43,7 +45,8 @@ class RunLog:
         plan_id, plan_age_s, lateness_s: a streamed controller's samples only (``None``
             otherwise): the plan each command came from, the time since that plan's
             measurement [s] and, on the wall clock, how long after its place on the grid the
-            command was ready [s] (NaN in stepped runs); docs/theory.md §12.4.
+            command was ready [s] (NaN in stepped runs); docs/theory.md §12.4. A sample no
+            plan gave (a stop another controller stepped) has ``-1``, NaN, NaN.
         stopping: per-sample flag: the sample belongs to a stop (the controller's stop was
             requested: the end of the task, Ctrl-C, the watchdog, a driver error or the
             caller); all False when not given.
@@ -123,9 +126,7 @@ class LogRecorder:
         """Append sample k: the measurement it was computed from and the controller output
         (``stopping``: the sample belongs to a stop)."""
         d = result.diagnostics
-        stream = stream_values(result)
-        if stream is not None:
-            self._stream.append(stream)
+        self._stream.append(stream_values(result) or NO_PLAN)
         self._rows.append(
             (
                 t_s,
@@ -168,7 +169,7 @@ class LogRecorder:
             )  # fmt: skip
         cols = list(zip(*self._rows, strict=True))
         stream = {}
-        if len(self._stream) == len(self._rows):
+        if any(values[0] != NO_PLAN[0] for values in self._stream):
             ids, ages, late = zip(*self._stream, strict=True)
             stream = {
                 "plan_id": np.array(ids, dtype=np.int64),

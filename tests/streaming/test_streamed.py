@@ -149,3 +149,22 @@ def test_bad_stream_options_exit_2(options, tmp_path, capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "--plan-period" in err
+
+
+def test_a_run_with_its_stop_keeps_the_plan_columns(lbr4p, tmp_path):
+    from dqcontrol.runs import load_run
+    from dqcontrol.sim import KinematicDriver, run_loop
+
+    def run(**kwargs):
+        c = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0)
+        return run_loop(c, KinematicDriver(lbr4p, 0.001), q0=LBR4P_Q0, max_time_s=0.05, **kwargs)
+
+    memory = run()
+    loaded, _ = load_run(run(log_file=tmp_path / "run.mcap", log_chunk_s=0.02).log_file)
+    for log in (memory.log, loaded):
+        assert log.stopping.any() and len(log.plan_id) == len(log) == len(log.lateness_s)
+        task = ~log.stopping
+        assert np.all(log.plan_id[task] >= 1)
+        given = log.plan_id >= 1  # stop samples: a plan's, or -1 where another controller
+        assert np.all(log.plan_id[~given] == -1) and np.all(np.isnan(log.plan_age_s[~given]))
+    np.testing.assert_array_equal(memory.log.plan_id, loaded.plan_id)
