@@ -181,13 +181,36 @@ def run_connected(args, controller, q0, meta: dict, on_progress, log_file=None):
             )
         return run_loop(
             controller, driver, q0=q0, meta=meta, on_progress=on_progress,
-            realtime=args.realtime, log_file=log_file,
+            realtime=args.realtime, log_file=log_file, max_lateness_s=args.max_lateness,
+            realtime_priority=args.rt_priority,
         )  # fmt: skip
     finally:
         driver.close()
 
 
 # ---------------------------------------------------------------------- the options' checks
+def _check_wall_clock_options(args) -> None:
+    """Parser error (exit 2) for a wall-clock option without ``--realtime`` (or
+    ``--realtime`` without ``--connect``), or a real-time priority this process may not
+    take."""
+    from dqcontrol.errors import ParameterError
+    from dqcontrol.sim.priority import check_priority
+
+    parser = args._parser
+    if args.realtime and not args.connect:
+        parser.error("--realtime keeps the wall clock against a sim-server: give --connect")
+    for given, option in (
+        (args.max_lateness, "--max-lateness"),
+        (args.rt_priority, "--rt-priority"),
+    ):
+        if given is not None and not args.realtime:
+            parser.error(f"{option} applies to a wall-clock run: give --realtime")
+    try:
+        check_priority(args.rt_priority)
+    except ParameterError as exc:
+        parser.error(f"--rt-priority: {exc}")
+
+
 def _check_options(args) -> tuple:
     """Build robot, q0, bounds from the options; parser error (exit 2) when one is wrong."""
     import numpy as np
@@ -242,6 +265,7 @@ def _check_options(args) -> tuple:
     if args.hold is not None and not (args.hold >= 0):
         parser.error(f"--hold must be >= 0 seconds, got {args.hold}")
     args._collision = _collision_model(args, robot, q0)
+    _check_wall_clock_options(args)
     check_stream_options(args)
     if args.plan_period == "auto":
         args.plan_period = measured_plan_period(args, robot, q0, velocity)

@@ -246,8 +246,26 @@ def add_output_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--realtime",
         action="store_true",
-        help="with --connect: keep the wall clock (one period per period; the watchdog "
-        "brakes and holds on a missed deadline) instead of stepping as fast as possible",
+        help="with --connect: keep the wall clock (one period per period; a missed deadline "
+        "is counted and the loop catches up; a sample later than --max-lateness brakes and "
+        "holds) instead of stepping as fast as possible",
+    )
+    g.add_argument(
+        "--max-lateness",
+        metavar="SECONDS",
+        type=positive_float("s"),
+        default=None,
+        help="with --realtime: stop along the path when a sample ends more than this after "
+        "its deadline (default: five periods)",
+    )
+    g.add_argument(
+        "--rt-priority",
+        metavar="N",
+        type=int,
+        default=None,
+        help="with --realtime: run the loop in Linux's real-time scheduling class at "
+        "priority N (1-99; needs CAP_SYS_NICE or an rtprio limit, ulimit -r). Default: the "
+        "ordinary scheduler",
     )
     g.add_argument(
         "--viewer",

@@ -11,11 +11,15 @@ Before the first command the loop checks the driver's joints against the model's
 that the compiled kernels are loaded before the clock starts.
 
 In wall-clock mode each sample starts on the grid ``start + k T`` (a sleep, then a short
-poll of the clock) and its deadline is the end of its period; the garbage collector sees
+poll of the clock) and its deadline is the end of its period; a sample that misses it is
+counted and the next one starts at once, so the loop catches up with the grid (an arm keeps
+its last command over a late period, as real controllers tolerate isolated lost packets);
+a sample ending more than ``max_lateness_s`` late stops the run. The garbage collector sees
 only the run's own objects. The loop holds one BLAS thread for its whole length
 (:func:`~dqcontrol.controllers.single_blas_thread`), so that no step switches the libraries
 itself. A watchdog ends the run on a stale measurement (no newer sample for
-``stale_periods`` periods), a missed deadline (wall-clock mode), the end of the task or the
+``stale_periods`` periods), a sample later than ``max_lateness_s`` (wall-clock mode), the
+end of the task or the
 time limit, or Ctrl-C; a driver error ends it too. With ``brake=True`` every one of these
 then brings the arm to rest along the path (:mod:`dqcontrol.sim.path_stop`): the
 controller's stop is requested and it is stepped until at rest, those samples logged with
@@ -52,6 +56,7 @@ from dqcontrol.runs.streamed_run import end_streamed
 from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
 from dqcontrol.sim.path_stop import stop_along_path
+from dqcontrol.sim.priority import check_priority, realtime_priority
 from dqcontrol.streaming.hook import stream_hook
 
 __all__ = ["RunResult", "run_loop"]
@@ -73,7 +78,8 @@ class RunResult:
     note: str = ""
     #: why the run was cut short: ``""`` (it was not), ``"user"`` (Ctrl-C),
     #: ``"simulation"`` (the driver or simulator failed; the note says how), ``"stale"``
-    #: (no fresh measurement), ``"deadline"`` (a step missed its period in wall-clock mode),
+    #: (no fresh measurement), ``"deadline"`` (a sample ended more than ``max_lateness_s``
+    #: after its deadline in wall-clock mode),
     #: ``"request"`` (the controller's stop was requested, e.g. from ``on_sample``) or
     #: ``"log"`` (the streamed run log could not be written).
     reason: str = ""
@@ -112,6 +118,10 @@ def _brake_rate(controller: Controller, q: np.ndarray) -> np.ndarray:
         return np.full(q.shape, np.inf)
     return np.broadcast_to(np.asarray(a, dtype=float) * controller.period_s, q.shape)
 
+
+#: A wall-clock run stops when a sample ends this many periods after its deadline (the arm
+#: has then held one command for that long); shorter misses are counted.
+MAX_LATE_PERIODS = 5
 
 #: Samples of lateness and jitter the wall-clock mode keeps for its medians and p99 (the
 #: most recent ones: 8 MB each at most, about 17 minutes at 1 kHz); the maxima and the
@@ -156,8 +166,11 @@ class _Clock:
     the maxima and the missed deadlines over the whole run).
     """
 
-    def __init__(self, period_s: float, realtime: bool) -> None:
+    def __init__(self, period_s: float, realtime: bool, max_lateness_s: float = np.inf) -> None:
         self.period_s, self.realtime = period_s, realtime
+        self.max_lateness_s = max_lateness_s
+        #: the loop thread's real-time priority (``None``: the ordinary scheduler)
+        self.priority: int | None = None
         self.start = time.perf_counter()
         self.k = 0
         self.lateness_s = _Window()
@@ -167,7 +180,8 @@ class _Clock:
         self.start, self.k = time.perf_counter(), 0
 
     def wait(self) -> bool:
-        """End of a period: wait for its deadline; ``False`` if it was already missed."""
+        """End of a period: wait for its deadline (a missed one is counted, the next
+        sample starts at once); ``False`` if it was missed by more than ``max_lateness_s``."""
         self.k += 1
         if not self.realtime:
             return True
@@ -175,7 +189,7 @@ class _Clock:
         late = time.perf_counter() - deadline
         self.lateness_s.append(late)
         if late > 0.0:
-            return False
+            return late <= self.max_lateness_s
         _sleep_until(deadline)
         self.jitter_s.append(time.perf_counter() - deadline)
         return True
@@ -240,6 +254,8 @@ def run_loop(
     warm_up: bool = True,
     log_file: str | os.PathLike | None = None,
     log_chunk_s: float = DEFAULT_CHUNK_S,
+    max_lateness_s: float | None = None,
+    realtime_priority: int | None = None,
 ) -> RunResult:
     """Run ``controller`` against ``driver`` until ``σ ≥ T_tot``, ``max_time_s`` or the watchdog.
 
@@ -255,8 +271,9 @@ def run_loop(
         on_sample: ``f(k, driver, result)`` after each sample.
         on_progress: ``f(σ_next, T_tot)`` [s] after each sample (e.g. a progress bar).
         realtime: sample k starts at ``start + k T`` on the wall clock (sleep, then poll
-            :data:`SPIN_S`); ending after ``start + (k + 1) T`` stops the run (``"deadline"``);
-            the GC sees only the run's objects (``gc.freeze``). Else: as fast as it answers.
+            :data:`SPIN_S`); one ending after ``start + (k + 1) T`` is a missed deadline
+            (counted; the next starts at once); the GC sees only the run's objects
+            (``gc.freeze``). Else: as fast as it answers.
         stale_periods: stop (``reason = "stale"``) after this many periods with no new
             measurement; until then (and during the stop) the controller is given the last
             measured ``q`` moved by the commands sent since (dead reckoning).
@@ -267,6 +284,13 @@ def run_loop(
         log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md; the
             result's ``log`` keeps the last samples); ``None``: all in memory.
         log_chunk_s: longest stretch of samples [s] in one block of ``log_file``.
+        max_lateness_s: in wall-clock mode, a sample ending more than this after its
+            deadline stops the run (``reason = "deadline"``) [s]; ``None``:
+            :data:`MAX_LATE_PERIODS` periods.
+        realtime_priority: in wall-clock mode, run the loop's thread in Linux's real-time
+            scheduling class at this priority (1–99) while it samples and stops
+            (:mod:`dqcontrol.sim.priority`: needs the privilege); ``None``: the ordinary
+            scheduler.
 
     Returns:
         :class:`RunResult`; Ctrl-C, a driver or log error and the watchdog keep the samples
@@ -276,12 +300,17 @@ def run_loop(
     Raises:
         JointMismatchError: the driver's joints are not the model's (before any command).
         RunLogWriteError: ``log_file`` cannot be created (a later write error ends the run:
-            ``reason = "log"``). ParameterError: bad ``max_time_s``/``stale_periods``; ``q0``
+            ``reason = "log"``). ParameterError: bad ``max_time_s``, ``stale_periods``,
+            ``max_lateness_s`` or ``realtime_priority`` (or no privilege for it); ``q0``
             for a driver without ``reset``.
     """
     order = _JointOrder(driver.joint_names, tuple(controller.robot.joint_names))
     num = _sample_count(controller, max_time_s, stale_periods)
+    lateness = _max_lateness(controller.period_s, max_lateness_s)
+    check_priority(realtime_priority)
     run = _started(controller, driver, order, q0, realtime, warm_up, meta, (log_file, log_chunk_s))
+    run.clock.max_lateness_s = lateness
+    run.clock.priority = realtime_priority if realtime else None
     stop = _with_stream(run, realtime, num, stale_periods, on_sample, on_progress, brake)
     return _result(controller, driver, run.rec, stop, run)
 
@@ -303,10 +332,11 @@ def _samples_then_brake(run: _Samples, num, stale_periods, on_sample, on_progres
     leaves it closes a streamed log without its end record (it then reads as cut short;
     the log's own write errors give way to that exception)."""
     try:
-        with _young_gc_only(run.clock.realtime), single_blas_thread():
-            run.clock.restart()
-            run.loop(num, stale_periods, on_sample, on_progress)
-        return _stop_and_brake(run, brake)
+        with realtime_priority(run.clock.priority):
+            with _young_gc_only(run.clock.realtime), single_blas_thread():
+                run.clock.restart()
+                run.loop(num, stale_periods, on_sample, on_progress)
+            return _stop_and_brake(run, brake)
     except BaseException:
         if isinstance(run.rec, StreamRecorder):
             with contextlib.suppress(RunLogWriteError):
@@ -333,6 +363,17 @@ def _started(
         rec = StreamRecorder(log_file, robot.nq, controller.period_s, info, chunk_s=chunk_s)
     clock = _Clock(controller.period_s, bool(realtime))
     return _Samples(controller, driver, order, rec, clock, meas)
+
+
+def _max_lateness(period_s: float, max_lateness_s: float | None) -> float:
+    """The checked lateness [s] past which a wall-clock run stops."""
+    if max_lateness_s is None:
+        return MAX_LATE_PERIODS * period_s
+    if isinstance(max_lateness_s, bool) or not (float(max_lateness_s) >= 0.0):
+        raise ParameterError(
+            f"max_lateness_s must be a lateness >= 0 [s] (or None), got {max_lateness_s!r}"
+        )
+    return float(max_lateness_s)
 
 
 def _sample_count(controller: Controller, max_time_s: float | None, stale_periods) -> int:
@@ -492,7 +533,8 @@ class _Samples:
             if not clock.wait():
                 self._stop("deadline", (
                     f"stopped after {len(rec)} samples: sample {k} ended "
-                    f"{1e3 * clock.lateness_s.last:.2f} ms after its deadline"
+                    f"{1e3 * clock.lateness_s.last:.2f} ms after its deadline (more than "
+                    f"{1e3 * clock.max_lateness_s:.2f} ms)"
                 ))  # fmt: skip
                 return
 

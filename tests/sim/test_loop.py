@@ -4,6 +4,7 @@ warm-up, watchdog (stale, deadline, end, Ctrl-C), braking and the run log."""
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -216,26 +217,64 @@ def test_the_end_of_the_task_brakes_after_the_log(lbr4p):
     assert free.log.meta["stop"] == {"reason": "end", "brake_periods": 0}
 
 
-def test_a_missed_deadline_stops_the_wall_clock_loop(lbr4p):
+def _stalled_at(sample: int, seconds: float):
     def slow(k, _driver, _result):
-        if k == 3:
-            threading.Event().wait(0.03)
+        if k == sample:
+            threading.Event().wait(seconds)
 
+    return slow
+
+
+def test_a_sample_later_than_the_limit_stops_the_wall_clock_loop(lbr4p):
     res = run_loop(
         LocalController(lbr4p, Circle(1.0), 0.01),
         KinematicDriver(lbr4p, 0.01),
         q0=LBR4P_Q0,
-        on_sample=slow,
+        on_sample=_stalled_at(3, 0.03),
         realtime=True,
+        max_lateness_s=0.01,
     )
     assert res.reason == "deadline" and _task(res.log) == 4 and "after its deadline" in res.note
     assert res.log.meta["stop"]["lateness_max_ms"] > 10.0
     assert res.log.meta["stop"]["missed_deadlines"] == 1
 
 
+def test_a_short_miss_is_counted_and_the_loop_catches_up(lbr4p):
+    # 25 ms late at T = 10 ms: within the default five periods; the samples after it start
+    # at once until the loop is back on its grid
+    starts = []
+
+    def record(k, driver, result):
+        starts.append(time.perf_counter())
+        _stalled_at(3, 0.035)(k, driver, result)
+
+    res = run_loop(
+        LocalController(lbr4p, Circle(0.3), 0.01),
+        KinematicDriver(lbr4p, 0.01),
+        q0=LBR4P_Q0,
+        on_sample=record,
+        realtime=True,
+        brake=False,
+    )
+    stop = res.log.meta["stop"]
+    assert stop["reason"] == "end" and not res.interrupted and res.metrics.completed
+    assert 1 <= stop["missed_deadlines"] <= 4 and stop["lateness_max_ms"] > 20.0
+    assert starts[-1] - starts[0] >= 0.01 * (len(starts) - 2)  # back on the grid, no faster
+
+
+@pytest.mark.parametrize("bad", [-0.001, float("nan"), True])
+def test_a_bad_lateness_limit_is_refused(lbr4p, bad):
+    with pytest.raises(ParameterError, match="max_lateness_s"):
+        run_loop(
+            LocalController(lbr4p, Circle(0.3), 0.01),
+            KinematicDriver(lbr4p, 0.01),
+            q0=LBR4P_Q0,
+            max_lateness_s=bad,
+        )
+
+
 def test_the_wall_clock_loop_keeps_its_period(lbr4p):
     import gc
-    import time
 
     starts, frozen = [], []
 
@@ -263,8 +302,6 @@ def test_the_wall_clock_loop_keeps_its_period(lbr4p):
 
 
 def test_a_wait_never_ends_before_its_deadline():
-    import time
-
     from dqcontrol.sim.loop import SPIN_S, _sleep_until
 
     ends = []

@@ -219,7 +219,7 @@ def test_a_missed_deadline_stops_along_the_path(panda):
         if k == 30:
             threading.Event().wait(3 * T)
 
-    result = run_loop(ctrl, drv, q0=PANDA_Q0, on_sample=slow, realtime=True)
+    result = run_loop(ctrl, drv, q0=PANDA_Q0, on_sample=slow, realtime=True, max_lateness_s=T)
     assert result.reason == "deadline" and result.log.meta["stop"]["at_rest"]
     assert not drv.writes[-1].any() and result.log.stopping.any()
     assert np.max(_tool_deviation(ctrl, drv, result.log.q)) <= KINEMATIC_GOAL_M
