@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dqcontrol._blas import single_blas_thread
 from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.streaming.plan import Plan, plan_from_result
 from dqcontrol.streaming.streamer import Streamer
@@ -261,8 +262,24 @@ class PlannerProcess:
         return True
 
 
+#: How much lower the planner process's priority is than the streamer's (``nice``).
+PLANNER_NICENESS = 10
+
+
 def _serve(planner: Planner, conn) -> None:
-    """The planner process: a plan for every request until ``None`` or the pipe closes."""
+    """The planner process: a plan for every request until ``None`` or the pipe closes,
+    with one BLAS thread for its whole life (as a control loop holds it), at a lower
+    priority than the streamer's (:data:`PLANNER_NICENESS`): on a busy host the scheduler
+    then takes its time from the planner, which has a plan period to spare, not from the
+    streamer, which has one command period."""
+    with contextlib.suppress(OSError):
+        os.nice(PLANNER_NICENESS)
+    with single_blas_thread():
+        _answer(planner, conn)
+
+
+def _answer(planner: Planner, conn) -> None:
+    """A plan for every request on ``conn`` until ``None`` or the pipe closes."""
     while True:
         try:
             request = conn.recv()
