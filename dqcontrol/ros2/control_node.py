@@ -4,10 +4,10 @@
 :func:`~dqcontrol.sim.run_loop`: on the wall clock (the loop paces itself at the period,
 rclpy's executor spins in a background thread) or stepped (lockstep with a robot that steps
 one period per command). The loop's watchdog stops on stale joint states, ``~/stop``
-(``std_srvs/Trigger``) stops a task, and Ctrl-C or SIGTERM stop the node; each stop brakes
-the command to zero within the controller's acceleration limit and holds
-(:func:`~dqcontrol.sim.run_loop` ``brake=True``). The stop is today's brake:
-:meth:`ControlNode.stop_policy` is where a path-maintaining stop will plug in.
+(``std_srvs/Trigger``) stops a task, and Ctrl-C or SIGTERM stop the node; each stop brings
+the arm to rest along the path and holds (:func:`~dqcontrol.sim.run_loop` ``brake=True``,
+docs/theory.md §8.10); :meth:`ControlNode.stop_policy` can choose to end with the last
+command instead.
 """
 
 from __future__ import annotations
@@ -188,9 +188,9 @@ class ControlNode:
         return build_controller(p.controller, self.robot, trajectory, p.period_s, shared=shared)
 
     def stop_policy(self) -> str:
-        """How a task is stopped: ``"brake"`` (today's: the command ramps to zero within the
-        acceleration limit, then holds). A path-maintaining stop (the phase slowed to rest
-        along the path) is the extension this method names."""
+        """How a task is stopped: ``"brake"`` (the controller's path-maintaining stop: the
+        phase slowed to rest along the path, then the hold); anything else ends a task with
+        its last command (for a robot whose own controller brakes)."""
         return "brake"
 
     def run_task(self, trajectory: Trajectory) -> RunResult:
