@@ -12,9 +12,10 @@ that the compiled kernels are loaded before the clock starts.
 
 In wall-clock mode each sample starts on the grid ``start + k T`` (a sleep, then a short
 poll of the clock) and its deadline is the end of its period; a sample that misses it is
-counted and the next one starts at once, so the loop catches up with the grid (an arm keeps
-its last command over a late period, as real controllers tolerate isolated lost packets);
-a sample ending more than ``max_lateness_s`` late stops the run. The garbage collector sees
+counted and the next one starts at once, in the grid's slot that holds the present (the
+whole periods already past are skipped and counted: the arm keeps its last command over
+them, as real controllers tolerate isolated lost packets); a sample ending more than
+``max_lateness_s`` late stops the run. The garbage collector sees
 only the run's own objects. The loop holds one BLAS thread for its whole length
 (:func:`~dqcontrol.controllers.single_blas_thread`), so that no step switches the libraries
 itself. A watchdog ends the run on a stale measurement (no newer sample for
@@ -171,17 +172,27 @@ class _Clock:
         self.max_lateness_s = max_lateness_s
         #: the loop thread's real-time priority (``None``: the ordinary scheduler)
         self.priority: int | None = None
+        #: grid slots skipped after missed deadlines (no command sent in them)
+        self.skipped_periods = 0
         self.start = time.perf_counter()
         self.k = 0
         self.lateness_s = _Window()
         self.jitter_s = _Window()
+        self.sent_s = _Window()
 
     def restart(self) -> None:
         self.start, self.k = time.perf_counter(), 0
 
+    def sent(self) -> None:
+        """A command was written: its delay after the end of its slot (> 0: late)."""
+        if self.realtime:
+            self.sent_s.append(time.perf_counter() - self.start - (self.k + 1) * self.period_s)
+
     def wait(self) -> bool:
-        """End of a period: wait for its deadline (a missed one is counted, the next
-        sample starts at once); ``False`` if it was missed by more than ``max_lateness_s``."""
+        """End of a period: wait for its deadline. A missed one is counted and the next
+        sample starts at once, in the grid's slot that holds the present (the whole
+        periods already past are skipped: a loop whose work fills its period could never
+        catch up with them); ``False`` if it was missed by more than ``max_lateness_s``."""
         self.k += 1
         if not self.realtime:
             return True
@@ -189,6 +200,9 @@ class _Clock:
         late = time.perf_counter() - deadline
         self.lateness_s.append(late)
         if late > 0.0:
+            skipped = int(late // self.period_s)
+            self.k += skipped
+            self.skipped_periods += skipped
             return late <= self.max_lateness_s
         _sleep_until(deadline)
         self.jitter_s.append(time.perf_counter() - deadline)
@@ -196,8 +210,9 @@ class _Clock:
 
     def report(self) -> dict:
         """``meta["stop"]``'s timing entries [ms]: lateness (max, median: negative is the
-        slack left), start jitter (median, p99, max) and the missed deadlines."""
-        late, jitter = self.lateness_s, self.jitter_s
+        slack left), start jitter (median, p99, max), the missed deadlines, the skipped
+        periods and the late commands (written after their slot's end)."""
+        late, jitter, sent = self.lateness_s, self.jitter_s, self.sent_s
         if not (self.realtime and len(late)):
             return {}
         recent_jitter = 1e3 * np.asarray(jitter.values or [0.0])
@@ -208,6 +223,9 @@ class _Clock:
             "jitter_p99_ms": float(np.percentile(recent_jitter, 99)),
             "jitter_max_ms": 1e3 * jitter.maximum if len(jitter) else 0.0,
             "missed_deadlines": late.positive,
+            "skipped_periods": self.skipped_periods,
+            "late_commands": sent.positive,
+            "command_late_max_ms": 1e3 * sent.maximum if len(sent) else 0.0,
         }
 
 
@@ -308,10 +326,14 @@ def run_loop(
     num = _sample_count(controller, max_time_s, stale_periods)
     lateness = _max_lateness(controller.period_s, max_lateness_s)
     check_priority(realtime_priority)
-    run = _started(controller, driver, order, q0, realtime, warm_up, meta, (log_file, log_chunk_s))
-    run.clock.max_lateness_s = lateness
-    run.clock.priority = realtime_priority if realtime else None
-    stop = _with_stream(run, realtime, num, stale_periods, on_sample, on_progress, brake)
+    # One BLAS thread from the reset on: the library's pool, woken each time a step gave its
+    # threads back, spins for a while after, and would take the loop's core from it.
+    with single_blas_thread():
+        logging = (log_file, log_chunk_s)
+        run = _started(controller, driver, order, q0, realtime, warm_up, meta, logging)
+        run.clock.max_lateness_s = lateness
+        run.clock.priority = realtime_priority if realtime else None
+        stop = _with_stream(run, realtime, num, stale_periods, on_sample, on_progress, brake)
     return _result(controller, driver, run.rec, stop, run)
 
 
@@ -507,6 +529,7 @@ class _Samples:
             result = controller.step(self.q, self.qd)
             self.command = result.qd_command
             driver.write(self.order.to_driver(self.command))
+            clock.sent()
             nxt = driver.read()
             rec.record(self.meas.t_s, self.q, self.qd, result, nxt.torque, nxt.torque_peak)
             if on_sample is not None:

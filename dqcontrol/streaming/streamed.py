@@ -208,6 +208,8 @@ class StreamedController(Controller):
         if self._t0 is not None:  # the command's time after the sample's place on the grid
             late = now - (self._t0 + k * self.period_s)
             self.lateness_s.append(late)
+            if late > self.period_s:  # the whole periods past are skipped, as the loop does
+                self._t0 += (late // self.period_s) * self.period_s
         self.streamer_times_s.append(spent)
         self.ages_s.append(sample.plan_age_s)
         return self._result(q, sample, spent, late)
