@@ -55,6 +55,9 @@ import tempfile
 import time
 from pathlib import Path
 
+#: A kwargs key the timing child takes out: the controller gets the collision limit of
+#: ``dqcontrol bench``'s cell (a ball, a crate, the table, and self-collision).
+COLLISION_KEY = "__collision__"
 #: Controllers of both versions: name -> (class in dqcontrol.controllers, extra kwargs).
 CONTROLLERS: dict[str, tuple[str, dict]] = {
     "local": ("LocalController", {}),
@@ -67,7 +70,12 @@ CONTROLLERS: dict[str, tuple[str, dict]] = {
         "PathFollowingController",
         {"num_intervals": 10, "acceleration_limit": "dynamics"},
     ),
+    "path_following_p10_collision": (
+        "PathFollowingController",
+        {"num_intervals": 10, COLLISION_KEY: True},
+    ),
 }
+
 ALIASES = {
     "p6": "predictive_p6",
     "p10": "predictive_p10",
@@ -76,6 +84,7 @@ ALIASES = {
     "pf": "path_following_p10",
     "pf10": "path_following_p10",
     "pf_dynamics": "path_following_p10_dynamics",
+    "pf_collision": "path_following_p10_collision",
 }
 PERIOD_S = 0.001
 CIRCLE_S = 2.0
@@ -106,10 +115,25 @@ common = {
 perf = time.perf_counter
 
 
+def cell_limit():
+    from dqcontrol.controllers.limits.collision import CollisionLimit
+    from dqcontrol.model.collision import Box, CollisionModel, HalfSpace, Sphere
+
+    tool = robot.placement(q0).translation
+    cell = (
+        Sphere(name="ball", position_m=(0.2245, -0.2559, 0.9519), radius_m=0.05),
+        Box(name="crate", position_m=tuple(tool + [0.0, 0.25, -0.1]), size_m=(0.1, 0.1, 0.2)),
+        HalfSpace(name="table", normal=(0.0, 0.0, 1.0), offset_m=float(tool[2] - 0.3)),
+    )
+    return CollisionLimit(CollisionModel(robot, cell, self_collision=True))
+
+
 class Loop:
     def __init__(self, spec):
         cls = getattr(importlib.import_module(spec["module"]), spec["cls"])
         kwargs = dict(common, **spec["kwargs"])
+        if kwargs.pop("__collision__", False):
+            kwargs["extra_limits"] = (cell_limit(),)
         self.ctrl = cls(robot, Circle(job["circle_s"]), period, **kwargs)
         self.wall, self.step, self.solve = [], [], []
         self.q = q0.copy()
