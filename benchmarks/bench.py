@@ -847,8 +847,8 @@ def bench_run_log(samples: int = 20_000, period_s: float = 0.001) -> dict:
 def bench_streaming(seconds: float = 2.0, period_s: float = PERIOD_S) -> dict:
     """The path-following controller planned in its own process and streamed at 1 kHz on
     the wall clock (docs/theory.md §12): the plan period chosen from the measured step
-    time (twice its p99, a whole number of periods), the streamer's and the planner's step
-    times, late commands and lateness, and a sleeper's host stalls beside them."""
+    time (twice its p99, at least 5 ms, a whole number of periods), the streamer's and the
+    planner's step times, late commands and lateness, and a sleeper's host stalls beside them."""
     from dqcontrol.streaming import streamed
     from dqcontrol.streaming.planner import choose_plan_period
     from dqcontrol.streaming.timing import time_on_wall_clock

@@ -17,7 +17,8 @@ self-collision in every one. For each:
   --connect ... --realtime --period 0.001 --plan-period T_P`` runs it.
 
 The plan period is chosen as ``dqcontrol run --plan-period auto`` chooses it (twice the p99
-of the synchronous step time, a whole number of periods) unless ``--plan-period`` is given.
+of the synchronous step time, at least 5 ms, a whole number of periods) unless
+``--plan-period`` is given.
 Beside every wall-clock run a sleeper in its own process asks for 1 ms sleeps and records
 how much longer each took: a late command (ready after its period) during a measured host
 stall of ≥ 2.5 ms is counted as the host's.
@@ -139,7 +140,8 @@ def controller(task: Task, period_s: float, mujoco: bool) -> PathFollowingContro
 
 
 def plan_period(task: Task) -> float:
-    """``--plan-period auto``: twice the p99 of 40 steps' time (the first 10 left out)."""
+    """``--plan-period auto``: twice the p99 of 40 steps' time (the first 10 left out), at
+    least 5 ms."""
     ctrl = controller(task, PERIOD_S, mujoco=False)
     ctrl.reset(task.q0)
     q, times = task.q0.copy(), []

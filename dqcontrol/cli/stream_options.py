@@ -31,8 +31,8 @@ def add_stream_options(group) -> None:
         default=None,
         metavar="T_P",
         help="plan every T_P [s] (a whole multiple of --period, or 'auto': twice the p99 of "
-        "the measured step time) and stream the plans every --period: path following only "
-        "(default: solve every period)",
+        "the measured step time, at least 5 ms) and stream the plans every --period: path "
+        "following only (default: solve every period)",
     )
     group.add_argument(
         "--jerk-limit",
@@ -114,9 +114,9 @@ AUTO_STEPS, AUTO_SKIP = 40, 10
 
 
 def measured_plan_period(args: argparse.Namespace, robot, q0, velocity) -> float:
-    """``--plan-period auto``: twice the p99 of the step time of the first controller of
-    the options, run at ``--period`` on the ideal kinematics from ``q0``, as a whole
-    number of periods (:func:`~dqcontrol.streaming.planner.choose_plan_period`)."""
+    """``--plan-period auto``: twice the p99 of the step time (at least 5 ms) of the first
+    controller of the options, run at ``--period`` on the ideal kinematics from ``q0``, as
+    a whole number of periods (:func:`~dqcontrol.streaming.planner.choose_plan_period`)."""
     import time
 
     from dqcontrol.cli.run_cmd import make_controller, make_trajectory

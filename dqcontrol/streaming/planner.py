@@ -262,6 +262,11 @@ class PlannerProcess:
         return True
 
 
+#: The shortest plan period :func:`choose_plan_period` gives [s]: the planner process is
+#: slower than a step timed in the caller's process (its lower priority, the request and
+#: the plan through a pipe), by about a millisecond on a 2-core host at 1 kHz.
+MIN_PLAN_PERIOD_S = 0.005
+
 #: How much lower the planner process's priority is than the streamer's (``nice``).
 PLANNER_NICENESS = 10
 
@@ -295,8 +300,12 @@ def _answer(planner: Planner, conn) -> None:
         conn.send((plan, planner.step_times_s[-1]))
 
 
-def choose_plan_period(step_times_s, period_s: float, margin: float = 2.0) -> float:
-    """The shortest plan period [s] that is a whole multiple of ``period_s`` and at least
-    ``margin`` times the 99th percentile of the measured planner ``step_times_s``."""
+def choose_plan_period(
+    step_times_s, period_s: float, margin: float = 2.0, floor_s: float = MIN_PLAN_PERIOD_S
+) -> float:
+    """The shortest plan period [s] that is a whole multiple of ``period_s``, at least
+    ``margin`` times the 99th percentile of the measured planner ``step_times_s`` and at
+    least ``floor_s``."""
     p99 = float(np.percentile(np.asarray(step_times_s, dtype=float), 99))
-    return max(1, int(np.ceil(margin * p99 / period_s - 1e-9))) * period_s
+    shortest = max(margin * p99, floor_s)
+    return max(1, int(np.ceil(shortest / period_s - 1e-9))) * period_s
