@@ -36,6 +36,7 @@ from dqcontrol.controllers.base import (
 )
 from dqcontrol.controllers.core.bounds import braking_constants, command_box
 from dqcontrol.controllers.core.box_rules import joint_boxes, joint_constants, project
+from dqcontrol.controllers.limits.servo_lag import ServoLagMargin
 from dqcontrol.dq.algebra import _HM8, C8
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
@@ -155,6 +156,9 @@ class ProportionalController(Controller):
         margin = check_position_margin(position_margin_rad, lim.q_min, lim.q_max)
         self.position_margin_rad = margin
         self.q_min, self.q_max = lim.q_min + margin, lim.q_max - margin
+        # the servo's measured lag moves the position bounds of the box (docs/theory.md §5)
+        self._lag = ServoLagMargin(lim.q_min, lim.q_max, margin, self.period_s, self.a_max)
+        self._lag_bounds = np.empty((2, self.n))
         self.braking_aware = bool(braking_aware)
         self.saturate = bool(saturate)
         self._damping_eye = self.damping**2 * np.eye(8)
@@ -178,6 +182,21 @@ class ProportionalController(Controller):
             StepResult, qd_command=zero, s=1.0, sigma=0.0, sigma_next=0.0, pose=_ONE,
             target=_ONE, diagnostics=StepDiagnostics(status="closed_form"),
         )  # fmt: skip
+
+    def _position_bounds(self, qd: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """The box's position bounds [rad]: ``q_min``, ``q_max`` moved inwards by the
+        servo's measured lag where its travel exceeds the margin
+        (:class:`~dqcontrol.controllers.limits.servo_lag.ServoLagMargin`; not with a
+        compensated measurement delay, whose measured velocity is older than the command)."""
+        bounds = self._lag_bounds
+        bounds[0], bounds[1] = self.q_min, self.q_max
+        measured = None if self.measurement_delay_periods else qd
+        self._lag.update(measured, self.qd_prev, bounds)
+        return bounds[0], bounds[1]
+
+    def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
+        self._lag.reset()
+        super()._reset_memory(q0, qd0)
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
@@ -212,8 +231,9 @@ class ProportionalController(Controller):
                 self._box_consts = np.array(
                     joint_constants(self._box_limits, key[1], self.period_s, self._braking)
                 )
+            q_min, q_max = self._position_bounds(qd)
             qd_cmd, saturated, conflict = _clip_to_box(
-                qd_cmd, q, self.qd_prev, self.q_min, self.q_max, self.qd_max, self.a_max,
+                qd_cmd, q, self.qd_prev, q_min, q_max, self.qd_max, self.a_max,
                 self.period_s, self._box_consts, self._braking,
             )  # fmt: skip
         diag = self._new_diag(

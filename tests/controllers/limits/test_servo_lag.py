@@ -1,6 +1,6 @@
 """The servo's lag in the position bounds: the identification of the lag and the bounds it
-moves (against hand computations), and the Unitree Z1 case where the local controller's
-joint 5 passed its URDF limit behind a lagging servo."""
+moves (against hand computations), and the Unitree Z1 case where the local and the
+proportional controllers' joint 5 passed its URDF limit behind a lagging servo."""
 
 from __future__ import annotations
 
@@ -73,7 +73,8 @@ def test_restore_gives_the_margin_bounds_back():
     assert np.array_equal(values, before) and np.all(lag.tau_s == 0.0)
 
 
-def test_the_local_controller_keeps_the_z1_inside_its_urdf_limits_in_mujoco():
+@pytest.mark.parametrize("name", ["local", "proportional"])
+def test_the_z1_stays_inside_its_urdf_limits_in_mujoco(name):
     """Unitree Z1, MuJoCo, T = 10 ms, the campaign's unreachable circle: joint 5 reaches its
     lower limit at 3.1 rad/s and its servo trails the braking by 0.19 rad/s."""
     from dqcontrol.cli.robot_options import RobotRequest, load_robot
@@ -83,7 +84,7 @@ def test_the_local_controller_keeps_the_z1_inside_its_urdf_limits_in_mujoco():
 
     robot, _, _ = load_robot(RobotRequest("erd:z1", "gripperMover", (("jointGripper", 0.0),)))
     trajectory = TRAJECTORIES["circle"].build(2.0, unreachable=True)
-    controller = controller_spec("local").build(robot, trajectory, T)
+    controller = controller_spec(name).build(robot, trajectory, T)
     driver = FaultyDriver(MujocoDriver(robot, T))
     q0 = np.array([0.0, 1.0, -1.0, 0.0, 0.0, 0.0])
     run_loop(controller, driver, q0=q0, max_time_s=1.2, brake=False)
