@@ -208,6 +208,8 @@ def _figures(result, ends_s: list[float], stalls: list) -> dict:
         "planner_step_median_ms": stream.get("planner_step_median_ms"),
         "streamer_step_median_us": stream.get("streamer_step_median_us"),
         "plans_used": stream.get("plans_used"),
+        "playout": stream.get("playout", ""),
+        "sigma_reached_s": m.sigma_reached_s,
     }
 
 
@@ -260,7 +262,8 @@ def _line(name: str, loop: str, r: dict, sync: dict) -> str:
         f"(sync {sync['deviation_max_mm']:.3f}), exec {r['execution_s']:.3f} s = "
         f"{r['execution_s'] / sync['execution_s']:.3f}x sync | planner "
         f"{r['planner_step_median_ms']:.2f} ms, streamer {r['streamer_step_median_us']:.1f} us, "
-        f"{r['reason']}"
+        f"{r['reason']}, σ {r['sigma_reached_s']:.3f} s"
+        + (f"; {r['playout']}" if r["playout"] else "")
     )
 
 

@@ -229,6 +229,27 @@ class PlannerProcess:
         plan, self._done = self._done, None
         return plan
 
+    def warm_up(
+        self, stream: Streamer, q: np.ndarray, qd: np.ndarray, count: int, timeout_s: float
+    ) -> list[float]:
+        """Plan ``count`` times for the request of a plan starting now, each plan waited for
+        (at most ``timeout_s`` in all) and dropped: the forked process's first plans touch
+        its copied memory and caches for the first time and take several times a plan's
+        usual time, which must not fall on the clock. Returns the plans' times [s]."""
+        times: list[float] = []
+        deadline = time.perf_counter() + timeout_s
+        for _ in range(count):
+            start = time.perf_counter()
+            if not self.request(stream, q, qd, 0, 0):
+                break
+            if not self._conn.poll(max(deadline - time.perf_counter(), 0.0)):
+                return times  # still busy: its plan is collected (and used) later
+            self._collect()
+            self._done = None
+            self.planner.step_times_s.pop()
+            times.append(time.perf_counter() - start)
+        return times
+
     def pause(self) -> None:
         """Stop the process where it is (``SIGSTOP``): the planner stops answering."""
         if self._process.pid is not None:

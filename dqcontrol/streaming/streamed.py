@@ -38,6 +38,9 @@ __all__ = ["StreamDiagnostics", "StreamedController", "streamed"]
 
 #: The interpreter's thread switch interval while a planner thread runs [s].
 SWITCH_INTERVAL_S = 5e-5
+#: Plans a planner process makes (and drops) before the clock starts, and the longest wait
+#: for them [s] (docs/theory.md §12.5).
+WARM_UP_PLANS, WARM_UP_TIMEOUT_S = 3, 10.0
 
 
 @dataclass(frozen=True)
@@ -121,6 +124,9 @@ class StreamedController(Controller):
         self._t0: float | None = None
         self._thread_stats: dict = {}
         self.first_plan_s = 0.0
+        #: the planner process's warm-up plans' times [s] (none in stepped mode)
+        self.warm_up_s: list[float] = []
+        self._start_state = (np.zeros(self.n), np.zeros(self.n))
 
     # ------------------------------------------------------------------ modes
     def use_wall_clock(self, on: bool) -> None:
@@ -130,6 +136,11 @@ class StreamedController(Controller):
         if on and self._thread is None and self._reset_done:
             kind = PlannerProcess if self.planner_in == "process" else PlannerThread
             self._thread, self._t0 = kind(self.planner), None
+            if isinstance(self._thread, PlannerProcess):
+                start = self._start_state
+                self.warm_up_s = self._thread.warm_up(
+                    self.streamer.copy(), start[0], start[1], WARM_UP_PLANS, WARM_UP_TIMEOUT_S
+                )
             # other threads (a planner thread, the run log's writer) run Python: hand the
             # interpreter back to the streamer within SWITCH_INTERVAL_S, not the 5 ms default
             self._switch_before = sys.getswitchinterval()
@@ -172,6 +183,7 @@ class StreamedController(Controller):
         self.ages_s.clear()
         self.lateness_s.clear()
         self._next_id = 1
+        self._start_state = (q0.copy(), qd0.copy())
         request = project(self.streamer, q0, qd0, 0, self._take_id())
         self.streamer.offer(self.planner.plan(request))  # the first plan, before the clock
         self.first_plan_s = self.planner.step_times_s.pop()  # its iterations from rest
@@ -251,6 +263,7 @@ class StreamedController(Controller):
             "wall_clock": self._wall_clock,
             "plans": len(self.planner.step_times_s) + 1,
             "first_plan_ms": 1e3 * self.first_plan_s,
+            "planner_warm_up_ms": [1e3 * t for t in self.warm_up_s],
             "plans_used": self.streamer.switches,
             "plans_refused": self.streamer.refused,
             "planner_step_median_ms": 1e3 * float(np.median(steps)),
