@@ -16,7 +16,7 @@ from dqcontrol.dq.algebra import pose_error, translation
 from dqcontrol.runs.log import RunLog
 from dqcontrol.trajectories import Trajectory
 
-__all__ = ["BoundSpec", "Metrics", "compute_metrics"]
+__all__ = ["BoundSpec", "Metrics", "compute_metrics", "run_figures"]
 
 #: Tolerance on bound checks [rad, rad/s, rad/s²]: commands are projected exactly onto their
 #: box, so anything above rounding is a real violation.
@@ -82,6 +82,13 @@ class Metrics:
     stop_path_deviation_max_m: float = 0.0
     stop_limit_violations: int = 0
     stop_last_command_rad_s: float = 0.0
+    #: on the wall clock, the commands written after the end of their period (the loop's
+    #: count); of a streamed run, the plans' age at their samples (median, max) [s] and the
+    #: planner's step time (median) [s] (NaN for a run without plans; docs/theory.md §12.4)
+    late_commands: int = 0
+    plan_age_median_s: float = float("nan")
+    plan_age_max_s: float = float("nan")
+    planner_step_median_s: float = float("nan")
 
     def as_dict(self) -> dict:
         """Plain-Python dictionary (JSON-ready)."""
@@ -243,4 +250,24 @@ def compute_metrics(
         solve_time_median_s=_median(log.solve_time_s[sl]),
         step_time_median_s=_median(log.step_time_s[sl]),
         **_stop_metrics(log, trajectory, bounds, period_s),
+        **run_figures(log.meta),
     )
+
+
+def run_figures(meta: dict) -> dict:
+    """The late commands, plan ages and planner step time of :class:`Metrics` from a run
+    log's ``meta`` (its ``stop`` and ``stream`` entries, where the loop and a streamed
+    controller put them); nothing for a run without them."""
+    out: dict = {}
+    late = (meta.get("stop") or {}).get("late_commands")
+    if late is not None:
+        out["late_commands"] = int(late)
+    stream = meta.get("stream") or {}
+    for key, name in (
+        ("plan_age_median_ms", "plan_age_median_s"),
+        ("plan_age_max_ms", "plan_age_max_s"),
+        ("planner_step_median_ms", "planner_step_median_s"),
+    ):
+        if key in stream:
+            out[name] = 1e-3 * float(stream[key])
+    return out

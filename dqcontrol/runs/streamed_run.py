@@ -10,6 +10,7 @@ so in ``note`` and has ``interrupted = True`` and no metrics.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable
@@ -19,7 +20,7 @@ import numpy as np
 from dqcontrol.runs.columns import concat_arrays
 from dqcontrol.runs.log import RunLog
 from dqcontrol.runs.mcap_log import RUN_FORMAT, RunLogWriteError, StreamedRun, read_streamed
-from dqcontrol.runs.metrics import BoundSpec, Metrics
+from dqcontrol.runs.metrics import BoundSpec, Metrics, run_figures
 from dqcontrol.runs.stream import StreamRecorder
 from dqcontrol.runs.stream_metrics import streamed_metrics
 from dqcontrol.trajectories import Trajectory
@@ -54,6 +55,7 @@ def end_streamed(
         rec.drain()
         run = read_streamed_for_metrics(rec)
         metrics = streamed_metrics(run.blocks, trajectory, bounds_for, period_s)
+        metrics = dataclasses.replace(metrics, **run_figures(rec.meta))
         end = {
             "meta": rec.meta,
             "metrics": metrics.as_dict(),

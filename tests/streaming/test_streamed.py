@@ -168,3 +168,23 @@ def test_a_run_with_its_stop_keeps_the_plan_columns(lbr4p, tmp_path):
         given = log.plan_id >= 1  # stop samples: a plan's, or -1 where another controller
         assert np.all(log.plan_id[~given] == -1) and np.all(np.isnan(log.plan_age_s[~given]))
     np.testing.assert_array_equal(memory.log.plan_id, loaded.plan_id)
+
+
+def test_the_metrics_report_plan_ages_and_planner_step_times(lbr4p, tmp_path):
+    from dqcontrol.sim import KinematicDriver, run_loop
+
+    def run(controller, **kwargs):
+        return run_loop(controller, KinematicDriver(lbr4p, 0.001), q0=LBR4P_Q0, max_time_s=0.05,
+                        **kwargs)  # fmt: skip
+
+    plans = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0)
+    memory = run(plans)
+    plans = streamed(_pf(lbr4p, 0.01), 0.001, acceleration_max=10.0, jerk_max=5000.0)
+    streamed_file = run(plans, log_file=tmp_path / "run.mcap")
+    for m in (memory.metrics, streamed_file.metrics):
+        ages = memory.log.plan_age_s[memory.log.plan_id >= 1]
+        assert m.plan_age_median_s == pytest.approx(np.median(ages), abs=1e-12)
+        assert m.plan_age_max_s == pytest.approx(ages.max(), abs=1e-12) and m.plan_age_max_s > 0
+        assert 0.0 < m.planner_step_median_s < 1.0 and m.late_commands == 0
+    synchronous = run(_pf(lbr4p, 0.01)).metrics
+    assert np.isnan(synchronous.plan_age_median_s) and np.isnan(synchronous.planner_step_median_s)
