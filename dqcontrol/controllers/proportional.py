@@ -36,6 +36,7 @@ from dqcontrol.controllers.base import (
 )
 from dqcontrol.controllers.core.bounds import braking_constants, command_box
 from dqcontrol.controllers.core.box_rules import joint_boxes, joint_constants, project
+from dqcontrol.controllers.limits.jerk import applied_jerk_box, jerk_setting
 from dqcontrol.controllers.limits.servo_lag import ServoLagMargin
 from dqcontrol.dq.algebra import _HM8, C8
 from dqcontrol.model.robot import RobotModel
@@ -85,8 +86,13 @@ def _clip_to_box(
     period_s: float,
     consts: np.ndarray,
     braking: bool,
+    jerk_box: np.ndarray | None = None,
 ) -> tuple[np.ndarray, bool, tuple[int, ...]]:
     """``command_box(...).project(qd)``, whether it clipped, and the conflict joints.
+
+    ``jerk_box`` ``(2, n)`` (the jerk limit's interval of each joint's command, or ``None``)
+    is intersected with the box where they meet; where they do not, the box holds (a
+    position or velocity bound before the jerk).
 
     The box by the compiled :func:`~dqcontrol.controllers.core.box_rules.joint_boxes` (the
     floating-point operations of ``bounds.command_box``), ``consts`` from
@@ -104,6 +110,10 @@ def _clip_to_box(
         saturated = not np.array_equal(out, qd)
         flags = box.conflict
     else:
+        if jerk_box is not None:
+            lo, hi = np.maximum(bounds[0], jerk_box[0]), np.minimum(bounds[1], jerk_box[1])
+            meet = lo <= hi
+            bounds[0], bounds[1] = np.where(meet, lo, bounds[0]), np.where(meet, hi, bounds[1])
         out = np.empty(n)
         saturated = project(qd, bounds, out)
     conflict = tuple(np.flatnonzero(flags).tolist()) if flags.any() else ()
@@ -126,6 +136,9 @@ class ProportionalController(Controller):
             :class:`~dqcontrol.controllers.thesis.controller.TrackingController`).
         measurement_delay_periods: see :class:`~dqcontrol.controllers.base.Controller`.
         saturate: clip the command to the hard bounds (default True).
+        jerk_limit: joint jerk bound of the commands [rad/s³] (docs/theory.md §8.11: the
+            applied jerk, and the velocity and braking bounds that keep it feasible, in the
+            box); ``None`` (default): the robot's limit profile's, none when it gives none.
     """
 
     name = "proportional"
@@ -144,6 +157,7 @@ class ProportionalController(Controller):
         position_margin_rad: float = 5e-3,
         measurement_delay_periods: int = 0,
         saturate: bool = True,
+        jerk_limit: float | np.ndarray | None = None,
     ) -> None:
         super().__init__(robot, trajectory, period_s, measurement_delay_periods)
         self.gain_per_s = check_positive("gain_per_s (K)", gain_per_s, "1/s")
@@ -159,6 +173,8 @@ class ProportionalController(Controller):
         # the servo's measured lag moves the position bounds of the box (docs/theory.md §5)
         self._lag = ServoLagMargin(lim.q_min, lim.q_max, margin, self.period_s, self.a_max)
         self._lag_bounds = np.empty((2, self.n))
+        self.jerk = jerk_setting(robot, jerk_limit)
+        self.qd_before_prev = np.zeros(self.n)  # u_2, the command before the last
         self.braking_aware = bool(braking_aware)
         self.saturate = bool(saturate)
         self._damping_eye = self.damping**2 * np.eye(8)
@@ -196,7 +212,25 @@ class ProportionalController(Controller):
 
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
         self._lag.reset()
+        self.qd_before_prev = qd0.copy()
         super()._reset_memory(q0, qd0)
+
+    def _jerk_box(self, q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray) -> np.ndarray | None:
+        """The jerk limit's interval of each joint's command ``(2, n)`` [rad/s]: the applied
+        jerk's (hard) and the velocity and braking bounds that keep the next step feasible
+        (soft); where they do not meet, the point of the hard interval nearest the soft one
+        (as a QP that relaxes the soft bounds would choose); ``None`` without a jerk limit."""
+        if self.jerk is None:
+            return None
+        box = np.empty((4, self.n))
+        applied_jerk_box(
+            q, self.qd_prev, self.qd_before_prev, self.a_max, self.jerk, self.qd_max,
+            q_min, q_max, self.period_s, box,
+        )  # fmt: skip
+        lo, hi = np.maximum(box[0], box[2]), np.minimum(box[1], box[3])
+        nearest = np.where(box[0] > box[3], box[3], box[2])
+        meet = lo <= hi
+        return np.array([np.where(meet, lo, nearest), np.where(meet, hi, nearest)])
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
@@ -234,8 +268,9 @@ class ProportionalController(Controller):
             q_min, q_max = self._position_bounds(qd)
             qd_cmd, saturated, conflict = _clip_to_box(
                 qd_cmd, q, self.qd_prev, q_min, q_max, self.qd_max, self.a_max,
-                self.period_s, self._box_consts, self._braking,
+                self.period_s, self._box_consts, self._braking, self._jerk_box(q, q_min, q_max),
             )  # fmt: skip
+        self.qd_before_prev = self.qd_prev
         diag = self._new_diag(
             status="closed_form",
             step_time_s=time.perf_counter() - start,

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dqcontrol.controllers import LocalController, PathFollowingController
+from dqcontrol.controllers import LocalController, PathFollowingController, ProportionalController
 from dqcontrol.controllers.limits.jerk import JerkLimit, applied_jerk_box
 from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
 from dqcontrol.controllers.prediction.consistent import ConsistentPrediction, interval_breakpoints
@@ -222,6 +222,21 @@ def test_local_controller_stays_within_every_limit_from_moving_states(panda, see
     _closed_loop(ctrl, panda, q, u1, u2, 100, a_max, jerk, period)
 
 
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_proportional_controller_stays_within_every_limit_from_moving_states(panda, seed):
+    """20 random moving states, 100 steps each (2000 steps), as above: the jerk limit's
+    interval in the proportional controller's box."""
+    rng = np.random.default_rng(seed)
+    period = 0.001
+    a_max = rng.uniform(5.0, 20.0, 7)
+    jerk = rng.uniform(2000.0, 12000.0, 7)
+    q, u1, u2 = _moving_state(panda, rng, a_max, jerk, period)
+    ctrl = ProportionalController(panda, Circle(1.0, 0.15), period, velocity_limits=PANDA_V,
+                                  acceleration_limit=a_max, jerk_limit=jerk)  # fmt: skip
+    _closed_loop(ctrl, panda, q, u1, u2, 100, a_max, jerk, period)
+
+
 def _circle_commands(controller, steps_max=4000):
     q = PANDA_Q0.copy()
     controller.reset(q)
@@ -234,7 +249,7 @@ def _circle_commands(controller, steps_max=4000):
     return np.array(commands)
 
 
-@pytest.mark.parametrize("cls", [PathFollowingController, LocalController])
+@pytest.mark.parametrize("cls", [PathFollowingController, LocalController, ProportionalController])
 def test_panda_circle_at_one_millisecond_keeps_franka_jerk(panda, cls):
     """The Panda on a 15 cm circle of 1 s at T = 1 ms, Franka's limits: every second
     difference of the applied commands within ``j̄ T²``."""
