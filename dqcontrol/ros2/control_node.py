@@ -213,6 +213,8 @@ class ControlNode:
         try:
             result = run_loop(
                 controller, driver, realtime=p.mode == "wall", stale_periods=p.stale_periods,
+                max_lateness_s=p.max_lateness_s or None,
+                realtime_priority=p.realtime_priority or None,
                 on_sample=self._sampler(controller, reports),
                 brake=self.stop_policy() == "brake",
                 meta={"ros2_mode": p.mode, "command_interface": p.command_interface},

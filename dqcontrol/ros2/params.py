@@ -128,6 +128,8 @@ class ControlParams(_Params):
     command_topic: str = "/forward_velocity_controller/commands"
     joint_states_topic: str = "/joint_states"
     stale_periods: int = 3
+    max_lateness_s: float = 0.0
+    realtime_priority: int = 0
     state_timeout_s: float = 1.0
     wait_s: float = 30.0
     servo_time_constant_s: float = 0.0
@@ -152,6 +154,14 @@ class ControlParams(_Params):
             _positive(name, getattr(self, name), "s")
         _positive("servo_time_constant_s", self.servo_time_constant_s, "s", allow_zero=True)
         _positive("path_start_tolerance_m", self.path_start_tolerance_m, "m")
+        _positive("max_lateness_s", self.max_lateness_s, "s", allow_zero=True)
+        if self.realtime_priority:
+            from dqcontrol.sim.priority import check_priority
+
+            try:
+                check_priority(self.realtime_priority)
+            except ParameterError as exc:
+                raise ParameterError(f"parameter 'realtime_priority': {exc}") from None
         for name in ("stale_periods", "status_every"):
             if getattr(self, name) < 1:
                 raise _bad(name, getattr(self, name), "an integer ≥ 1")

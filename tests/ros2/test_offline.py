@@ -75,6 +75,11 @@ def test_parameters_take_their_defaults_and_checked_values():
         ({"joints": "j1"}, "parameter 'joints' must be a list, got 'j1'"),
         ({"locked_joints": ["finger"]}, "parameter 'locked_joints' must be NAME=VALUE"),
         ({"command_topic": ""}, "parameter 'command_topic' must be a topic name"),
+        ({"max_lateness_s": -1.0}, "parameter 'max_lateness_s' must be finite and ≥ 0 [s]"),
+        (
+            {"realtime_priority": 100},
+            "parameter 'realtime_priority': realtime_priority must be an integer in [1, 99]",
+        ),
     ],
 )
 def test_a_bad_parameter_is_one_line_naming_it(values, message):
