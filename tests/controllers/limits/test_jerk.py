@@ -208,32 +208,22 @@ def test_path_following_stays_within_every_limit_from_moving_states(panda, seed)
     _closed_loop(ctrl, panda, q, u1, u2, 125, a_max, jerk, period)
 
 
+@pytest.mark.parametrize("cls", [LocalController, ProportionalController])
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
-def test_local_controller_stays_within_every_limit_from_moving_states(panda, seed):
-    """20 random moving states, 100 steps each (2000 steps), as above."""
+def test_applied_command_controllers_stay_within_every_limit_from_moving_states(
+    panda, cls, seed
+):
+    """20 random moving states, 100 steps each (2000 steps), as above: the local controller
+    (jerk rows on its applied command) and the proportional one (the jerk interval in its
+    box)."""
     rng = np.random.default_rng(seed)
     period = 0.001
     a_max = rng.uniform(5.0, 20.0, 7)
     jerk = rng.uniform(2000.0, 12000.0, 7)
     q, u1, u2 = _moving_state(panda, rng, a_max, jerk, period)
-    ctrl = LocalController(panda, Circle(1.0, 0.15), period, velocity_limits=PANDA_V,
-                           acceleration_limit=a_max, jerk_limit=jerk)  # fmt: skip
-    _closed_loop(ctrl, panda, q, u1, u2, 100, a_max, jerk, period)
-
-
-@settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1))
-def test_proportional_controller_stays_within_every_limit_from_moving_states(panda, seed):
-    """20 random moving states, 100 steps each (2000 steps), as above: the jerk limit's
-    interval in the proportional controller's box."""
-    rng = np.random.default_rng(seed)
-    period = 0.001
-    a_max = rng.uniform(5.0, 20.0, 7)
-    jerk = rng.uniform(2000.0, 12000.0, 7)
-    q, u1, u2 = _moving_state(panda, rng, a_max, jerk, period)
-    ctrl = ProportionalController(panda, Circle(1.0, 0.15), period, velocity_limits=PANDA_V,
-                                  acceleration_limit=a_max, jerk_limit=jerk)  # fmt: skip
+    ctrl = cls(panda, Circle(1.0, 0.15), period, velocity_limits=PANDA_V,
+               acceleration_limit=a_max, jerk_limit=jerk)  # fmt: skip
     _closed_loop(ctrl, panda, q, u1, u2, 100, a_max, jerk, period)
 
 
