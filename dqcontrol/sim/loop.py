@@ -167,9 +167,10 @@ class _Clock:
     the maxima and the missed deadlines over the whole run).
     """
 
-    def __init__(self, period_s: float, realtime: bool, max_lateness_s: float = np.inf) -> None:
+    def __init__(self, period_s: float, realtime: bool) -> None:
         self.period_s, self.realtime = period_s, realtime
-        self.max_lateness_s = max_lateness_s
+        #: a sample later than this [s] stops the run (:func:`run_loop` sets it)
+        self.max_lateness_s = np.inf
         #: the loop thread's real-time priority (``None``: the ordinary scheduler)
         self.priority: int | None = None
         #: grid slots skipped after missed deadlines (no command sent in them)

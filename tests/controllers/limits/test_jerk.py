@@ -211,9 +211,7 @@ def test_path_following_stays_within_every_limit_from_moving_states(panda, seed)
 @pytest.mark.parametrize("cls", [LocalController, ProportionalController])
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
-def test_applied_command_controllers_stay_within_every_limit_from_moving_states(
-    panda, cls, seed
-):
+def test_applied_command_controllers_stay_within_every_limit_from_moving_states(panda, cls, seed):
     """20 random moving states, 100 steps each (2000 steps), as above: the local controller
     (jerk rows on its applied command) and the proportional one (the jerk interval in its
     box)."""
