@@ -58,6 +58,10 @@ from pathlib import Path
 #: A kwargs key the timing child takes out: the controller gets the collision limit of
 #: ``dqcontrol bench``'s cell (a ball, a crate, the table, and self-collision).
 COLLISION_KEY = "__collision__"
+#: Options given only to a version whose constructor takes them: ``end="at_speed"`` asks
+#: the path-following controller that ends at rest by default for what the code before
+#: that default did.
+IF_KNOWN_KEY = "__if_known__"
 #: Controllers of both versions: name -> (class in dqcontrol.controllers, extra kwargs).
 CONTROLLERS: dict[str, tuple[str, dict]] = {
     "local": ("LocalController", {}),
@@ -74,6 +78,10 @@ CONTROLLERS: dict[str, tuple[str, dict]] = {
         "PathFollowingController",
         {"num_intervals": 10, COLLISION_KEY: True},
     ),
+    "path_following_p10_at_speed": (
+        "PathFollowingController",
+        {"num_intervals": 10, IF_KNOWN_KEY: {"end": "at_speed"}},
+    ),
 }
 
 ALIASES = {
@@ -85,6 +93,7 @@ ALIASES = {
     "pf10": "path_following_p10",
     "pf_dynamics": "path_following_p10_dynamics",
     "pf_collision": "path_following_p10_collision",
+    "pf_at_speed": "path_following_p10_at_speed",
 }
 PERIOD_S = 0.001
 CIRCLE_S = 2.0
@@ -93,7 +102,7 @@ CIRCLE_S = 2.0
 #: warms up every controller, prints READY, then runs "RUN name n" (n more timed steps of
 #: that controller's closed loop, answered OK) until "END" (answered RESULT json).
 CHILD = r"""
-import importlib, json, os, sys, time
+import importlib, inspect, json, os, sys, time
 import numpy as np
 
 job = json.loads(sys.argv[1])
@@ -134,6 +143,9 @@ class Loop:
         kwargs = dict(common, **spec["kwargs"])
         if kwargs.pop("__collision__", False):
             kwargs["extra_limits"] = (cell_limit(),)
+        for name, value in kwargs.pop("__if_known__", {}).items():
+            if name in inspect.signature(cls).parameters:  # an option the old code lacks
+                kwargs[name] = value
         self.ctrl = cls(robot, Circle(job["circle_s"]), period, **kwargs)
         self.wall, self.step, self.solve = [], [], []
         self.q = q0.copy()
