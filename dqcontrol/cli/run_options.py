@@ -236,37 +236,7 @@ def add_output_options(parser: argparse.ArgumentParser) -> None:
         help="MuJoCo physics with torque-limited velocity servos (default) or the ideal "
         "kinematic loop",
     )
-    g.add_argument(
-        "--connect",
-        metavar="ADDRESS",
-        default=None,
-        help="run against a `dqcontrol sim-server` in another process (tcp://127.0.0.1:PORT, "
-        "loopback only) instead of simulating here; --period must be the server's",
-    )
-    g.add_argument(
-        "--realtime",
-        action="store_true",
-        help="with --connect: keep the wall clock (one period per period; a missed deadline "
-        "is counted and the loop catches up; a sample later than --max-lateness brakes and "
-        "holds) instead of stepping as fast as possible",
-    )
-    g.add_argument(
-        "--max-lateness",
-        metavar="SECONDS",
-        type=positive_float("s"),
-        default=None,
-        help="with --realtime: stop along the path when a sample ends more than this after "
-        "its deadline (default: five periods)",
-    )
-    g.add_argument(
-        "--rt-priority",
-        metavar="N",
-        type=int,
-        default=None,
-        help="with --realtime: run the loop in Linux's real-time scheduling class at "
-        "priority N (1-99; needs CAP_SYS_NICE or an rtprio limit, ulimit -r). Default: the "
-        "ordinary scheduler",
-    )
+    _add_connect_options(g)
     g.add_argument(
         "--viewer",
         action=argparse.BooleanOptionalAction,
@@ -294,3 +264,40 @@ def add_output_options(parser: argparse.ArgumentParser) -> None:
         help="fast mode for CI: low-resolution figures and replays, no progress bars",
     )
     add_progress_option(g)
+
+
+def _add_connect_options(g) -> None:
+    """Add ``--connect`` and the wall-clock options of a run against a sim-server to the
+    argument group ``g``."""
+    g.add_argument(
+        "--connect",
+        metavar="ADDRESS",
+        default=None,
+        help="run against a `dqcontrol sim-server` in another process (tcp://127.0.0.1:PORT, "
+        "loopback only) instead of simulating here; --period must be the server's",
+    )
+    g.add_argument(
+        "--realtime",
+        action="store_true",
+        help="with --connect: keep the wall clock (one period per period; a missed deadline "
+        "is counted and the loop goes on in the present period; a sample later than "
+        "--max-lateness stops along the path and holds) instead of stepping as fast as "
+        "possible",
+    )
+    g.add_argument(
+        "--max-lateness",
+        metavar="SECONDS",
+        type=positive_float("s"),
+        default=None,
+        help="with --realtime: stop along the path when a sample ends more than this after "
+        "its deadline (default: five periods)",
+    )
+    g.add_argument(
+        "--rt-priority",
+        metavar="N",
+        type=int,
+        default=None,
+        help="with --realtime: run the loop in Linux's real-time scheduling class at "
+        "priority N (1-99; needs CAP_SYS_NICE or an rtprio limit, ulimit -r). Default: the "
+        "ordinary scheduler",
+    )

@@ -276,52 +276,34 @@ def run_loop(
     max_lateness_s: float | None = None,
     realtime_priority: int | None = None,
 ) -> RunResult:
-    """Run ``controller`` against ``driver`` until ``σ ≥ T_tot``, ``max_time_s`` or the watchdog.
+    """Run ``controller`` against ``driver`` until ``σ ≥ T_tot``, ``max_time_s`` or the watchdog
+    (the module docstring says how the samples, the wall clock and the stop go).
 
     Args:
         controller: any controller; its ``robot.joint_names`` are the model's joints.
-        driver: a :class:`~dqcontrol.sim.driver.JointDriver`; its joints are mapped to the
-            model's by name.
-        q0: start [rad] in the *model's* joint order (the driver must then have ``reset``);
-            ``None``: where the driver's first measurement is.
+        driver: a joint driver; its joints are mapped to the model's by name.
+        q0: start [rad] in the model's order (needs ``driver.reset``); ``None``: as measured.
         max_time_s: stop after this time [s] of the loop (default ``10 T_tot + 1 s``).
-        meta: added to the log's ``meta`` (after ``simulator``, ``controller``,
-            ``period_s``, the driver's own entries and ``joint_names``).
+        meta: added to the log's ``meta``.
         on_sample: ``f(k, driver, result)`` after each sample.
-        on_progress: ``f(σ_next, T_tot)`` [s] after each sample (e.g. a progress bar).
-        realtime: sample k starts at ``start + k T`` on the wall clock (sleep, then poll
-            :data:`SPIN_S`); one ending after ``start + (k + 1) T`` is a missed deadline
-            (counted; the next starts at once); the GC sees only the run's objects
-            (``gc.freeze``). Else: as fast as it answers.
-        stale_periods: stop (``reason = "stale"``) after this many periods with no new
-            measurement; until then (and during the stop) the controller is given the last
-            measured ``q`` moved by the commands sent since (dead reckoning).
-        brake: after the run, bring the arm to rest along the path (the controller's stop,
-            logged), the joint-space ramp only where that has no solution; then hold.
-            ``False``: the run ends with its last command.
+        on_progress: ``f(σ_next, T_tot)`` [s] after each sample.
+        realtime: keep the wall clock (sample k at ``start + k T``); else as fast as it answers.
+        stale_periods: stop (``"stale"``) after this many periods without a new measurement.
+        brake: end at rest along the path, then hold; ``False``: end with the last command.
         warm_up: step a copy of the controller once before the first command.
-        log_file: stream the log to this ``.mcap`` as the run goes (docs/run_logs.md; the
-            result's ``log`` keeps the last samples); ``None``: all in memory.
+        log_file: stream the log to this ``.mcap`` (the result keeps the last samples).
         log_chunk_s: longest stretch of samples [s] in one block of ``log_file``.
-        max_lateness_s: in wall-clock mode, a sample ending more than this after its
-            deadline stops the run (``reason = "deadline"``) [s]; ``None``:
-            :data:`MAX_LATE_PERIODS` periods.
-        realtime_priority: in wall-clock mode, run the loop's thread in Linux's real-time
-            scheduling class at this priority (1–99) while it samples and stops
-            (:mod:`dqcontrol.sim.priority`: needs the privilege); ``None``: the ordinary
-            scheduler.
+        max_lateness_s: a sample this late [s] stops the run; ``None``: five periods.
+        realtime_priority: on the wall clock, the loop's ``SCHED_FIFO`` priority (1–99,
+            :mod:`dqcontrol.sim.priority`); ``None``: the ordinary scheduler.
 
     Returns:
-        :class:`RunResult`; Ctrl-C, a driver or log error and the watchdog keep the samples
-        done (``interrupted=True``, a ``note``); ``meta["stop"]``: why it ended, its stop and
-        the wall clock's timing [ms]; ``meta["driver_report"]``: the driver's counters.
+        :class:`RunResult`: an interrupted run keeps its samples and a note; ``meta["stop"]``
+        says why it ended, with its stop and the timing [ms].
 
     Raises:
-        JointMismatchError: the driver's joints are not the model's (before any command).
-        RunLogWriteError: ``log_file`` cannot be created (a later write error ends the run:
-            ``reason = "log"``). ParameterError: bad ``max_time_s``, ``stale_periods``,
-            ``max_lateness_s`` or ``realtime_priority`` (or no privilege for it); ``q0``
-            for a driver without ``reset``.
+        JointMismatchError: the driver's joints are not the model's. RunLogWriteError: no
+            ``log_file``. ParameterError: a bad option, or no privilege for the priority.
     """
     order = _JointOrder(driver.joint_names, tuple(controller.robot.joint_names))
     num = _sample_count(controller, max_time_s, stale_periods)
