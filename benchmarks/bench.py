@@ -408,7 +408,7 @@ def held_against_unheld(robot: RobotModel, period_s: float, steps: int, block: i
     return {"held_over_unheld": float(np.median(ratios))}
 
 
-def _cell_obstacles(robot: RobotModel) -> tuple:
+def cell_obstacles(robot: RobotModel) -> tuple:
     """Three obstacles around the LBR4p's circle: a ball at the elbow, a box beside the
     path, the table under it."""
     from dqcontrol.model.collision import Box, HalfSpace, Sphere
@@ -430,7 +430,7 @@ def bench_collision(steps: int = 300, period_s: float = PERIOD_S) -> dict:
     from dqcontrol.model.collision import CollisionModel
 
     robot = load_lbr4p()
-    model = CollisionModel(robot, _cell_obstacles(robot), self_collision=True)
+    model = CollisionModel(robot, cell_obstacles(robot), self_collision=True)
     shared = {"velocity_limits": THESIS_VEL, "acceleration_limit": THESIS_ACCELERATION_LIMIT}
     out: dict = {"pairs": len(model.pairs)}
     for name in ("local", "pf10"):
@@ -489,7 +489,7 @@ def bench_collision_circle(period_s: float = PERIOD_S, max_factor: float = 3.0) 
     from dqcontrol.model.collision import CollisionModel
 
     robot = load_lbr4p()
-    model = CollisionModel(robot, _cell_obstacles(robot), self_collision=True)
+    model = CollisionModel(robot, cell_obstacles(robot), self_collision=True)
     shared = {"velocity_limits": THESIS_VEL, "acceleration_limit": THESIS_ACCELERATION_LIMIT}
     limit = CollisionLimit(model)
     task = Circle(2.0)

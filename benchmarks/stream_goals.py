@@ -47,13 +47,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from bench import cell_obstacles  # benchmarks/ is on the path of a script run from it
 
 import dqcontrol
 from dqcontrol.controllers.limits.collision import CollisionLimit
 from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.dq import qfrom_axis_angle
 from dqcontrol.model import LBR4P_Q0, PANDA_Q0, load_lbr4p, load_panda
-from dqcontrol.model.collision import Box, CollisionModel, HalfSpace, Sphere
+from dqcontrol.model.collision import CollisionModel, HalfSpace
 from dqcontrol.sim import KinematicDriver, MujocoDriver, run_loop
 from dqcontrol.sim.bridge import BridgeDriver
 from dqcontrol.sim.mujoco_sim import SERVO_TIME_CONSTANT_S
@@ -99,15 +100,6 @@ class Task:
     robot_option: str
 
 
-def _lbr4p_cell(robot) -> tuple:
-    tool = robot.placement(LBR4P_Q0).translation
-    return (
-        Sphere(name="ball", position_m=(0.2245, -0.2559, 0.9519), radius_m=0.05),
-        Box(name="crate", position_m=tuple(tool + [0.0, 0.25, -0.1]), size_m=(0.1, 0.1, 0.2)),
-        HalfSpace(name="table", normal=(0.0, 0.0, 1.0), offset_m=float(tool[2] - 0.3)),
-    )
-
-
 def _panda_waypoints(duration_s: float) -> WaypointTrajectory:
     z = np.array([0.0, 0.0, 1.0])
     return WaypointTrajectory(
@@ -121,7 +113,7 @@ def tasks() -> list[Task]:
     lbr4p, panda = load_lbr4p(), load_panda()
     tool = panda.placement(PANDA_Q0).translation
     table = (HalfSpace(name="table", normal=(0.0, 0.0, 1.0), offset_m=float(tool[2] - 0.3)),)
-    cell = _lbr4p_cell(lbr4p)
+    cell = cell_obstacles(lbr4p)
     return [
         Task("lbr4p circle 3 s", lbr4p, LBR4P_Q0, Circle(3.0), cell, "lbr4p"),
         Task("lbr4p sinusoid 4 s", lbr4p, LBR4P_Q0, Sinusoid(4.0), (cell[0], cell[2]), "lbr4p"),

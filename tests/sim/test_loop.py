@@ -217,6 +217,17 @@ def test_the_end_of_the_task_brakes_after_the_log(lbr4p):
     assert free.log.meta["stop"] == {"reason": "end", "brake_periods": 0}
 
 
+def kinematic_run(lbr4p, duration_s: float, period_s: float, cls=LocalController, **options):
+    """``run_loop`` of a ``cls`` controller on the LBR4p's circle of ``duration_s`` against
+    the ideal kinematics at ``period_s``, from ``LBR4P_Q0``, with the loop's ``options``."""
+    return run_loop(
+        cls(lbr4p, Circle(duration_s), period_s),
+        KinematicDriver(lbr4p, period_s),
+        q0=LBR4P_Q0,
+        **options,
+    )
+
+
 def _stalled_at(sample: int, seconds: float):
     def slow(k, _driver, _result):
         if k == sample:
@@ -226,10 +237,10 @@ def _stalled_at(sample: int, seconds: float):
 
 
 def test_a_sample_later_than_the_limit_stops_the_wall_clock_loop(lbr4p):
-    res = run_loop(
-        LocalController(lbr4p, Circle(1.0), 0.01),
-        KinematicDriver(lbr4p, 0.01),
-        q0=LBR4P_Q0,
+    res = kinematic_run(
+        lbr4p,
+        1.0,
+        0.01,
         on_sample=_stalled_at(3, 0.03),
         realtime=True,
         max_lateness_s=0.01,
@@ -249,10 +260,10 @@ def test_a_short_miss_is_counted_and_the_loop_goes_on_in_the_present_slot(lbr4p)
         starts.append(time.perf_counter())
         _stalled_at(3, 0.175)(k, driver, result)
 
-    res = run_loop(
-        LocalController(lbr4p, Circle(1.0), 0.05),
-        KinematicDriver(lbr4p, 0.05),
-        q0=LBR4P_Q0,
+    res = kinematic_run(
+        lbr4p,
+        1.0,
+        0.05,
         on_sample=record,
         realtime=True,
         brake=False,
@@ -273,10 +284,11 @@ def test_a_command_written_after_its_period_is_a_late_command(lbr4p):
                 threading.Event().wait(0.075)
             return super().step(q, qd)
 
-    res = run_loop(
-        Slow(lbr4p, Circle(1.0), 0.05),
-        KinematicDriver(lbr4p, 0.05),
-        q0=LBR4P_Q0,
+    res = kinematic_run(
+        lbr4p,
+        1.0,
+        0.05,
+        cls=Slow,
         realtime=True,
         brake=False,
     )
@@ -288,10 +300,10 @@ def test_a_command_written_after_its_period_is_a_late_command(lbr4p):
 @pytest.mark.parametrize("bad", [-0.001, float("nan"), True])
 def test_a_bad_lateness_limit_is_refused(lbr4p, bad):
     with pytest.raises(ParameterError, match="max_lateness_s"):
-        run_loop(
-            LocalController(lbr4p, Circle(0.3), 0.01),
-            KinematicDriver(lbr4p, 0.01),
-            q0=LBR4P_Q0,
+        kinematic_run(
+            lbr4p,
+            0.3,
+            0.01,
             max_lateness_s=bad,
         )
 
@@ -306,10 +318,10 @@ def test_the_wall_clock_loop_keeps_its_period(lbr4p):
         frozen.append(gc.get_freeze_count())
 
     start = time.perf_counter()
-    res = run_loop(
-        LocalController(lbr4p, Circle(0.4), 0.1),
-        KinematicDriver(lbr4p, 0.1),
-        q0=LBR4P_Q0,
+    res = kinematic_run(
+        lbr4p,
+        0.4,
+        0.1,
         on_sample=record,
         realtime=True,
         brake=False,
@@ -336,9 +348,7 @@ def test_a_wait_never_ends_before_its_deadline():
 
 
 def test_a_stepped_run_has_no_wall_clock_entries(lbr4p):
-    res = run_loop(
-        LocalController(lbr4p, Circle(0.4), 0.1), KinematicDriver(lbr4p, 0.1), q0=LBR4P_Q0
-    )
+    res = kinematic_run(lbr4p, 0.4, 0.1)
     assert not {"jitter_max_ms", "lateness_max_ms", "missed_deadlines"} & set(res.log.meta["stop"])
 
 

@@ -7,13 +7,10 @@ import errno
 import os
 
 import pytest
+from sim.test_loop import kinematic_run
 
-from dqcontrol.controllers import LocalController
 from dqcontrol.errors import ParameterError
-from dqcontrol.model.library import LBR4P_Q0
-from dqcontrol.sim import KinematicDriver, run_loop
 from dqcontrol.sim.priority import check_priority, realtime_priority
-from dqcontrol.trajectories import Circle
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "SCHED_FIFO"), reason="Linux scheduling")
 
@@ -55,10 +52,10 @@ def test_the_loop_samples_in_fifo_and_gives_it_back(lbr4p):
     def record(_k, _driver, _result):
         seen.append((os.sched_getscheduler(0), os.sched_getparam(0).sched_priority))
 
-    res = run_loop(
-        LocalController(lbr4p, Circle(0.2), 0.01),
-        KinematicDriver(lbr4p, 0.01),
-        q0=LBR4P_Q0,
+    res = kinematic_run(
+        lbr4p,
+        0.2,
+        0.01,
         on_sample=record,
         realtime=True,
         realtime_priority=7,
@@ -70,10 +67,10 @@ def test_the_loop_samples_in_fifo_and_gives_it_back(lbr4p):
 @pytest.mark.skipif(not _may_use_fifo(), reason="this process may not use SCHED_FIFO")
 def test_a_stepped_run_keeps_the_ordinary_scheduler(lbr4p):
     seen = []
-    run_loop(
-        LocalController(lbr4p, Circle(0.1), 0.01),
-        KinematicDriver(lbr4p, 0.01),
-        q0=LBR4P_Q0,
+    kinematic_run(
+        lbr4p,
+        0.1,
+        0.01,
         on_sample=lambda *_: seen.append(os.sched_getscheduler(0)),
         realtime_priority=7,
     )
