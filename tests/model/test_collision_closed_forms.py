@@ -173,7 +173,7 @@ def test_other_pairs_stay_on_coal():
 
 
 def _bench_cell(robot):
-    return load_bench()._cell_obstacles(robot)
+    return load_bench().cell_obstacles(robot)
 
 
 def _walk(robot, q0, seed, steps=40, spread=0.05):
