@@ -194,9 +194,15 @@ def _check_wall_clock_options(args) -> None:
     ``--realtime`` without ``--connect``), or a real-time priority this process may not
     take."""
     from dqcontrol.errors import ParameterError
+    from dqcontrol.sim.bridge_transport import parse_address
     from dqcontrol.sim.priority import check_priority
 
     parser = args._parser
+    if args.connect is not None:
+        try:
+            parse_address(args.connect)
+        except ParameterError as exc:
+            parser.error(f"--connect: {exc}")
     if args.realtime and not args.connect:
         parser.error("--realtime keeps the wall clock against a sim-server: give --connect")
     for given, option in (

@@ -273,8 +273,9 @@ def _add_connect_options(g) -> None:
         "--connect",
         metavar="ADDRESS",
         default=None,
-        help="run against a `dqcontrol sim-server` in another process (tcp://127.0.0.1:PORT, "
-        "loopback only) instead of simulating here; --period must be the server's",
+        help="run against a `dqcontrol sim-server` in another process (tcp://HOST:PORT or, "
+        "for periods of a few ms, udp://HOST:PORT, as the server was started) instead of "
+        "simulating here; --period must be the server's",
     )
     g.add_argument(
         "--realtime",

@@ -1,5 +1,5 @@
 """``dqcontrol sim-server``: serve the MuJoCo simulation behind the joint-driver protocol on
-a ZMQ socket (:mod:`dqcontrol.sim.bridge`), for a controller in another process."""
+a ZMQ or UDP socket (:mod:`dqcontrol.sim.bridge`), for a controller in another process."""
 
 from __future__ import annotations
 
@@ -12,10 +12,13 @@ from dqcontrol.cli.robot_options import add_robot_options
 __all__ = ["register"]
 
 _DESCRIPTION = """\
-Serve a robot in MuJoCo on a ZMQ socket (loopback by default). A client — the
-dqcontrol.sim.bridge.BridgeDriver with run_loop, or any program that speaks the wire
-format of docs/drivers.md — sends a reset, then one velocity command per control period;
-the server steps the simulation one period per command and answers with the state. It
+Serve a robot in MuJoCo on a socket (loopback by default): ZMQ over TCP, or UDP
+datagrams with --transport udp (no I/O threads: about 0.1 ms less per exchange, the
+transport for periods of a few milliseconds; a datagram may be lost, as on a real arm's
+link). A client — the dqcontrol.sim.bridge.BridgeDriver with run_loop, or any program
+that speaks the wire format of docs/drivers.md — sends a reset, then one velocity command
+per control period; the server steps the simulation one period per command and answers
+with the state. It
 describes itself (robot, joints, period, drive, payload, versions) to a client that asks;
 dqcontrol run --connect records that in the run log (meta "server"). Bad packets are
 answered with an error and counted, never fatal. Ctrl-C stops it.
@@ -31,6 +34,7 @@ _EPILOG = """\
 examples:
   dqcontrol sim-server --port 5555
   dqcontrol sim-server --port 5555 --period 0.01 --motor torque --payload 3
+  dqcontrol sim-server --port 5555 --period 0.001 --transport udp
   dqcontrol sim-server --robot panda --limits franka_panda --period 0.001"""
 
 
@@ -38,14 +42,21 @@ def register(subparsers) -> None:
     """Add the ``sim-server`` subcommand."""
     p = subparsers.add_parser(
         "sim-server",
-        help="serve the MuJoCo simulation to a controller in another process (ZMQ)",
+        help="serve the MuJoCo simulation to a controller in another process (ZMQ or UDP)",
         description=_DESCRIPTION,
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add_robot_options(p)
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
-    p.add_argument("--port", type=int, default=5555, help="TCP port (default 5555; 0: any)")
+    p.add_argument("--port", type=int, default=5555, help="port (default 5555; 0: any free one)")
+    p.add_argument(
+        "--transport",
+        choices=("tcp", "udp"),
+        default="tcp",
+        help="tcp: ZMQ over TCP (default); udp: datagrams, the fast one (a client connects "
+        "to udp://HOST:PORT)",
+    )
     p.add_argument("--period", type=float, default=0.05, help="control period T [s]")
     p.add_argument(
         "--motor", choices=("velocity", "torque"), default="velocity", help="joint drive"
@@ -79,7 +90,7 @@ def _main(args: argparse.Namespace) -> int:
     reflexes = Reflexes.of_robot(
         robot, driver.joint_names, args.period, velocity_only=args.limits is None
     )
-    address = f"tcp://{args.host}:{args.port}"
+    address = f"{args.transport}://{args.host}:{args.port}"
     with SimServer(driver, address, description, reflexes) as server:
         print(
             f"dqcontrol sim-server: {robot.model.name} ({len(driver.joint_names)} joints, "

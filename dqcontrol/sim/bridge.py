@@ -1,9 +1,12 @@
-r"""A process bridge: a joint driver served over ZMQ, and the driver that talks to it.
+r"""A process bridge: a joint driver served on a socket, and the driver that talks to it.
 
 :class:`SimServer` serves any simulated driver (e.g. :class:`~dqcontrol.sim.MujocoDriver`)
-on a ZMQ ROUTER socket; :class:`BridgeDriver` is a :class:`~dqcontrol.sim.driver.JointDriver`
-on a DEALER socket that connects to it, so that :func:`~dqcontrol.sim.run_loop` runs the
-controller in another process exactly as in-process. The server steps its simulation by
+at an address, ``tcp://HOST:PORT`` (a ZMQ ROUTER socket) or ``udp://HOST:PORT`` (UDP
+datagrams, the transport for periods of a few milliseconds:
+:mod:`~dqcontrol.sim.bridge_transport`); :class:`BridgeDriver` is a
+:class:`~dqcontrol.sim.driver.JointDriver` that connects to it, so that
+:func:`~dqcontrol.sim.run_loop` runs the controller in another process exactly as
+in-process. The server steps its simulation by
 one period per command (stepped, simulated time); the client may pace itself on the wall
 clock (``run_loop(..., realtime=True)``).
 
@@ -32,7 +35,8 @@ duplicate, a reordered or a late reply), and count it by reason; neither ever ra
 one. The server answers a repeated command (same sequence number as the last executed)
 with the same state, without stepping again. A server with reflexes
 (:class:`~dqcontrol.sim.reflexes.Reflexes`) checks every command like a real arm; the
-client raises :class:`ReflexError` at a reflex.
+client raises :class:`ReflexError` at a reflex (from the read, hold or send that follows
+the refused command, since a command's answer is awaited there).
 """
 
 from __future__ import annotations
@@ -46,7 +50,15 @@ from typing import Any
 
 import numpy as np
 
+from dqcontrol._blas import single_blas_thread
+from dqcontrol._gc import young_gc_only
 from dqcontrol.errors import DQControlError, ParameterError
+from dqcontrol.sim.bridge_transport import (
+    BadFraming,
+    client_endpoint,
+    parse_address,
+    server_endpoint,
+)
 from dqcontrol.sim.mujoco_sim import Measurement
 from dqcontrol.sim.reflexes import ReflexDriver, ReflexError, Reflexes
 
@@ -71,6 +83,8 @@ HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION = 1, 2, 3, 4
 TRACK, BRAKE, HOLD = 0, 1, 2
 #: ``ERROR`` status of a reflex (a refused command; the arm stopped until ``RESET``).
 REFLEX = 3
+#: How often a lossy link repeats an unanswered ``HELLO`` or ``DESCRIBE`` [s].
+REPEAT_S = 0.05
 _KINDS = {HELLO, WELCOME, RESET, COMMAND, STATE, ERROR, DESCRIBE, DESCRIPTION}
 
 
@@ -170,27 +184,13 @@ def _description(body: bytes) -> dict:
     return value
 
 
-def _zmq():
-    try:
-        import zmq
-    except ImportError as exc:  # pragma: no cover - pyzmq comes with meshcat
-        raise BridgeError("the bridge needs pyzmq (pip install pyzmq)") from exc
-    return zmq
-
-
-def _loopback(address: str) -> str:
-    if not isinstance(address, str) or not address.startswith("tcp://"):
-        raise ParameterError(f"address must be 'tcp://HOST:PORT', got {address!r}")
-    return address
-
-
 class SimServer:
-    """Serves a simulated driver on ``address`` (a ZMQ ROUTER socket).
+    """Serves a simulated driver on ``address``.
 
     Args:
         driver: a simulated driver (``reset``, ``write``, ``hold``, ``read``, ``period_s``).
-        address: ``tcp://127.0.0.1:PORT``; port 0 picks a free port (:attr:`address`
-            says which).
+        address: ``tcp://HOST:PORT`` (ZMQ) or ``udp://HOST:PORT`` (datagrams); port 0
+            picks a free port (:attr:`address` says which).
         description: entries added to :meth:`describe` (e.g. the robot's name); JSON
             values.
         reflexes: check every command like a real arm
@@ -210,24 +210,15 @@ class SimServer:
         description: dict | None = None,
         reflexes: Reflexes | None = None,
     ) -> None:
-        zmq = _zmq()
         self.driver: Any = driver if reflexes is None else ReflexDriver(driver, reflexes)
         self.joint_names = tuple(driver.joint_names)
         self.n = len(self.joint_names)
         self.reflexes = reflexes
         self._description = dict(description or {})
         self._described = self._encode_description()
-        self._ctx = zmq.Context.instance()
-        self._sock = self._ctx.socket(zmq.ROUTER)
-        self._sock.setsockopt(zmq.LINGER, 0)
-        addr = _loopback(address)
-        if addr.endswith(":0"):
-            port = self._sock.bind_to_random_port(addr[: addr.rindex(":")])
-            addr = f"{addr[: addr.rindex(':')]}:{port}"
-        else:
-            self._sock.bind(addr)
+        self._endpoint = server_endpoint(address)
         #: The address the server listens on.
-        self.address = addr
+        self.address = self._endpoint.address
         self.rejected: Counter[str] = Counter()
         self.served = 0
         self._stop = threading.Event()
@@ -267,23 +258,31 @@ class SimServer:
 
     def close(self) -> None:
         """Stop serving and close the socket (idempotent)."""
-        self._sock.close(0)
+        self._endpoint.close()
 
     def serve(self, *, max_messages: int | None = None, poll_ms: int = 50) -> None:
-        """Answer messages until :meth:`stop` or ``max_messages`` have been handled."""
-        zmq = _zmq()
+        """Answer messages until :meth:`stop` or ``max_messages`` have been handled, with one
+        BLAS thread (a pool of them, spinning after each call, would take the cores the
+        client and its planner run on) and the garbage collector kept to the objects made
+        while serving (a full collection would hold an answer for milliseconds)."""
+        with single_blas_thread(), young_gc_only():
+            self._serve(max_messages, poll_ms)
+
+    def _serve(self, max_messages: int | None, poll_ms: int) -> None:
         handled = 0
         while not self._stop.is_set() and (max_messages is None or handled < max_messages):
-            if not self._sock.poll(poll_ms, zmq.POLLIN):
-                continue
-            frames = self._sock.recv_multipart()
-            handled += 1
-            if len(frames) != 2:
+            try:
+                message = self._endpoint.receive(1e-3 * poll_ms)
+            except BadFraming:
+                handled += 1
                 self.rejected["bad framing"] += 1
                 continue
-            ident, packet = frames
+            if message is None:
+                continue
+            handled += 1
+            peer, packet = message
             for answer in self.answers(packet):
-                self._sock.send_multipart([ident, answer])
+                self._endpoint.send(peer, answer)
 
     def answers(self, packet: bytes) -> list[bytes]:
         """The packets sent back for ``packet``: :meth:`handle`'s one answer (a subclass may
@@ -340,9 +339,11 @@ class BridgeDriver:
     """A joint driver whose arm is a :class:`SimServer` in another process or thread.
 
     Args:
-        address: the server's ``tcp://127.0.0.1:PORT``.
-        timeout_s: how long ``reset``/``write``/``hold`` wait for the answering state [s];
-            without it the measurement is not renewed (the loop's watchdog counts that).
+        address: the server's ``tcp://HOST:PORT`` or ``udp://HOST:PORT``.
+        timeout_s: how long ``read``/``reset``/``hold`` wait for the state answering the
+            last message [s]; without it the measurement is not renewed (the loop's
+            watchdog counts that). ``write`` only sends: the server steps while the loop
+            waits for its period, as a real arm moves while its controller waits.
         hello_timeout_s: how long the first contact may take [s].
 
     Raises:
@@ -356,24 +357,24 @@ class BridgeDriver:
             ``"non-finite value"``, ``"wrong joint count"``, ``"server error: …"`` ...).
         timeouts: commands whose state did not arrive within ``timeout_s``.
         reflex: the server's message when its reflex fired (``""``: it did not); a
-            command it refuses raises :class:`ReflexError`.
+            command it refuses raises :class:`ReflexError` from the next read, hold or
+            send.
     """
 
     def __init__(
         self, address: str, *, timeout_s: float = 0.5, hello_timeout_s: float = 5.0
     ) -> None:
-        zmq = _zmq()
-        self._zmq = zmq
-        self.address = _loopback(address)
+        parse_address(address)
+        self.address = address
         self.timeout_s = float(timeout_s)
-        self._sock = zmq.Context.instance().socket(zmq.DEALER)
-        self._sock.setsockopt(zmq.LINGER, 0)
-        self._sock.connect(self.address)
+        self._link = client_endpoint(address)
         self.rejected: Counter[str] = Counter()
         self.timeouts = 0
         self.reflex = ""
         self._seq = 0
         self._last: Measurement | None = None
+        #: the command (or reset) whose answering state has not been read yet
+        self._pending: bytes | None = None
         self.n = 0
         body = self._request(_header(HELLO, 0, 0), WELCOME, hello_timeout_s)
         if body is None:
@@ -404,22 +405,31 @@ class BridgeDriver:
 
     def close(self) -> None:
         """Close the connection (idempotent)."""
-        self._sock.close(0)
+        self._link.close()
 
-    def _request(self, packet: bytes, want: int, timeout_s: float, error_ends: bool = False):
-        """Send ``packet`` and wait for the answer of kind ``want`` carrying its sequence
-        number; returns its body, or ``None`` after ``timeout_s`` (or at an ``ERROR`` if
-        ``error_ends``)."""
+    def _request(self, packet: bytes, want: int, timeout_s: float, error_ends: bool = False) -> Any:
+        """Send ``packet`` and wait for its answer (:meth:`_answer`)."""
+        self._link.send(packet)
+        return self._answer(packet, want, timeout_s, error_ends)
+
+    def _answer(self, packet: bytes, want: int, timeout_s: float, error_ends: bool = False) -> Any:
+        """Wait for the answer to ``packet`` (sent): the kind ``want`` carrying its
+        sequence number; returns its body, or ``None`` after ``timeout_s`` (or at an
+        ``ERROR`` if ``error_ends``). On a lossy link an idempotent request (``HELLO``,
+        ``DESCRIBE``) is sent again every :data:`REPEAT_S` while no answer comes."""
         seq = HEADER.unpack_from(packet)[3]
-        self._sock.send(packet)
-        deadline = time.perf_counter() + timeout_s
-        while True:
-            left = deadline - time.perf_counter()
-            if left <= 0 or not self._sock.poll(max(1, int(1e3 * left)), self._zmq.POLLIN):
-                self.timeouts += 1
-                return None
+        repeat = self._link.lossy and HEADER.unpack_from(packet)[2] in (HELLO, DESCRIBE)
+        now = time.perf_counter()
+        deadline, again = now + timeout_s, now + REPEAT_S
+        while (left := deadline - time.perf_counter()) > 0:
+            raw = self._link.receive(min(left, again - time.perf_counter()) if repeat else left)
+            if raw is None:
+                if repeat and time.perf_counter() >= again:
+                    self._link.send(packet)
+                    again += REPEAT_S
+                continue
             try:
-                kind, got, status, body = decode(self._sock.recv(), self.n or None)
+                kind, got, status, body = decode(raw, self.n or None)
             except PacketError as exc:
                 self.rejected[exc.reason] += 1
                 continue
@@ -431,6 +441,8 @@ class BridgeDriver:
                 if error_ends:
                     return None
                 continue
+            if kind in (WELCOME, DESCRIPTION) and kind != want:
+                continue  # a repeated request's second answer
             if kind != want:
                 self.rejected["unexpected kind"] += 1
                 continue
@@ -438,9 +450,21 @@ class BridgeDriver:
                 self.rejected["stale sequence"] += 1
                 continue
             return body
+        self.timeouts += 1
+        return None
 
-    def _state(self, packet: bytes) -> None:
-        values = self._request(packet, STATE, self.timeout_s)
+    def _send(self, packet: bytes) -> None:
+        """Send a command; its state is awaited by the next :meth:`read` (or send)."""
+        self._settle()
+        self._link.send(packet)
+        self._pending = packet
+
+    def _settle(self) -> None:
+        """Wait (at most ``timeout_s``) for the state answering the command in flight."""
+        packet, self._pending = self._pending, None
+        if packet is None:
+            return
+        values = self._answer(packet, STATE, self.timeout_s)
         if values is None:
             return
         n = self.n
@@ -459,24 +483,29 @@ class BridgeDriver:
     def reset(self, q0: np.ndarray) -> Measurement:
         """Reset the served simulation at ``q0`` [rad] (server's joint order)."""
         self.reflex = ""
-        self._state(_header(RESET, self._next(), self.n) + _floats(q0))
+        self._send(_header(RESET, self._next(), self.n) + _floats(q0))
+        self._settle()
         if self._last is None:
             raise BridgeError(f"no answer to reset from {self.address}")
         return self._last
 
     def read(self) -> Measurement:
-        """The latest state the server sent."""
+        """The state answering the last command (waited for, at most ``timeout_s``; after a
+        timeout the latest state that came)."""
+        self._settle()
         if self._last is None:
             raise BridgeError(f"no measurement from {self.address} yet (reset first)")
         return self._last
 
     def write(self, qd_command: np.ndarray) -> None:
-        """Send the joint-velocity command [rad/s]; the answer is the next state."""
-        self._state(encode_command(self._next(), qd_command, 1.0, 0.0))
+        """Send the joint-velocity command [rad/s] and return: the server steps while the
+        caller waits for its period, and :meth:`read` takes the state that answers it."""
+        self._send(encode_command(self._next(), qd_command, 1.0, 0.0))
 
     def hold(self) -> None:
-        """Ask the server to hold the present position."""
-        self._state(encode_command(self._next(), np.zeros(self.n), 0.0, 0.0, HOLD))
+        """Ask the server to hold the present position (and wait for its answer)."""
+        self._send(encode_command(self._next(), np.zeros(self.n), 0.0, 0.0, HOLD))
+        self._settle()
 
     def __repr__(self) -> str:
         return f"BridgeDriver({self.address!r}, n={self.n})"

@@ -156,10 +156,12 @@ def _latest_state(run: _Run) -> None:
 
 
 def _send_and_read(run: _Run, result: StepResult, period: float, record: bool) -> None:
-    """Write the command, read the next measurement (dead reckoning where it is not
-    newer), record the sample (a log that cannot be written is left alone)."""
+    """Write the command, wait for the period's end, read the next measurement (dead
+    reckoning where it is not newer), record the sample (a log that cannot be written is
+    left alone)."""
     run.command = result.qd_command
     run.driver.write(run.order.to_driver(run.command))
+    run.clock.wait()
     nxt = run.driver.read()
     meas = run.meas
     if record:
@@ -176,4 +178,3 @@ def _send_and_read(run: _Run, result: StepResult, period: float, record: bool) -
         run.q = run.q + period * run.command
         run.qd = run.command.copy()
         run.meas = dataclasses.replace(meas, t_s=meas.t_s + period)
-    run.clock.wait()

@@ -38,9 +38,18 @@ from dqcontrol.sim.bridge import (
     encode_command,
     run_origin,
 )
+from dqcontrol.sim.bridge_transport import client_endpoint, parse_address
 from dqcontrol.trajectories import Circle
 
 zmq = pytest.importorskip("zmq")
+
+#: Both transports, for the tests that hold for either.
+TRANSPORTS = pytest.mark.parametrize("transport", ["tcp", "udp"])
+
+
+def _at(transport: str) -> str:
+    """The loopback address of a server on ``transport``, at a free port."""
+    return f"{transport}://127.0.0.1:0"
 
 
 class Served:
@@ -60,11 +69,12 @@ class Served:
         self.server.close()
 
 
-def test_a_stepped_run_over_the_socket_equals_the_in_process_run(lbr4p):
+@TRANSPORTS
+def test_a_stepped_run_over_the_socket_equals_the_in_process_run(lbr4p, transport):
     ref = run_loop(
         LocalController(lbr4p, Circle(1.0), 0.05), MujocoDriver(lbr4p, 0.05), q0=LBR4P_Q0
     )
-    with Served(SimServer(MujocoDriver(lbr4p, 0.05))) as server:
+    with Served(SimServer(MujocoDriver(lbr4p, 0.05), _at(transport))) as server:
         client = BridgeDriver(server.address)
         res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
         client.close()
@@ -100,7 +110,7 @@ print(json.dumps({"median_ms": late[len(late) // 2], "p99_ms": late[int(0.99 * (
 HOST_STALL_MS = 2.5
 
 
-def _sim_server(port: int, period_s: float, messages: int) -> subprocess.Popen:
+def _sim_server(transport: str, port: int, period_s: float, messages: int) -> subprocess.Popen:
     """``dqcontrol sim-server`` in its own process, from this dqcontrol (bounded by
     ``--max-messages``): a server thread here would share the interpreter lock with the
     loop and add its own stalls to the round trip."""
@@ -109,17 +119,18 @@ def _sim_server(port: int, period_s: float, messages: int) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
     return subprocess.Popen(
         [sys.executable, "-c", code, "sim-server", "--port", str(port), "--period",
-         str(period_s), "--max-messages", str(messages)],
+         str(period_s), "--max-messages", str(messages), "--transport", transport],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
     )  # fmt: skip
 
 
-def test_at_100_hz_on_the_wall_clock_no_deadline_is_missed(lbr4p):
-    with socket_port() as port:
+@TRANSPORTS
+def test_at_100_hz_on_the_wall_clock_no_deadline_is_missed(lbr4p, transport):
+    with socket_port(transport) as port:
         pass
-    server = _sim_server(port, 0.01, 400)
+    server = _sim_server(transport, port, 0.01, 400)
     try:
-        client = BridgeDriver(f"tcp://127.0.0.1:{port}", hello_timeout_s=60.0)
+        client = BridgeDriver(f"{transport}://127.0.0.1:{port}", hello_timeout_s=60.0)
         canary = subprocess.Popen(
             [sys.executable, "-c", CANARY, "2.5"], stdout=subprocess.PIPE, text=True
         )
@@ -151,18 +162,20 @@ def test_at_100_hz_on_the_wall_clock_no_deadline_is_missed(lbr4p):
     assert stop["jitter_max_ms"] >= 0.0  # a sample never starts before its time
 
 
-def _raw(address: str):
-    sock = zmq.Context.instance().socket(zmq.DEALER)
-    sock.setsockopt(zmq.LINGER, 0)
-    sock.connect(address)
-    return sock
+def _exchange(link, packet: bytes) -> bytes:
+    """Send ``packet`` on a client endpoint and return the answer (within 2 s)."""
+    link.send(packet)
+    answer = link.receive(2.0)
+    assert answer is not None
+    return answer
 
 
 def _header(kind, seq, n, status=0, version=1, magic=b"DQ"):
     return HEADER.pack(magic, version, kind, seq, n, status)
 
 
-def test_the_server_counts_bad_packets_and_keeps_serving(lbr4p):
+@TRANSPORTS
+def test_the_server_counts_bad_packets_and_keeps_serving(lbr4p, transport):
     nan_cmd = encode_command(1, np.full(7, np.nan), 1.0, 0.0)
     bad = {
         "short packet": b"DQ",
@@ -173,39 +186,36 @@ def test_the_server_counts_bad_packets_and_keeps_serving(lbr4p):
         "wrong joint count": encode_command(1, np.zeros(6), 1.0, 0.0),
         "non-finite value": nan_cmd,
     }
-    with Served(SimServer(KinematicDriver(lbr4p, 0.05))) as server:
-        sock = _raw(server.address)
+    with Served(SimServer(KinematicDriver(lbr4p, 0.05), _at(transport))) as server:
+        link = client_endpoint(server.address)
         for packet in bad.values():
-            sock.send(packet)
-            assert sock.poll(2000)
-            kind, _, _, reason = decode(sock.recv())
+            kind, _, _, reason = decode(_exchange(link, packet))
             assert kind == 6 and reason in bad
-        sock.send_multipart([b"two", b"frames"])
-        sock.close(0)
+        link.close()
+        if transport == "tcp":  # a ZMQ message of two frames; a datagram is one packet
+            sock = zmq.Context.instance().socket(zmq.DEALER)
+            sock.connect(server.address)
+            sock.send_multipart([b"two", b"frames"])
+            sock.close(linger=1000)
         client = BridgeDriver(server.address)
         res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
         client.close()
         assert res.metrics.completed
         time.sleep(0.1)
         assert {k: server.rejected[k] for k in bad} == dict.fromkeys(bad, 1)
-        assert server.rejected["bad framing"] == 1
+        assert server.rejected["bad framing"] == (transport == "tcp")
 
 
-def test_a_repeated_command_is_answered_without_stepping_again(lbr4p):
-    with Served(SimServer(KinematicDriver(lbr4p, 0.05))) as server:
+@TRANSPORTS
+def test_a_repeated_command_is_answered_without_stepping_again(lbr4p, transport):
+    with Served(SimServer(KinematicDriver(lbr4p, 0.05), _at(transport))) as server:
         client = BridgeDriver(server.address)
         client.reset(LBR4P_Q0)
-        sock = _raw(server.address)
-        sock.send(_header(3, 1, 7) + np.asarray(LBR4P_Q0, "<f8").tobytes())
-        assert sock.poll(2000)
-        sock.recv()
+        link = client_endpoint(server.address)
+        _exchange(link, _header(3, 1, 7) + np.asarray(LBR4P_Q0, "<f8").tobytes())
         cmd = encode_command(5, np.full(7, 0.1), 1.0, 0.0)
-        states = []
-        for _ in range(2):
-            sock.send(cmd)
-            assert sock.poll(2000)
-            states.append(decode(sock.recv(), 7)[3])
-        sock.close(0)
+        states = [decode(_exchange(link, cmd), 7)[3] for _ in range(2)]
+        link.close()
         client.close()
         np.testing.assert_array_equal(states[0], states[1])
         assert states[0][0] == pytest.approx(0.05) and server.rejected["duplicate"] == 1
@@ -215,8 +225,8 @@ class Chaos(SimServer):
     """A server whose answers are corrupted, repeated, reordered, delayed or dropped by a
     plan keyed by the command count; it records every command it receives."""
 
-    def __init__(self, driver, plan) -> None:
-        super().__init__(driver)
+    def __init__(self, driver, plan, transport: str = "tcp") -> None:
+        super().__init__(driver, _at(transport))
         self.plan = plan
         self.commands: list[np.ndarray] = []
         self._held: bytes | None = None
@@ -251,9 +261,10 @@ class Chaos(SimServer):
         return [answer]
 
 
-def test_the_client_rejects_bad_late_and_repeated_packets_with_reasons(lbr4p):
+@TRANSPORTS
+def test_the_client_rejects_bad_late_and_repeated_packets_with_reasons(lbr4p, transport):
     plan = {3: "garbage", 5: "joints", 7: "repeat", 9: "hold back", 10: "release"}.get
-    with Served(Chaos(KinematicDriver(lbr4p, 0.05), plan)) as server:
+    with Served(Chaos(KinematicDriver(lbr4p, 0.05), plan, transport)) as server:
         client = BridgeDriver(server.address, timeout_s=0.2)
         res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
         client.close()
@@ -277,9 +288,10 @@ def _assert_safe(commands, lbr4p, a_max=10.0, period=0.05):
     assert np.abs(np.diff(u, axis=0)).max() <= a_max * period + 1e-9
 
 
-def test_dropped_answers_make_the_loop_brake_and_hold(lbr4p):
+@TRANSPORTS
+def test_dropped_answers_make_the_loop_brake_and_hold(lbr4p, transport):
     plan = lambda k: "drop" if k >= 8 else None  # noqa: E731
-    with Served(Chaos(KinematicDriver(lbr4p, 0.05), plan)) as server:
+    with Served(Chaos(KinematicDriver(lbr4p, 0.05), plan, transport)) as server:
         client = BridgeDriver(server.address, timeout_s=0.05)
         start = time.perf_counter()
         res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
@@ -297,8 +309,9 @@ def test_dropped_answers_make_the_loop_brake_and_hold(lbr4p):
     _assert_safe(server.commands, lbr4p)
 
 
-def test_a_server_that_disappears(lbr4p):
-    served = Served(SimServer(KinematicDriver(lbr4p, 0.05)))
+@TRANSPORTS
+def test_a_server_that_disappears(lbr4p, transport):
+    served = Served(SimServer(KinematicDriver(lbr4p, 0.05), _at(transport)))
     with served as server:
         client = BridgeDriver(server.address, timeout_s=0.05)
 
@@ -330,9 +343,10 @@ class Silent(SimServer):
         return super().handle(packet)
 
 
-def test_the_server_describes_what_it_serves(lbr4p):
+@TRANSPORTS
+def test_the_server_describes_what_it_serves(lbr4p, transport):
     drv = TorqueLimitDriver(PayloadDriver(MujocoDriver(lbr4p, 0.01), 3.0), 0.5)
-    with Served(SimServer(drv, description={"robot": "lbr4p"})) as server:
+    with Served(SimServer(drv, _at(transport), description={"robot": "lbr4p"})) as server:
         client = BridgeDriver(server.address)
         client.close()
     described = client.server
@@ -370,28 +384,74 @@ def test_a_description_must_be_json(lbr4p):
         SimServer(KinematicDriver(lbr4p, 0.05), description={"robot": object()})
 
 
-def test_no_server_is_a_clear_error():
+@TRANSPORTS
+def test_no_server_is_a_clear_error(transport):
     with pytest.raises(BridgeError, match="no answer from a dqcontrol sim-server"):
-        BridgeDriver("tcp://127.0.0.1:9", hello_timeout_s=0.2)
+        BridgeDriver(f"{transport}://127.0.0.1:9", hello_timeout_s=0.2)
 
 
-def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
+@pytest.mark.parametrize(
+    "address", ["127.0.0.1:5555", "http://127.0.0.1:5555", "udp://127.0.0.1", "udp://:5555",
+                "tcp://127.0.0.1:port", "udp://127.0.0.1:70000", 5555],
+)  # fmt: skip
+def test_a_bad_address_says_which_forms_are_accepted(address):
+    with pytest.raises(ParameterError, match=r"tcp://HOST:PORT|port must be 0\.\.65535"):
+        parse_address(address)
+    with pytest.raises(ParameterError):
+        BridgeDriver(address, hello_timeout_s=0.1)
+
+
+def test_a_udp_client_started_before_its_server_repeats_its_hello(lbr4p):
+    """A datagram sent before the server is up is lost (ZMQ would queue it): the client
+    repeats ``HELLO`` until an answer comes, and the repeats leave no trace."""
+    with socket_port("udp") as port:
+        pass
+    found: list = []
+    thread = threading.Thread(
+        target=lambda: found.append(BridgeDriver(f"udp://127.0.0.1:{port}", hello_timeout_s=10)),
+        daemon=True,
+    )
+    thread.start()
+    time.sleep(0.3)  # several HELLOs lost
+    with Served(SimServer(KinematicDriver(lbr4p, 0.05), f"udp://127.0.0.1:{port}")):
+        thread.join(timeout=10.0)
+        (client,) = found
+        res = run_loop(LocalController(lbr4p, Circle(0.5), 0.05), client, q0=LBR4P_Q0)
+        client.close()
+    assert res.metrics.completed and client.server["joint_names"] == list(lbr4p.joint_names)
+    assert res.log.meta["driver_report"] == {"rejected": {}, "timeouts": 0}
+
+
+@TRANSPORTS
+def test_the_sim_server_command_serves_a_client(lbr4p, capsys, transport):
     from dqcontrol.cli import main
 
-    with socket_port() as port:
+    with socket_port(transport) as port:
         pass
     done = threading.Event()
     codes = []
 
     def serve():
         codes.append(
-            main(["sim-server", "--port", str(port), "--max-messages", "80", "--payload", "3"])
+            main(
+                [
+                    "sim-server",
+                    "--port",
+                    str(port),
+                    "--max-messages",
+                    "80",
+                    "--payload",
+                    "3",
+                    "--transport",
+                    transport,
+                ]
+            )  # fmt: skip
         )
         done.set()
 
     thread = threading.Thread(target=serve, daemon=True)
     thread.start()
-    client = BridgeDriver(f"tcp://127.0.0.1:{port}", hello_timeout_s=10.0)
+    client = BridgeDriver(f"{transport}://127.0.0.1:{port}", hello_timeout_s=10.0)
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
     client.close()
     server = res.log.meta["server"]
@@ -401,24 +461,26 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys):
     # hello, describe, reset, the samples (the stop's too), the ramp, hold
     sent = 3 + len(res.log) + res.log.meta["stop"]["brake_periods"] + 1
     assert res.metrics.completed and sent < 80
-    sock = _raw(f"tcp://127.0.0.1:{port}")
+    link = client_endpoint(f"{transport}://127.0.0.1:{port}")
     for _ in range(80 - sent):  # the server stops after its 80th message
-        sock.send(_header(1, 0, 0))
-        assert sock.poll(5000)
-        sock.recv()
-    sock.close(0)
+        _exchange(link, _header(1, 0, 0))
+    link.close()
     thread.join(timeout=20.0)
     assert done.is_set() and codes == [0]
-    assert "on tcp://127.0.0.1:" in capsys.readouterr().out
+    assert f"on {transport}://127.0.0.1:" in capsys.readouterr().out
 
 
 class socket_port:
-    """A free TCP port on the loopback address."""
+    """A free TCP (or UDP) port on the loopback address."""
+
+    def __init__(self, transport: str = "tcp") -> None:
+        self.transport = transport
 
     def __enter__(self) -> int:
         import socket
 
-        self.sock = socket.socket()
+        kind = socket.SOCK_DGRAM if self.transport == "udp" else socket.SOCK_STREAM
+        self.sock = socket.socket(socket.AF_INET, kind)
         self.sock.bind(("127.0.0.1", 0))
         return self.sock.getsockname()[1]
 

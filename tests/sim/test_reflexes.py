@@ -87,14 +87,16 @@ def test_a_jerk_beyond_the_profile_fires_the_reflex(panda):
         client.write(u)
         u = u.copy()
         u[1] = 11e-3  # 7 rad/s² within 7.5, but (11 - 8 + 1)e-3 / T² = 4000 rad/s³ > 3750
+        client.write(u)  # sent; the refusal answers it
         with pytest.raises(ReflexError) as info:
-            client.write(u)
+            client.read()
         message = str(info.value)
         assert "jerk of panda_joint2" in message and "> 3750 rad/s³" in message
         assert reflexes.fired.kind == "jerk" and reflexes.fired.value == pytest.approx(4000.0)
         stopped = np.array(client.read().q)
+        client.write(np.zeros(robot.nq))
         with pytest.raises(ReflexError, match="refused: the reflex fired .*send RESET"):
-            client.write(np.zeros(robot.nq))
+            client.read()
         client.hold()  # holding a stopped arm is no motion: accepted
         np.testing.assert_array_equal(client.read().q, stopped)
         assert server.rejected["reflex"] == 2
@@ -110,8 +112,9 @@ def test_without_a_profile_the_urdf_velocity_is_refused(panda):
         client.write(np.full(panda.nq, 2.0))  # a step from rest: no acceleration limit
         u = np.full(panda.nq, 2.0)
         u[0] = 1000.0
+        client.write(u)
         with pytest.raises(ReflexError, match=r"velocity of panda_joint1 .*1000 > 2\.175 rad/s"):
-            client.write(u)
+            client.read()
         arm = server.driver.read()  # held for a period, not moved at 1000 rad/s
         assert np.all(arm.qd == 0.0) and arm.q[0] == pytest.approx(PANDA_Q0[0] + 2.0 * T)
 
@@ -123,8 +126,9 @@ def test_the_position_of_the_arm_fires_the_reflex(panda):
     monitor = CommandMonitor(names, T, panda.limits.qd_max, q_min=-q_max - 10, q_max=q_max)
     with _served(panda, Reflexes(monitor, "test")) as (_server, client):
         client.reset(PANDA_Q0)
+        client.write(np.full(panda.nq, 1.0))  # 1 mm past q_max after one period
         with pytest.raises(ReflexError, match="position of panda_joint3 at sample 0"):
-            client.write(np.full(panda.nq, 1.0))  # 1 mm past q_max after one period
+            client.read()
 
 
 def test_the_client_stops_and_its_run_log_records_the_reflex(panda):
