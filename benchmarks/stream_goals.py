@@ -20,16 +20,16 @@ The plan period is chosen as ``dqcontrol run --plan-period auto`` chooses it (tw
 of the synchronous step time, at least 5 ms, a whole number of periods) unless
 ``--plan-period`` is given.
 Beside every wall-clock run a sleeper in its own process asks for 1 ms sleeps and records
-how much longer each took: a late command (ready after its period) during a measured host
-stall of ≥ 2.5 ms is counted as the host's.
+how much longer each took: a late command whose sample overlaps a measured host stall of
+≥ 2.5 ms is counted as the host's.
 
 ``--rt-priority N`` runs the loop's thread in ``SCHED_FIFO``
 (``run_loop(realtime_priority=N)``, ``dqcontrol run --rt-priority N``) and the sim-server as
 ``chrt -f N`` (a real arm's controller is a real-time task too).
 
-Printed per run: late commands (written after their period's end), commands the streamer
-had ready after their period (the host's among them), missed deadlines of the loop (the
-whole sample, the bridge's round trip included) and the periods it skipped after them, the
+Printed per run: late commands (written after their period's end; the host's among them),
+commands the streamer had ready after their period, missed deadlines of the loop (a
+sample's work from its measurement to its command) and the periods it skipped after them, the
 loop's start jitter (median, p99, max), the path deviation (task and stop), the execution
 time against the synchronous run, the plan period, the planner's and the streamer's step
 times; ``--json FILE`` writes them. Not a unit test (it runs for about a minute).
@@ -40,6 +40,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -154,14 +155,14 @@ def _sleeper() -> subprocess.Popen:
     return proc
 
 
-def _sim_server(task: Task, priority: int | None) -> tuple[subprocess.Popen, str]:
+def _sim_server(task: Task, priority: int | None, transport: str) -> tuple[subprocess.Popen, str]:
     code = "from dqcontrol.cli import main; raise SystemExit(main())"
     root = str(Path(dqcontrol.__file__).resolve().parents[1])
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
     chrt = [] if priority is None else ["chrt", "-f", str(priority)]
     proc = subprocess.Popen(
         [*chrt, sys.executable, "-c", code, "sim-server", "--robot", task.robot_option,
-         "--port", "0", "--period", str(PERIOD_S), "--no-progress"],
+         "--port", "0", "--period", str(PERIOD_S), "--no-progress", "--transport", transport],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
     )  # fmt: skip
     assert proc.stdout is not None
@@ -173,16 +174,23 @@ def _figures(result, ends_s: list[float], stalls: list) -> dict:
     """Late commands (and the host's among them), the loop's timing and the path."""
     log, m, stop = result.log, result.metrics, result.log.meta["stop"]
     late_s = np.asarray(log.lateness_s, dtype=float)
-    late = np.flatnonzero(late_s > PERIOD_S)
-    ends = np.asarray(ends_s)
+    ends = np.asarray(ends_s)  # each sample's end (its state read and recorded)
     host = 0
-    for k in late:
-        begin, end = ends[k] - PERIOD_S - late_s[k], ends[k]
-        host += any(t - over <= end and t >= begin for t, over in stalls)
+    for k in stop.get("late_command_samples", []):
+        begin = ends[k - 1] if k > 0 else ends[0] - 2 * PERIOD_S
+        host += any(t - over <= ends[k] and t >= begin for t, over in stalls)
     stream = log.meta.get("stream", {})
+    playout = stream.get("playout", "")
+    waited = re.search(r"no new plan for (\d+) ms: .* from sample (\d+)", playout)
+    playout_host = False
+    if waited:
+        k = min(int(waited[2]), len(ends) - 1)
+        begin = ends[max(k - round(int(waited[1]) * 1e-3 / PERIOD_S), 0)]
+        playout_host = any(t - over <= ends[k] and t >= begin for t, over in stalls)
     return {
+        "playout_during_host_stall": playout_host,
         "late_commands": int(stop.get("late_commands", 0)),
-        "late_ready": int(late.size),
+        "late_ready": int(np.count_nonzero(late_s > PERIOD_S)),
         "late_during_host_stalls": int(host),
         "skipped_periods": int(stop.get("skipped_periods", 0)),
         "missed_deadlines": int(stop.get("missed_deadlines", 0)),
@@ -190,7 +198,7 @@ def _figures(result, ends_s: list[float], stalls: list) -> dict:
         "jitter_median_ms": stop.get("jitter_median_ms"),
         "jitter_p99_ms": stop.get("jitter_p99_ms"),
         "jitter_max_ms": stop.get("jitter_max_ms"),
-        "lateness_max_ms": float(1e3 * np.max(late_s)),
+        "lateness_max_ms": float(1e3 * np.nanmax(late_s, initial=-np.inf)),
         "host_stalls": len(stalls),
         "host_stall_max_ms": max((1e3 * over for _t, over in stalls), default=0.0),
         "deviation_max_mm": 1e3 * m.path_deviation_max_m,
@@ -200,18 +208,20 @@ def _figures(result, ends_s: list[float], stalls: list) -> dict:
         "planner_step_median_ms": stream.get("planner_step_median_ms"),
         "streamer_step_median_us": stream.get("streamer_step_median_us"),
         "plans_used": stream.get("plans_used"),
-        "playout": stream.get("playout", ""),
+        "playout": playout,
         "sigma_reached_s": m.sigma_reached_s,
     }
 
 
-def streamed_run(task: Task, plan_period_s: float, bridge: bool, priority: int | None) -> dict:
+def streamed_run(
+    task: Task, plan_period_s: float, bridge: str | None, priority: int | None
+) -> dict:
     """The streamed controller on the wall clock, against the ideal kinematics here or
-    MuJoCo over the bridge, a sleeper beside it."""
-    ctrl = streamed(controller(task, plan_period_s, mujoco=bridge), PERIOD_S)
+    MuJoCo over the bridge (``bridge``: its transport), a sleeper beside it."""
+    ctrl = streamed(controller(task, plan_period_s, mujoco=bridge is not None), PERIOD_S)
     server = None
     if bridge:
-        server, address = _sim_server(task, priority)
+        server, address = _sim_server(task, priority, bridge)
         driver = BridgeDriver(address, hello_timeout_s=60.0)
     else:
         driver = KinematicDriver(task.robot, PERIOD_S)
@@ -224,11 +234,11 @@ def streamed_run(task: Task, plan_period_s: float, bridge: bool, priority: int |
         )  # fmt: skip
     finally:
         sleeper.terminate()
-        if bridge:
+        stalls = json.loads(sleeper.communicate(timeout=30.0)[0])
+        if server is not None:
             driver.close()
             server.kill()
             server.wait(timeout=10.0)
-    stalls = json.loads(sleeper.communicate(timeout=30.0)[0])
     return _figures(result, ends, stalls)
 
 
@@ -246,8 +256,8 @@ def synchronous_run(task: Task, mujoco: bool) -> dict:
 
 def _line(name: str, loop: str, r: dict, sync: dict) -> str:
     return (
-        f"{name:22s} {loop:9s} late {r['late_commands']:4d} (ready late {r['late_ready']}, host "
-        f"{r['late_during_host_stalls']}), missed {r['missed_deadlines']:4d}, skipped "
+        f"{name:22s} {loop:9s} late {r['late_commands']:4d} (host {r['late_during_host_stalls']}"
+        f", ready late {r['late_ready']}), missed {r['missed_deadlines']:4d}, skipped "
         f"{r['skipped_periods']}, jitter {r['jitter_median_ms']:.3f}/"
         f"{r['jitter_p99_ms']:.3f}/{r['jitter_max_ms']:.2f} ms, stalls {r['host_stalls']} "
         f"(max {r['host_stall_max_ms']:.1f} ms) | dev {r['deviation_max_mm']:.3f} mm "
@@ -256,6 +266,7 @@ def _line(name: str, loop: str, r: dict, sync: dict) -> str:
         f"{r['planner_step_median_ms']:.2f} ms, streamer {r['streamer_step_median_us']:.1f} us, "
         f"{r['reason']}, σ {r['sigma_reached_s']:.3f} s"
         + (f"; {r['playout']}" if r["playout"] else "")
+        + (" (a host stall in that wait)" if r["playout_during_host_stall"] else "")
     )
 
 
@@ -263,6 +274,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n", 1)[0])
     parser.add_argument("--plan-period", type=float, default=None, help="T_p [s] (default: auto)")
     parser.add_argument("--no-bridge", action="store_true", help="the kinematic loop only")
+    parser.add_argument(
+        "--transport", choices=("udp", "tcp"), nargs="+", default=["udp"],
+        help="the bridge's transport(s) (default udp)",
+    )  # fmt: skip
     parser.add_argument("--rt-priority", type=int, default=None, help="SCHED_FIFO priority")
     parser.add_argument("--json", help="write the figures to this JSON file")
     args = parser.parse_args(argv)
@@ -271,14 +286,16 @@ def main(argv: list[str] | None = None) -> int:
         tp = args.plan_period or plan_period(task)
         sync_kin = synchronous_run(task, mujoco=False)
         rows = {"plan_period_s": tp, "sync_kinematic": sync_kin}
-        rows["kinematic"] = streamed_run(task, tp, False, args.rt_priority)
+        rows["kinematic"] = streamed_run(task, tp, None, args.rt_priority)
         print(f"T_p = {1e3 * tp:g} ms", flush=True)
         print(_line(task.name, "kinematic", rows["kinematic"], sync_kin), flush=True)
         if not args.no_bridge:
             sync_mj = synchronous_run(task, mujoco=True)
             rows["sync_mujoco"] = sync_mj
-            rows["bridge"] = streamed_run(task, tp, True, args.rt_priority)
-            print(_line(task.name, "bridge", rows["bridge"], sync_mj), flush=True)
+            for transport in args.transport:
+                key = f"bridge_{transport}"
+                rows[key] = streamed_run(task, tp, transport, args.rt_priority)
+                print(_line(task.name, key, rows[key], sync_mj), flush=True)
         out[task.name] = rows
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

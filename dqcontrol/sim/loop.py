@@ -2,9 +2,12 @@
 
 Per sample k: read the measurement ``(t_k, q_k, qd_k)`` (the driver's joint order mapped to
 the model's by name), run one controller step, write its velocity command (held for one
-period), read the next measurement, and record sample k with the torques of the period
-that followed. The log (:class:`~dqcontrol.runs.log.RunLog`) and the metrics are the same
-for every driver.
+period), wait for the period's end (wall-clock mode), read the next measurement, and
+record sample k with the torques of the period that followed. A sample's work — from its
+measurement to its command — is what must fit in the period; the arm's response to the
+command arrives while the loop waits (a driver whose ``write`` only sends, as the
+bridge's, overlaps its round trip with that wait). The log
+(:class:`~dqcontrol.runs.log.RunLog`) and the metrics are the same for every driver.
 
 Before the first command the loop checks the driver's joints against the model's
 (:func:`~dqcontrol.sim.driver.joint_map`) and runs one step of a copy of the controller, so
@@ -34,17 +37,17 @@ from __future__ import annotations
 import array
 import contextlib
 import copy
-import gc
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from dqcontrol._blas import single_blas_thread
+from dqcontrol._gc import young_gc_only
 from dqcontrol.controllers.base import Controller, StepResult, check_positive
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
@@ -67,6 +70,9 @@ MAX_BRAKE_PERIODS = 10_000
 #: Wall-clock mode: the last part of each wait [s] polls the clock instead of sleeping (a
 #: sleep ends 0.1-0.3 ms after its target on a Linux host; a poll within a microsecond).
 SPIN_S = 0.0005
+#: The same with the loop in ``SCHED_FIFO`` [s]: its sleeps end within 0.05-0.1 ms, and
+#: every microsecond it polls is one the other processes of a small machine do not get.
+SPIN_RT_S = 0.00015
 
 
 @dataclass(frozen=True)
@@ -128,6 +134,9 @@ MAX_LATE_PERIODS = 5
 #: most recent ones: 8 MB each at most, about 17 minutes at 1 kHz); the maxima and the
 #: count of missed deadlines cover the whole run.
 TIMING_WINDOW = 1 << 20
+#: Late commands whose sample index ``meta["stop"]["late_command_samples"]`` lists (the
+#: first ones; the count covers the whole run).
+LATE_SAMPLES_LISTED = 1000
 
 
 class _Window:
@@ -180,14 +189,19 @@ class _Clock:
         self.lateness_s = _Window()
         self.jitter_s = _Window()
         self.sent_s = _Window()
+        self.late_samples: list[int] = []
 
     def restart(self) -> None:
         self.start, self.k = time.perf_counter(), 0
 
-    def sent(self) -> None:
-        """A command was written: its delay after the end of its slot (> 0: late)."""
+    def sent(self, sample: int) -> None:
+        """Sample ``sample``'s command was written: its delay after the end of its slot
+        (> 0: late; the first :data:`LATE_SAMPLES_LISTED` late samples are listed)."""
         if self.realtime:
-            self.sent_s.append(time.perf_counter() - self.start - (self.k + 1) * self.period_s)
+            late = time.perf_counter() - self.start - (self.k + 1) * self.period_s
+            self.sent_s.append(late)
+            if late > 0.0 and len(self.late_samples) < LATE_SAMPLES_LISTED:
+                self.late_samples.append(sample)
 
     def wait(self) -> bool:
         """End of a period: wait for its deadline. A missed one is counted and the next
@@ -205,14 +219,15 @@ class _Clock:
             self.k += skipped
             self.skipped_periods += skipped
             return late <= self.max_lateness_s
-        _sleep_until(deadline)
+        _sleep_until(deadline, SPIN_S if self.priority is None else SPIN_RT_S)
         self.jitter_s.append(time.perf_counter() - deadline)
         return True
 
     def report(self) -> dict:
         """``meta["stop"]``'s timing entries [ms]: lateness (max, median: negative is the
         slack left), start jitter (median, p99, max), the missed deadlines, the skipped
-        periods and the late commands (written after their slot's end)."""
+        periods and the late commands (written after their slot's end: their count, the
+        largest delay and the first ones' sample indices)."""
         late, jitter, sent = self.lateness_s, self.jitter_s, self.sent_s
         if not (self.realtime and len(late)):
             return {}
@@ -227,35 +242,18 @@ class _Clock:
             "skipped_periods": self.skipped_periods,
             "late_commands": sent.positive,
             "command_late_max_ms": 1e3 * sent.maximum if len(sent) else 0.0,
+            "late_command_samples": list(self.late_samples),
         }
 
 
-def _sleep_until(deadline: float) -> None:
-    """Sleep until ``SPIN_S`` before ``deadline`` (``time.perf_counter`` seconds), then
+def _sleep_until(deadline: float, spin_s: float = SPIN_S) -> None:
+    """Sleep until ``spin_s`` before ``deadline`` (``time.perf_counter`` seconds), then
     poll the clock until it passes."""
-    left = deadline - time.perf_counter() - SPIN_S
+    left = deadline - time.perf_counter() - spin_s
     if left > 0.0:
         time.sleep(left)
     while time.perf_counter() < deadline:
         pass
-
-
-@contextlib.contextmanager
-def _young_gc_only(enabled: bool) -> Iterator[None]:
-    """While the block runs, the garbage collector sees only objects made in it: a full
-    collection first, then every existing object frozen (``gc.freeze``), unfrozen after
-    (unless the caller had frozen objects already: ``gc.unfreeze`` would free theirs too)."""
-    if not enabled:
-        yield
-        return
-    frozen_before = gc.get_freeze_count()
-    gc.collect()
-    gc.freeze()
-    try:
-        yield
-    finally:
-        if frozen_before == 0:
-            gc.unfreeze()
 
 
 def run_loop(
@@ -338,7 +336,7 @@ def _samples_then_brake(run: _Samples, num, stale_periods, on_sample, on_progres
     the log's own write errors give way to that exception)."""
     try:
         with realtime_priority(run.clock.priority):
-            with _young_gc_only(run.clock.realtime), single_blas_thread():
+            with young_gc_only(run.clock.realtime), single_blas_thread():
                 run.clock.restart()
                 run.loop(num, stale_periods, on_sample, on_progress)
             return _stop_and_brake(run, brake)
@@ -512,7 +510,8 @@ class _Samples:
             result = controller.step(self.q, self.qd)
             self.command = result.qd_command
             driver.write(self.order.to_driver(self.command))
-            clock.sent()
+            clock.sent(k)
+            on_time = clock.wait()  # the arm moves over the period; its state comes after
             nxt = driver.read()
             rec.record(self.meas.t_s, self.q, self.qd, result, nxt.torque, nxt.torque_peak)
             if on_sample is not None:
@@ -536,7 +535,7 @@ class _Samples:
                     f"stop requested after {len(rec)} samples (σ = {controller.sigma:.4f} s)"
                 ))  # fmt: skip
                 return
-            if not clock.wait():
+            if not on_time:
                 self._stop("deadline", (
                     f"stopped after {len(rec)} samples: sample {k} ended "
                     f"{1e3 * clock.lateness_s.last:.2f} ms after its deadline (more than "

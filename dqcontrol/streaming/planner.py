@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dqcontrol._blas import single_blas_thread
+from dqcontrol._gc import young_gc_only
 from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.streaming.plan import Plan, plan_from_result
 from dqcontrol.streaming.streamer import Streamer
@@ -294,13 +295,14 @@ PLANNER_NICENESS = 10
 
 def _serve(planner: Planner, conn) -> None:
     """The planner process: a plan for every request until ``None`` or the pipe closes,
-    with one BLAS thread for its whole life (as a control loop holds it), at a lower
+    with one BLAS thread and the garbage collector kept to young objects for its whole life
+    (as a control loop holds them: a full collection would make a plan late), at a lower
     priority than the streamer's (:data:`PLANNER_NICENESS`): on a busy host the scheduler
     then takes its time from the planner, which has a plan period to spare, not from the
     streamer, which has one command period."""
     with contextlib.suppress(OSError):
         os.nice(PLANNER_NICENESS)
-    with single_blas_thread():
+    with single_blas_thread(), young_gc_only():
         _answer(planner, conn)
 
 

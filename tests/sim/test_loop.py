@@ -229,6 +229,10 @@ def kinematic_run(lbr4p, duration_s: float, period_s: float, cls=LocalController
 
 
 def _stalled_at(sample: int, seconds: float):
+    """An ``on_sample`` hook that stalls after sample ``sample`` is recorded: the stall
+    falls between the next measurement and the next command, in sample ``sample + 1``'s
+    work."""
+
     def slow(k, _driver, _result):
         if k == sample:
             threading.Event().wait(seconds)
@@ -241,7 +245,7 @@ def test_a_sample_later_than_the_limit_stops_the_wall_clock_loop(lbr4p):
         lbr4p,
         1.0,
         0.01,
-        on_sample=_stalled_at(3, 0.03),
+        on_sample=_stalled_at(2, 0.03),
         realtime=True,
         max_lateness_s=0.01,
     )
@@ -251,14 +255,14 @@ def test_a_sample_later_than_the_limit_stops_the_wall_clock_loop(lbr4p):
 
 
 def test_a_short_miss_is_counted_and_the_loop_goes_on_in_the_present_slot(lbr4p):
-    # 125 ms late at T = 50 ms (a period long enough that the host's own stalls do not
-    # miss one): within the default five periods; the next sample starts at once in the
-    # slot that holds the present, the two slots already past are skipped
+    # sample 3 125 ms late at T = 50 ms (a period long enough that the host's own stalls do
+    # not miss one): within the default five periods; the next sample starts at once in
+    # the slot that holds the present, the two slots already past are skipped
     starts = []
 
     def record(k, driver, result):
         starts.append(time.perf_counter())
-        _stalled_at(3, 0.175)(k, driver, result)
+        _stalled_at(2, 0.175)(k, driver, result)
 
     res = kinematic_run(
         lbr4p,
@@ -272,7 +276,8 @@ def test_a_short_miss_is_counted_and_the_loop_goes_on_in_the_present_slot(lbr4p)
     assert stop["reason"] == "end" and not res.interrupted and res.metrics.completed
     assert stop["missed_deadlines"] == 1 and stop["lateness_max_ms"] > 100.0
     assert stop["skipped_periods"] == 2  # 125 ms late at 50 ms: two whole periods past
-    assert stop["late_commands"] == 0  # the stall came after sample 3's command was written
+    assert stop["late_commands"] == 1  # sample 3's command, written 125 ms after its slot
+    assert stop["late_command_samples"] == [3]
     assert starts[-1] - starts[0] >= 0.05 * (len(starts) + 0.5)  # on the grid, two slots on
 
 
@@ -295,6 +300,7 @@ def test_a_command_written_after_its_period_is_a_late_command(lbr4p):
     stop = res.log.meta["stop"]
     assert stop["late_commands"] == 1 and stop["missed_deadlines"] == 1
     assert 20.0 < stop["command_late_max_ms"] < stop["lateness_max_ms"] + 1e-9
+    assert stop["late_command_samples"] == [int(np.argmax(res.log.sigma > 0.0))]
 
 
 @pytest.mark.parametrize("bad", [-0.001, float("nan"), True])
