@@ -417,8 +417,9 @@ class BridgeDriver:
         sequence number; returns its body, or ``None`` after ``timeout_s`` (or at an
         ``ERROR`` if ``error_ends``). On a lossy link an idempotent request (``HELLO``,
         ``DESCRIBE``) is sent again every :data:`REPEAT_S` while no answer comes."""
-        seq = HEADER.unpack_from(packet)[3]
-        repeat = self._link.lossy and HEADER.unpack_from(packet)[2] in (HELLO, DESCRIBE)
+        header = HEADER.unpack_from(packet)
+        seq = header[3]
+        repeat = self._link.lossy and header[2] in (HELLO, DESCRIBE)
         now = time.perf_counter()
         deadline, again = now + timeout_s, now + REPEAT_S
         while (left := deadline - time.perf_counter()) > 0:
