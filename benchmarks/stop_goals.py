@@ -8,9 +8,9 @@ waypoints``, the user guide's four waypoints) lasting ``--duration`` [s], at
 * rest to rest: the run to the end of the task and its stop; the largest path deviation
   (task and stop), the last command, the tool's distance from the path's end;
 * a stop requested at ``σ = T_tot/2``: its duration against the fastest stop along the
-  same joint path under the same limits, computed offline with TOPP-RA (zero end
-  velocity; the shortest feasible stopping length found by bisection, then the fastest
-  time over lengths up to twice that);
+  same path under the same velocity and acceleration limits, computed offline with TOPP-RA
+  (zero end velocity) on the joint path that leaves the stop's start state with no
+  self-motion, the fastest over stopping lengths up to 0.4 s of phase;
 * the checker (:func:`~dqcontrol.runs.check.check_run`, the profile) on every run, its
   summary printed;
 * the jerk bound's cost: the rest-to-rest execution time with the profile's jerk against
@@ -106,13 +106,27 @@ def _stop_at_half(robot, args, mujoco: bool):
     return result, controller
 
 
-def _joint_path(robot, args) -> tuple[np.ndarray, np.ndarray]:
-    """``(σ, q)`` of an uninterrupted kinematic run (the joint path the stop follows)."""
-    controller = _controller(robot, args)
-    result = run_loop(controller, KinematicDriver(robot, args.period), q0=PANDA_Q0, brake=False)
-    sigma, q = result.log.sigma, result.log.q
-    keep = np.concatenate(([True], np.diff(sigma) > 1e-9))
-    return sigma[keep], q[keep]
+def _least_norm_path(robot, trajectory, q0, sigma0: float, length: float, step: float = 5e-4):
+    """``(σ, q)`` from ``(σ0, q0)`` over ``length`` of phase along the path with no motion in
+    its null space: ``dq/dσ = J⁺(q) x_d'(σ)`` (least norm), integrated with RK4. The joint
+    path a stop without self-motion follows."""
+
+    def slope(sigma: float, q: np.ndarray) -> np.ndarray:
+        jac = robot.pose_jacobian(q)
+        return np.linalg.lstsq(jac, trajectory.target_derivative(sigma), rcond=None)[0]
+
+    steps = int(np.ceil(length / step))
+    sigma = sigma0 + step * np.arange(steps + 1)
+    q = np.empty((steps + 1, q0.size))
+    q[0] = q0
+    for k in range(steps):
+        x, h = q[k], step
+        k1 = slope(sigma[k], x)
+        k2 = slope(sigma[k] + h / 2, x + h / 2 * k1)
+        k3 = slope(sigma[k] + h / 2, x + h / 2 * k2)
+        k4 = slope(sigma[k] + h, x + h * k3)
+        q[k + 1] = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return sigma, q
 
 
 def _toppra_stop(sigma, q, sigma0: float, s0: float, length: float) -> float | None:
@@ -136,21 +150,19 @@ def _toppra_stop(sigma, q, sigma0: float, s0: float, length: float) -> float | N
     return None if trajectory is None else float(trajectory.duration)
 
 
-def _fastest_stop(sigma, q, sigma0: float, s0: float) -> tuple[float, float]:
-    """``(time, length)`` of the fastest stop along the joint path from ``(σ0, s0)`` (``s0``
-    at most the speed the velocity limits allow there on the spline, which may differ from
-    the controller's joint motion by rounding)."""
+def _fastest_stop(sigma, q, sigma0: float, s0: float, max_length: float = 0.4):
+    """``(time, length)`` of the fastest stop along the joint path from ``(σ0, s0)``, over
+    stopping lengths from 0.002 to ``max_length`` of phase (a scan: where the path slows
+    down further on, a longer stop may be infeasible while a shorter one is not), or
+    ``(nan, nan)``. ``s0`` is at most the speed the velocity limits allow there on the
+    spline, which may differ from the controller's joint motion by rounding."""
     from scipy.interpolate import CubicSpline
 
     slope = np.abs(CubicSpline(sigma, q)(sigma0, 1))
     s0 = min(s0, float(np.min(FRANKA_VELOCITY / np.maximum(slope, 1e-12))) * (1 - 1e-9))
-    low, high = 1e-4, 0.4
-    for _ in range(30):
-        mid = 0.5 * (low + high)
-        low, high = (low, mid) if _toppra_stop(sigma, q, sigma0, s0, mid) else (mid, high)
-    times = [(t, length) for length in np.linspace(high, 2 * high, 9)
+    times = [(t, length) for length in np.geomspace(0.002, max_length, 60)
              if (t := _toppra_stop(sigma, q, sigma0, s0, length)) is not None]  # fmt: skip
-    return min(times)
+    return min(times) if times else (float("nan"), float("nan"))
 
 
 def _execution(robot, args) -> float:
@@ -190,15 +202,17 @@ def main(argv: list[str] | None = None) -> int:
             stop_run.log.sigma[task] + args.period * stop_run.log.s[task]
         )
         figures[f"{tag}_stop_s0"] = float(stop_run.log.s[task])
+        if not mujoco:
+            stop_controller, stop_q0 = controller, stop_run.log.q[task + 1]
         figures[f"{tag}_wall_s"] = time.perf_counter() - start
     with_jerk, without = _execution(robot, args), _execution(dqcontrol.load_panda(), args)
     figures["kinematic_rest_execution_s"] = with_jerk
     figures["kinematic_no_jerk_execution_s"] = without
     figures["jerk_cost_ratio"] = with_jerk / without
-    sigma, q = _joint_path(robot, args)
-    best, length = _fastest_stop(
-        sigma, q, figures["kinematic_stop_sigma0_s"], figures["kinematic_stop_s0"]
-    )
+    sigma0 = figures["kinematic_stop_sigma0_s"]
+    length = min(0.4, stop_controller.trajectory.duration - sigma0)
+    sigma, q = _least_norm_path(robot, stop_controller.trajectory, stop_q0, sigma0, length)
+    best, length = _fastest_stop(sigma, q, sigma0, figures["kinematic_stop_s0"], length)
     figures["toppra_fastest_stop_s"] = best
     figures["toppra_fastest_stop_length_s"] = length
     figures["kinematic_stop_ratio_to_toppra"] = (

@@ -17,11 +17,12 @@ import pytest
 
 from dqcontrol.controllers import LocalController
 from dqcontrol.controllers.path_following.controller import PathFollowingController
+from dqcontrol.dq import qfrom_axis_angle
 from dqcontrol.dq.algebra import translation
 from dqcontrol.errors import DQControlError
 from dqcontrol.model import PANDA_Q0
 from dqcontrol.sim import KinematicDriver, MujocoDriver, run_loop
-from dqcontrol.trajectories import Circle
+from dqcontrol.trajectories import Circle, WaypointTrajectory
 
 T = 0.01
 VELOCITY = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
@@ -252,25 +253,63 @@ def test_rest_to_rest_in_mujoco(panda):
 def _checked_run(panda, controller_class, duration_s: float):
     """A 10 cm circle of ``duration_s`` at T = 1 ms in the kinematic loop on the Panda with the
     ``franka_panda`` profile (velocity, acceleration and jerk), to its end and its stop:
-    the checker's violations against the profile, and the run."""
+    the checker's violations against the profile, the run and the controller."""
     from dqcontrol.runs.check import check_run
 
     robot = panda.with_limits("franka_panda")
     period = 1e-3
     controller = controller_class(robot, Circle(duration_s), period)
     result = run_loop(controller, KinematicDriver(robot, period), q0=PANDA_Q0)
-    return check_run(result.log, robot.limits, period_s=period), result
+    return check_run(result.log, robot.limits, period_s=period), result, controller
 
 
-def test_a_path_following_stop_keeps_the_jerk_bound_to_rest(panda):
-    found, result = _checked_run(panda, PathFollowingController, 1.0)
+def test_a_path_following_stop_keeps_the_jerk_bound_and_the_path_to_rest(panda):
+    found, result, controller = _checked_run(panda, PathFollowingController, 1.0)
     assert found == []
-    assert result.log.meta["stop"]["at_rest"]
-    assert np.all(result.log.qd_command[-1] == 0.0)
+    log, m = result.log, result.metrics
+    assert log.meta["stop"]["at_rest"]
+    assert np.all(log.qd_command[-1] == 0.0)
+    trajectory = controller.trajectory
+    assert np.max(trajectory.path_deviation(translation(log.pose))) <= KINEMATIC_GOAL_M
+    assert m.stop_path_deviation_max_m <= KINEMATIC_GOAL_M
+    end = translation(trajectory.target(1.0)[None])[0]
+    assert np.linalg.norm(translation(log.pose[-1:])[0] - end) <= KINEMATIC_GOAL_M
+
+
+def _waypoint_run(robot, period_s: float):
+    """The user guide's four waypoints (the tool turning about its z-axis) in 1 s."""
+    z = np.array([0.0, 0.0, 1.0])
+    path = WaypointTrajectory(
+        positions_m=[[0.0, 0.0, 0.0], [0.08, 0.05, 0.0], [0.12, -0.05, 0.03], [0.0, 0.0, 0.0]],
+        orientations=[qfrom_axis_angle(z, np.radians(a)) for a in (0.0, 30.0, -20.0, 0.0)],
+        duration_s=1.0,
+    )
+    controller = PathFollowingController(
+        robot, path, period_s, velocity_limits=VELOCITY, acceleration_limit=ACCELERATION
+    )
+    return run_loop(controller, KinematicDriver(robot, period_s), q0=PANDA_Q0), controller
+
+
+def test_the_jerk_bound_neither_slows_nor_bends_a_waypoint_path(panda):
+    """Franka's velocity and acceleration limits with and without the profile's jerk, at
+    1 kHz: the jerk-bounded run takes at most 1.1 times as long and keeps the path within
+    0.1 mm (a plan that turns an acceleration round faster than the loop can swings it
+    between its bounds: several times slower, and off the path)."""
+    from dqcontrol.runs.check import check_run
+
+    robot = panda.with_limits("franka_panda")
+    bounded, controller = _waypoint_run(robot, 1e-3)
+    free, _ = _waypoint_run(panda, 1e-3)
+    assert controller.jerk_max is not None
+    assert check_run(bounded.log, robot.limits, period_s=1e-3) == []
+    ratio = bounded.metrics.execution_time_s / free.metrics.execution_time_s
+    assert ratio <= 1.1, f"{ratio:.3f}"
+    deviation = controller.trajectory.path_deviation(translation(bounded.log.pose))
+    assert np.max(deviation) <= KINEMATIC_GOAL_M
 
 
 def test_a_thesis_controllers_end_of_task_stop_keeps_the_jerk_bound_to_rest(panda):
-    found, result = _checked_run(panda, LocalController, 0.5)
+    found, result, _ = _checked_run(panda, LocalController, 0.5)
     assert found == []
     assert result.log.meta["stop"]["at_rest"]
     assert result.log.meta["stop"]["ramp"] == ""

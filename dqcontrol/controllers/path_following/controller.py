@@ -148,7 +148,8 @@ class PathFollowingController(QPController):
 
     Args:
         robot, trajectory, period_s: see :class:`~dqcontrol.controllers.base.Controller`.
-        num_intervals: ``p ≥ 2`` intervals of the horizon (the first is ``T``).
+        num_intervals: ``p ≥ 2`` intervals of the horizon (the first is ``T``; the others
+            grow as a power of their index, :attr:`PathFollowingTuning.interval_growth`).
         horizon_s: ``τ_p`` [s], longer than ``T``.
         velocity_limits: ``qd_max`` [rad/s] (scalar or per joint); default: the URDF's.
         acceleration_limit: ``"dynamics"`` (default: Pinocchio's ``(τ_max - |g|)/M_jj`` at
@@ -222,15 +223,16 @@ class PathFollowingController(QPController):
             robot, trajectory, period_s, measurement_delay_periods=measurement_delay_periods
         )
         self.horizon_s = check_positive("horizon_s (tau_p)", horizon_s, "s")
-        breaks = interval_breakpoints(num_intervals, self.horizon_s, self.period_s)
+        self.tuning, self.torque_limit_fraction = _checked_options(tuning, torque_limit_fraction)
+        self.jerk_max = jerk_setting(robot, jerk_limit)
+        growth = self.tuning.growth_for(self.jerk_max is not None)
+        breaks = interval_breakpoints(num_intervals, self.horizon_s, self.period_s, growth)
         self.num_intervals = int(num_intervals)
         self.s_max = _in_range("s_max", s_max, 1.0, 1.5, "-")
-        self.tuning, self.torque_limit_fraction = _checked_options(tuning, torque_limit_fraction)
         self.position_margin_rad, self.q_min, self.q_max, self.qd_max = joint_limit_settings(
             robot, velocity_limits, position_margin_rad
         )
         self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)
-        self.jerk_max = jerk_setting(robot, jerk_limit)
         self._set_servo(servo_time_constant_s, breaks)
         self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference

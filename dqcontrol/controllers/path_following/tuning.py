@@ -6,10 +6,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from dqcontrol.controllers.base import check_positive
 from dqcontrol.errors import ParameterError
 
-__all__ = ["RESERVE_REPLANNED_ONCE", "RESERVE_REPLANNED_OFTEN", "PathFollowingTuning"]
+__all__ = [
+    "GROWTH_JERK",
+    "GROWTH_PARABOLIC",
+    "RESERVE_REPLANNED_ONCE",
+    "RESERVE_REPLANNED_OFTEN",
+    "PathFollowingTuning",
+]
+
+#: Default growth of the horizon's intervals: parabolic (``Δ_1 = (τ_p - T)/(p - 1)²``).
+GROWTH_PARABOLIC = 2.0
+#: The same under a jerk bound: cubic, so that the first intervals resolve the few periods
+#: over which a joint's acceleration turns round (``2 ā/j̄``, 4 ms on a Franka arm), which a
+#: plan whose second interval is longer takes for a single step (docs/theory.md §8.11).
+GROWTH_JERK = 3.0
 
 #: Default share of ``a_max`` between intervals where the loop re-plans at most once within
 #: the plan's second interval: the reserve absorbs the linearisation's error.
@@ -54,6 +69,9 @@ class PathFollowingTuning:
             keep it below the controller's position margin.
         rest_deceleration_share: share of each joint's acceleration bound the braking of
             the phase at the task's end may use, in ``(0, 1]`` (docs/theory.md §8.9).
+        interval_growth: the power ``g ≥ 1`` the horizon's intervals grow by
+            (:func:`~dqcontrol.controllers.prediction.consistent.interval_breakpoints`);
+            ``None`` (default): :meth:`growth_for` (docs/theory.md §8.11).
     """
 
     path_tolerance: float = 1e-6
@@ -70,6 +88,7 @@ class PathFollowingTuning:
     path_full_weight_time_s: float = 0.05
     position_slack_rad: float = 1e-3
     rest_deceleration_share: float = 0.5
+    interval_growth: float | None = None
 
     def __post_init__(self) -> None:
         units = {
@@ -92,10 +111,20 @@ class PathFollowingTuning:
             if reserve > 1.0:
                 raise ParameterError(f"acceleration_reserve must be in (0, 1], got {reserve!r}")
             object.__setattr__(self, "acceleration_reserve", reserve)
+        growth = self.interval_growth
+        if growth is not None and not (np.isfinite(growth) and growth >= 1.0):
+            raise ParameterError(f"interval_growth must be finite and ≥ 1, got {growth!r}")
         rounds = self.max_linearisations
         if isinstance(rounds, bool) or int(rounds) != rounds or rounds < 1:
             raise ParameterError(f"max_linearisations must be an integer ≥ 1, got {rounds!r}")
         object.__setattr__(self, "max_linearisations", int(rounds))
+
+    def growth_for(self, jerk_bounded: bool) -> float:
+        """The intervals' growth: the one given, or by default :data:`GROWTH_PARABOLIC`, and
+        :data:`GROWTH_JERK` where the commands' jerk is bounded (docs/theory.md §8.11)."""
+        if self.interval_growth is not None:
+            return float(self.interval_growth)
+        return GROWTH_JERK if jerk_bounded else GROWTH_PARABOLIC
 
     def reserve_for(self, period_s: float, second_interval_s: float) -> float:
         """The share of ``a_max`` the coupling rows allow: the one given, or by default

@@ -32,9 +32,12 @@ from dqcontrol.errors import ParameterError
 __all__ = ["ConsistentPrediction", "interval_breakpoints", "shift_matrix"]
 
 
-def interval_breakpoints(num_intervals: int, horizon_s: float, period_s: float) -> np.ndarray:
+def interval_breakpoints(
+    num_intervals: int, horizon_s: float, period_s: float, growth: float = 2.0
+) -> np.ndarray:
     """``[b_0 = 0, b_1 = T, …, b_p = τ_p]`` [s]: the first interval is the control period,
-    the others grow parabolically, ``b_k = T + (τ_p - T) ((k - 1)/(p - 1))²``."""
+    the others grow as a power ``g = growth`` (2: parabolically),
+    ``b_k = T + (τ_p - T) ((k - 1)/(p - 1))^g``."""
     if isinstance(num_intervals, bool) or int(num_intervals) != num_intervals or num_intervals < 2:
         raise ParameterError(f"num_intervals (p) must be an integer ≥ 2, got {num_intervals!r}")
     if not (np.isfinite(horizon_s) and horizon_s > 0.0):
@@ -45,8 +48,10 @@ def interval_breakpoints(num_intervals: int, horizon_s: float, period_s: float) 
             f"horizon_s (tau_p) must be longer than the control period T = {period_s:g} s, "
             f"got {horizon_s!r} s"
         )
+    if not (np.isfinite(growth) and growth >= 1.0):
+        raise ParameterError(f"growth must be finite and ≥ 1, got {growth!r}")
     k = np.arange(1, p + 1, dtype=float)
-    inner = period_s + (horizon_s - period_s) * ((k - 1.0) / (p - 1.0)) ** 2
+    inner = period_s + (horizon_s - period_s) * ((k - 1.0) / (p - 1.0)) ** growth
     return np.concatenate(([0.0], inner))
 
 

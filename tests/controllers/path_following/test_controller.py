@@ -49,6 +49,39 @@ def test_breakpoints_first_interval_is_the_period_and_grow():
     assert np.all(np.diff(np.diff(b[1:])) > 0.0)
 
 
+def test_breakpoints_grow_as_the_given_power():
+    k = np.arange(1, 11, dtype=float)
+    for growth in (2.0, 3.0, 1.0):
+        b = interval_breakpoints(10, 1.0, 0.001, growth)
+        expected = 0.001 + 0.999 * ((k - 1.0) / 9.0) ** growth  # b_1 … b_10
+        np.testing.assert_allclose(b[1:], expected, rtol=1e-15)
+    default = interval_breakpoints(10, 1.0, 0.001)
+    np.testing.assert_array_equal(default, interval_breakpoints(10, 1.0, 0.001, 2.0))
+    with pytest.raises(ParameterError, match="growth"):
+        interval_breakpoints(10, 1.0, 0.001, 0.5)
+
+
+def test_under_a_jerk_bound_the_intervals_grow_cubically(panda):
+    """Without a jerk bound the intervals grow parabolically (the second is 12.3 ms at
+    1 kHz over 1 s); with one, cubically (1.4 ms: shorter than the 4 ms a Franka joint takes
+    to turn its acceleration round); a given growth is kept either way."""
+    from dqcontrol.controllers.path_following.tuning import PathFollowingTuning
+
+    def durations(robot, **kwargs):
+        ctrl = PathFollowingController(robot, Circle(1.0), 0.001, **kwargs)
+        return ctrl.layout.durations_s
+
+    profiled = panda.with_limits("franka_panda")
+    np.testing.assert_allclose(durations(panda), np.diff(interval_breakpoints(10, 1.0, 1e-3)))
+    np.testing.assert_allclose(
+        durations(profiled), np.diff(interval_breakpoints(10, 1.0, 1e-3, 3.0))
+    )
+    assert durations(profiled)[1] == pytest.approx(0.999 / 9**3)
+    assert durations(panda, jerk_limit=5000.0)[1] == pytest.approx(0.999 / 9**3)
+    given = PathFollowingTuning(interval_growth=2.0)
+    np.testing.assert_array_equal(durations(profiled, tuning=given), durations(panda))
+
+
 def test_shift_matrix_rows_are_averages():
     b = interval_breakpoints(6, 1.0, 0.05)
     s = shift_matrix(b, 0.05)
@@ -316,6 +349,7 @@ def test_bad_parameters_name_themselves(lbr4p, kwargs, name):
         ({"max_linearisations": 0}, "max_linearisations"),
         ({"acceleration_reserve": 1.5}, "acceleration_reserve"),
         ({"trust_radius_rad": float("nan")}, "trust_radius_rad"),
+        ({"interval_growth": 0.5}, "interval_growth"),
     ],
 )
 def test_bad_tuning_names_itself(kwargs, name):
