@@ -224,15 +224,17 @@ class PathFollowingController(QPController):
         )
         self.horizon_s = check_positive("horizon_s (tau_p)", horizon_s, "s")
         self.tuning, self.torque_limit_fraction = _checked_options(tuning, torque_limit_fraction)
-        self.jerk_max = jerk_setting(robot, jerk_limit)
-        growth = self.tuning.growth_for(self.jerk_max is not None)
-        breaks = interval_breakpoints(num_intervals, self.horizon_s, self.period_s, growth)
-        self.num_intervals = int(num_intervals)
         self.s_max = _in_range("s_max", s_max, 1.0, 1.5, "-")
         self.position_margin_rad, self.q_min, self.q_max, self.qd_max = joint_limit_settings(
             robot, velocity_limits, position_margin_rad
         )
         self._set_acceleration(acceleration_limit, acceleration_floor, acceleration_cap)
+        self.jerk_max = jerk_setting(robot, jerk_limit)
+        growth = self.tuning.growth_for(
+            self.horizon_s, self.period_s, num_intervals, self._turn_time_s()
+        )
+        breaks = interval_breakpoints(num_intervals, self.horizon_s, self.period_s, growth)
+        self.num_intervals = int(num_intervals)
         self._set_servo(servo_time_constant_s, breaks)
         self.posture = PostureTerm(self.layout, posture_gain_per_s)
         self._posture_reference = posture_reference
@@ -287,6 +289,27 @@ class PathFollowingController(QPController):
         if self.dynamic_acceleration:
             self.acceleration_floor, self.acceleration_cap = floor, cap
 
+    def _turn_time_s(self) -> float | None:
+        """``2 min_j ā_j/j̄_j`` [s] over the joints with a jerk bound: the shortest time a
+        joint's acceleration takes to turn from one bound to the other (``None`` without a
+        jerk bound)."""
+        a_bar, jerk = self._jerk_accelerations(), self.jerk_max
+        if a_bar is None or jerk is None:
+            return None
+        bounded = np.isfinite(jerk)
+        return float(2.0 * np.min(a_bar[bounded] / jerk[bounded]))
+
+    def _jerk_accelerations(self) -> np.ndarray | None:
+        """``ā`` per joint [rad/s²] under a jerk bound (``None`` without one): the constant
+        bound, or the dynamics-aware bound's cap (the robot's profile where it gives one)."""
+        if self.jerk_max is None:
+            return None
+        if self.a_const is not None:
+            return np.broadcast_to(self.a_const, (self.n,))
+        qdd_max = self.robot.limits.qdd_max
+        assert qdd_max is not None, "JointLimits fills it"
+        return np.minimum(self.acceleration_cap, qdd_max)
+
     def _levels(self, extra: tuple[Term, ...]) -> tuple[Level, ...]:
         layout, mu, tuning = self.layout, self.tuning.damping, self.tuning
         path_tol, progress_tol = tuning.path_tolerance, tuning.progress_tolerance
@@ -317,8 +340,19 @@ class PathFollowingController(QPController):
 
     def _reserve(self) -> float:
         """The share of ``a_max`` the coupling rows allow
-        (:meth:`PathFollowingTuning.reserve_for`)."""
-        return self.tuning.reserve_for(self.period_s, float(self.layout.durations_s[1]))
+        (:meth:`PathFollowingTuning.reserve_for`); under a jerk bound, by default, at least
+        what lets the plan's second acceleration leave the bound within the first jerk
+        row from an applied one at ``ā``: ``1 - min_j j̄_j m_0/ā_j``, ``m_0 = ½(T + h_1)``
+        (docs/theory.md §8.11)."""
+        durations = self.layout.durations_s
+        reserve = self.tuning.reserve_for(self.period_s, float(durations[1]))
+        a_bar, jerk = self._jerk_accelerations(), self.jerk_max
+        if a_bar is None or jerk is None or self.tuning.acceleration_reserve is not None:
+            return reserve
+        m_0 = 0.5 * (self.period_s + 0.5 * float(durations[0] + durations[1]))
+        bounded = np.isfinite(jerk)
+        reach = np.min(jerk[bounded] * m_0 / a_bar[bounded])
+        return max(reserve, min(1.0, 1.0 - float(reach)))
 
     def _limits(self) -> tuple[Limit, ...]:
         layout = self.layout

@@ -12,7 +12,6 @@ from dqcontrol.controllers.base import check_positive
 from dqcontrol.errors import ParameterError
 
 __all__ = [
-    "GROWTH_JERK",
     "GROWTH_PARABOLIC",
     "RESERVE_REPLANNED_ONCE",
     "RESERVE_REPLANNED_OFTEN",
@@ -21,10 +20,6 @@ __all__ = [
 
 #: Default growth of the horizon's intervals: parabolic (``Δ_1 = (τ_p - T)/(p - 1)²``).
 GROWTH_PARABOLIC = 2.0
-#: The same under a jerk bound: cubic, so that the first intervals resolve the few periods
-#: over which a joint's acceleration turns round (``2 ā/j̄``, 4 ms on a Franka arm), which a
-#: plan whose second interval is longer takes for a single step (docs/theory.md §8.11).
-GROWTH_JERK = 3.0
 
 #: Default share of ``a_max`` between intervals where the loop re-plans at most once within
 #: the plan's second interval: the reserve absorbs the linearisation's error.
@@ -71,7 +66,8 @@ class PathFollowingTuning:
             the phase at the task's end may use, in ``(0, 1]`` (docs/theory.md §8.9).
         interval_growth: the power ``g ≥ 1`` the horizon's intervals grow by
             (:func:`~dqcontrol.controllers.prediction.consistent.interval_breakpoints`);
-            ``None`` (default): :meth:`growth_for` (docs/theory.md §8.11).
+            ``None`` (default): parabolic, or under a jerk bound as :meth:`growth_for`
+            says (docs/theory.md §8.11).
     """
 
     path_tolerance: float = 1e-6
@@ -119,12 +115,20 @@ class PathFollowingTuning:
             raise ParameterError(f"max_linearisations must be an integer ≥ 1, got {rounds!r}")
         object.__setattr__(self, "max_linearisations", int(rounds))
 
-    def growth_for(self, jerk_bounded: bool) -> float:
-        """The intervals' growth: the one given, or by default :data:`GROWTH_PARABOLIC`, and
-        :data:`GROWTH_JERK` where the commands' jerk is bounded (docs/theory.md §8.11)."""
+    def growth_for(
+        self, horizon_s: float, period_s: float, num_intervals: int, turn_s: float | None
+    ) -> float:
+        """The intervals' growth: the one given; else :data:`GROWTH_PARABOLIC`, or, where a
+        joint's acceleration takes ``turn_s`` [s] to turn round under a jerk bound
+        (``2 ā/j̄``), the least growth ``≥ 2`` whose second interval
+        ``(τ_p - T)/(p - 1)^g`` is no longer than that (docs/theory.md §8.11)."""
         if self.interval_growth is not None:
             return float(self.interval_growth)
-        return GROWTH_JERK if jerk_bounded else GROWTH_PARABOLIC
+        p = num_intervals if isinstance(num_intervals, int | float) else 0  # checked later
+        if turn_s is None or p < 3 or horizon_s - period_s <= turn_s:
+            return GROWTH_PARABOLIC
+        needed = np.log((horizon_s - period_s) / turn_s) / np.log(p - 1.0)
+        return max(GROWTH_PARABOLIC, float(needed))
 
     def reserve_for(self, period_s: float, second_interval_s: float) -> float:
         """The share of ``a_max`` the coupling rows allow: the one given, or by default

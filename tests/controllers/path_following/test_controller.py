@@ -61,10 +61,11 @@ def test_breakpoints_grow_as_the_given_power():
         interval_breakpoints(10, 1.0, 0.001, 0.5)
 
 
-def test_under_a_jerk_bound_the_intervals_grow_cubically(panda):
-    """Without a jerk bound the intervals grow parabolically (the second is 12.3 ms at
-    1 kHz over 1 s); with one, cubically (1.4 ms: shorter than the 4 ms a Franka joint takes
-    to turn its acceleration round); a given growth is kept either way."""
+def test_under_a_jerk_bound_the_second_interval_is_the_accelerations_turn(panda):
+    """Without a jerk bound the intervals grow parabolically (the second is 12.3 ms at 1 kHz
+    over 1 s); with one, as fast as lets the second last no longer than the shortest time a
+    joint's acceleration takes to turn from one bound to the other, ``2 ā/j̄`` (4 ms with
+    Franka's limits); a given growth is kept either way."""
     from dqcontrol.controllers.path_following.tuning import PathFollowingTuning
 
     def durations(robot, **kwargs):
@@ -72,12 +73,15 @@ def test_under_a_jerk_bound_the_intervals_grow_cubically(panda):
         return ctrl.layout.durations_s
 
     profiled = panda.with_limits("franka_panda")
-    np.testing.assert_allclose(durations(panda), np.diff(interval_breakpoints(10, 1.0, 1e-3)))
-    np.testing.assert_allclose(
-        durations(profiled), np.diff(interval_breakpoints(10, 1.0, 1e-3, 3.0))
-    )
-    assert durations(profiled)[1] == pytest.approx(0.999 / 9**3)
-    assert durations(panda, jerk_limit=5000.0)[1] == pytest.approx(0.999 / 9**3)
+    parabolic = np.diff(interval_breakpoints(10, 1.0, 1e-3))
+    np.testing.assert_allclose(durations(panda), parabolic)
+    assert durations(profiled)[1] == pytest.approx(2.0 * 7.5 / 3750.0, rel=1e-12)
+    assert np.all(np.diff(durations(profiled)) > 0.0) and durations(profiled).sum() == 1.0
+    turn = 2.0 * 10.0 / 5000.0  # a constant 10 rad/s² against 5000 rad/s³
+    constant = durations(panda, jerk_limit=5000.0, acceleration_limit=10.0)
+    assert constant[1] == pytest.approx(turn, rel=1e-12)
+    # a jerk bound loose enough to turn within the parabolic second interval changes nothing
+    np.testing.assert_allclose(durations(panda, jerk_limit=1e3, acceleration_limit=10.0), parabolic)
     given = PathFollowingTuning(interval_growth=2.0)
     np.testing.assert_array_equal(durations(profiled, tuning=given), durations(panda))
 
