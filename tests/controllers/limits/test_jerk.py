@@ -208,6 +208,34 @@ def test_path_following_stays_within_every_limit_from_moving_states(panda, seed)
     _closed_loop(ctrl, panda, q, u1, u2, 125, a_max, jerk, period)
 
 
+@pytest.mark.parametrize("seed", [23, 69])
+def test_path_following_from_an_acceleration_bound_under_a_slow_jerk(panda, seed):
+    """States drawn as above whose jerk bounds are slow against their acceleration bounds
+    (the acceleration takes 2–2.7 ms to turn round): the plan's reserve between intervals
+    is one the first jerk row can reach from an applied acceleration at its bound."""
+    test_path_following_stays_within_every_limit_from_moving_states.hypothesis.inner_test(
+        panda, seed
+    )
+
+
+def test_the_reserve_under_a_jerk_bound_is_reachable_within_the_first_jerk_row(panda):
+    from dqcontrol.controllers.path_following.tuning import RESERVE_REPLANNED_OFTEN
+
+    def limit(**kwargs):
+        ctrl = PathFollowingController(panda, Circle(1.0, 0.15), 0.001, velocity_limits=PANDA_V,
+                                       **kwargs)  # fmt: skip
+        lim = next(lim for lim in ctrl.limits if lim.name == "acceleration")
+        coupling = 0.5 * (ctrl.layout.durations_s[1:] + ctrl.layout.durations_s[:-1])
+        return lim.coupling_s[0] / coupling[0], ctrl.layout.durations_s
+
+    franka = limit(acceleration_limit=15.0, jerk_limit=7500.0)[0]
+    assert franka == pytest.approx(RESERVE_REPLANNED_OFTEN, rel=1e-12)
+    reserve, durations = limit(acceleration_limit=20.0, jerk_limit=2000.0)
+    m_0 = 0.5 * (0.001 + 0.5 * (durations[0] + durations[1]))
+    assert reserve == pytest.approx(1.0 - 2000.0 * m_0 / 20.0, rel=1e-12)
+    assert reserve > RESERVE_REPLANNED_OFTEN
+
+
 @pytest.mark.parametrize("cls", [LocalController, ProportionalController])
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1))
