@@ -108,7 +108,8 @@ class PathFollowingTuning:
                 raise ParameterError(f"acceleration_reserve must be in (0, 1], got {reserve!r}")
             object.__setattr__(self, "acceleration_reserve", reserve)
         growth = self.interval_growth
-        if growth is not None and not (np.isfinite(growth) and growth >= 1.0):
+        number = isinstance(growth, int | float) and not isinstance(growth, bool)
+        if growth is not None and not (number and np.isfinite(growth) and growth >= 1.0):
             raise ParameterError(f"interval_growth must be finite and ≥ 1, got {growth!r}")
         rounds = self.max_linearisations
         if isinstance(rounds, bool) or int(rounds) != rounds or rounds < 1:

@@ -354,6 +354,7 @@ def test_bad_parameters_name_themselves(lbr4p, kwargs, name):
         ({"acceleration_reserve": 1.5}, "acceleration_reserve"),
         ({"trust_radius_rad": float("nan")}, "trust_radius_rad"),
         ({"interval_growth": 0.5}, "interval_growth"),
+        ({"interval_growth": "cubic"}, "interval_growth"),
     ],
 )
 def test_bad_tuning_names_itself(kwargs, name):
