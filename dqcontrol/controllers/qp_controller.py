@@ -182,7 +182,6 @@ class QPController(Controller):
         self._remedy_messages = {r.name: r.message for r in self._remedy_list}
         self._ctx: StepContext | None = None
         self._last: StepProblem | None = None
-        self._cache: dict = {}
         self._new_diag = fast_constructor(StepDiagnostics, status="solved")
         self._new_result = fast_constructor(
             StepResult, qd_command=np.zeros(self.n), s=1.0, sigma=0.0, sigma_next=0.0,
@@ -323,12 +322,12 @@ class QPController(Controller):
         levels = self._levels_now
         assembly = self._assembly
         warm = self._warm(ctx) if self._warm_starts and assembly is not None else None
-        first = StepProblem(ctx, levels, self.limits, self._cache, assembly, False, warm)
+        first = StepProblem(ctx, levels, self.limits, assembly, False, warm)
         result = self.backend.solve_problem(first)
         kept, outcome, remedy, spent = first, result, _NO_REMEDY, result.time_s
         if result.failed_level == 0:
             for name, limits, _ in self._remedy_list:
-                retry = StepProblem(ctx, levels, limits, self._cache, assembly, True)
+                retry = StepProblem(ctx, levels, limits, assembly, True)
                 again = self.backend.solve_problem(retry)
                 spent += again.time_s
                 if again.failed_level != 0:

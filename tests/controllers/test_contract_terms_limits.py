@@ -12,7 +12,8 @@ For each, at several steps:
   squares, checked by finite differences of the cost computed from the rows;
 - a limit gives ``None``, :class:`Bounds` (indices within the decision, as many bounds as
   indices, ``lower ≤ upper`` unless hard) or :class:`Inequality` rows (``C`` over the whole
-  decision, one bound per row, keys one per row), and a ``constant`` one the same rows at
+  decision, one bound per row, keys one per row); a term or limit whose rows are constant
+  (``constant_rows``: one object of read-only arrays) gives the same object and numbers at
   every step.
 """
 
@@ -21,7 +22,7 @@ import pytest
 
 from dqcontrol.controllers import limits as limits_pkg
 from dqcontrol.controllers import terms as terms_pkg
-from dqcontrol.controllers.core.problem import Bounds, Inequality
+from dqcontrol.controllers.core.problem import Bounds, Inequality, Residual, constant_rows
 from dqcontrol.controllers.limits import CollisionLimit
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.model.collision import CollisionModel, Sphere
@@ -152,7 +153,7 @@ def test_each_level_objective_is_its_weighted_squares(controllers, name):
 def _items(rows):
     if rows is None:
         return ()
-    return (rows,) if isinstance(rows, (Bounds, Inequality)) else tuple(rows)
+    return (rows,) if isinstance(rows, (Bounds, Inequality, Residual)) else tuple(rows)
 
 
 @pytest.mark.parametrize("name", ["local", "p6", "p6_strict", "noscale6", "pf6"])
@@ -178,23 +179,38 @@ def test_limits_give_well_formed_rows(controllers, name):
                         assert len(item.keys) == rows, limit.name
 
 
-def _snapshot(ctrl, ctx) -> list:
-    """Copies of the rows of every constant limit and term at ``ctx``."""
-    out = []
-    for limit in (lim for lim in ctrl.limits if lim.constant):
-        for item in _items(limit.rows(ctx)):
-            out += [np.array(x, copy=True) for x in item if isinstance(x, np.ndarray)]
-    for term in (t for lev in ctrl.levels for t in lev.terms if t.constant):
+def _constant_rows(ctrl, ctx) -> dict:
+    """The rows of every term and limit that marks them constant at ``ctx`` (the same
+    object at two calls, read-only arrays only), by name."""
+    out = {}
+    for limit in ctrl.limits:
+        rows = limit.rows(ctx)
+        if constant_rows(rows, limit.rows(ctx)):
+            out[limit.name] = rows
+    for term in (t for lev in ctrl.levels for t in lev.terms):
         res = term.residual(ctx)
-        out += [np.array(res.b, copy=True), np.array(res.dense(ctx.layout), copy=True)]
+        if constant_rows(res, term.residual(ctx)):
+            out[term.name] = res
     return out
+
+
+def _arrays(rows) -> list:
+    return [np.array(x, copy=True) for item in _items(rows) for x in item if hasattr(x, "shape")]
 
 
 @pytest.mark.parametrize("name", ["local", "p6", "p6_strict", "noscale6", "pf6"])
 def test_constant_limits_and_terms_do_not_change(controllers, name):
     ctrl = controllers[name]
-    snapshots = [_snapshot(ctrl, ctx) for ctx, _ in _walk(ctrl)]
-    for later in snapshots[1:]:
-        assert len(later) == len(snapshots[0])
-        for a, b in zip(snapshots[0], later, strict=True):
-            np.testing.assert_array_equal(a, b)
+    walk = [ctx for ctx, _ in _walk(ctrl)]
+    first = _constant_rows(ctrl, walk[0])
+    assert "damping" in first  # every controller here damps its joint velocities
+    copies = {k: _arrays(v) for k, v in first.items()}
+    for ctx in walk[1:]:
+        later = _constant_rows(ctrl, ctx)
+        assert later.keys() == first.keys()
+        for key, rows in later.items():
+            assert rows is first[key], key  # the same object at every step
+            for a, b in zip(copies[key], _arrays(rows), strict=True):
+                np.testing.assert_array_equal(a, b)
+            for x in (x for item in _items(rows) for x in item if hasattr(x, "shape")):
+                assert not x.flags.writeable, key

@@ -4,10 +4,11 @@ and the limits (docs/theory.md §7.5).
 :class:`BlockAssembly` turns the terms and limits of a one-level controller into a
 :class:`~dqcontrol.controllers.core.problem.BlockQP`:
 
-- *terms*: the ``constant`` ones are evaluated once into a constant Hessian and linear
+- *terms*: the constant ones (:func:`~dqcontrol.controllers.core.problem.constant_rows`)
+  are evaluated once into a constant Hessian and linear
   term; at each step the others add their blocks through their fast path
   (:meth:`~dqcontrol.controllers.terms.term.Term.add_gram`), or through their rows;
-- *limits*: the ``constant`` ones are merged once into a template of the bounds; at each
+- *limits*: the constant ones are merged once into a template of the bounds; at each
   step the others tighten a copy of it, soft ones first and hard ones last (the conflict
   rule), through their fast paths (:meth:`~dqcontrol.controllers.limits.limit.Limit.tighten`,
   :meth:`~dqcontrol.controllers.limits.limit.Limit.row_bounds`) or through their rows.
@@ -27,7 +28,13 @@ import numpy as np
 
 from dqcontrol.controllers.core.box_rules import hard_into, intersect_into
 from dqcontrol.controllers.core.context import StepContext
-from dqcontrol.controllers.core.problem import BlockQP, Bounds, Inequality, Residual
+from dqcontrol.controllers.core.problem import (
+    BlockQP,
+    Bounds,
+    Inequality,
+    Residual,
+    constant_rows,
+)
 from dqcontrol.controllers.limits.limit import Limit
 from dqcontrol.controllers.terms.term import Term
 
@@ -100,15 +107,15 @@ class BlockAssembly:
         scratch = np.zeros((p, m, m))
         fast, generic = [], []
         for term in self.terms:
-            if term.constant:
-                res = term.residual(ctx)
+            res = term.residual(ctx)
+            if constant_rows(res, term.residual(ctx)):
                 if res.blocks is None:
                     return False
                 add_residual(const_h, const_c, res)
             elif overrides(term, Term, "add_gram") and term.add_gram(ctx, scratch):
                 fast.append(term.add_gram)
             else:
-                if term.residual(ctx).blocks is None:
+                if res.blocks is None:
                     return False
                 generic.append(term)
         self._const_h, self._const_c = const_h, const_c
@@ -121,14 +128,17 @@ class BlockAssembly:
         template_bounds: list[Bounds] = []
         rows: list[tuple[Limit, Inequality]] = []
         fixed: list[int] = []
+        constant: set[int] = set()  # ids of the limits evaluated once
         for limit in self.limits:  # the general rows in the limits' order
-            items = _items(limit.rows(ctx))
+            out = limit.rows(ctx)
+            items = _items(out)
             for item in items:
                 if isinstance(item, Bounds) and item.fixed:
                     fixed.extend(int(k) for k in item.index)
                 if isinstance(item, Inequality):
                     rows.append((limit, item))
-            if limit.constant:
+            if constant_rows(out, limit.rows(ctx)):
+                constant.add(id(limit))
                 template_bounds.extend(i for i in items if isinstance(i, Bounds))
         # the general rows: one slot (a range of rows) per limit, in order
         c_rows: list[np.ndarray] = []
@@ -146,12 +156,13 @@ class BlockAssembly:
         for b in sorted(template_bounds, key=lambda b: b.hard):
             merge_into(lower, upper, conflict, b)
         for limit, item in rows:
-            if limit.constant:
+            if id(limit) in constant:
                 first, stop = slots[id(limit)]
                 lower[first:stop], upper[first:stop] = item.lower, item.upper
         self._bounds0 = np.array([lower, upper])
         self._fixed = tuple(sorted(set(fixed)))
-        self._plan(sorted(self.limits, key=lambda lim: lim.hard), slots)  # soft first
+        varying = [lim for lim in self.limits if id(lim) not in constant]
+        self._plan(sorted(varying, key=lambda lim: lim.hard), slots)  # soft first
         self.conflict = conflict
         self._marked = True  # conflict may hold marks: cleared at the next build
         self._clash = conflict[: layout.num_joints]
@@ -163,8 +174,6 @@ class BlockAssembly:
         order: soft ones first), the rest through their rows."""
         tightens, row_bounds, generic = [], [], []
         for limit in ordered:
-            if limit.constant:
-                continue
             slot = slots.get(id(limit))
             fast_bounds = overrides(limit, Limit, "tighten")
             fast_rows = overrides(limit, Limit, "row_bounds") or (fast_bounds and slot is None)

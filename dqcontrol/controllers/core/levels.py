@@ -81,21 +81,15 @@ def build_problem(
     ctx: StepContext,
     levels: tuple[Level, ...],
     limits: tuple[Limit, ...],
-    cache: dict | None = None,
 ) -> Problem:
-    """Evaluate every term and limit at ``ctx``; ``cache`` keeps constant terms' rows (a
-    term in several levels is evaluated once)."""
+    """Evaluate every term and limit at ``ctx`` (a term in several levels once)."""
     built = []
     now: dict[int, Residual] = {}  # this step's residuals, by term
     for lev in levels:
         residuals = []
         for term in lev.terms:
             res = now.get(id(term))
-            if res is None and term.constant and cache is not None:
-                res = cache.get(id(term))
-                if res is None:
-                    res = cache[id(term)] = term.residual(ctx)
-            elif res is None:
+            if res is None:
                 res = term.residual(ctx)
             now[id(term)] = res
             residuals.append(res)

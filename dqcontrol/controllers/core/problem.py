@@ -67,6 +67,7 @@ __all__ = [
     "StateHessian",
     "StateRows",
     "WarmLevels",
+    "constant_rows",
     "fixed_variables",
     "merge_bounds",
     "objective",
@@ -241,6 +242,31 @@ class Inequality(NamedTuple):
     lower: np.ndarray
     upper: np.ndarray
     keys: np.ndarray | None = None
+
+
+def constant_rows(rows: object, again: object) -> bool:
+    """Whether a term's residual or a limit's rows never change: the same object at two
+    calls (``rows`` and ``again``), made of read-only arrays only (docs/theory.md §7.3).
+
+    This is the one mark of constancy: an array marked read-only
+    (:func:`~dqcontrol.controllers.linalg.gram.frozen`) never changes, so the products of
+    such arrays are computed once, and a term or limit that hands out one
+    :class:`Residual`, :class:`Bounds` or :class:`Inequality` (or a tuple of them) built
+    from read-only arrays is evaluated once.
+    """
+    if rows is None or rows is not again:
+        return False
+    items = rows if type(rows) is tuple else (rows,)
+    for item in items:
+        if not isinstance(item, Residual | Bounds | Inequality):
+            return False
+        for value in item:
+            if isinstance(value, np.ndarray):
+                if value.flags.writeable:
+                    return False
+            elif value is not None and not isinstance(value, str | bool | int | float):
+                return False
+    return True
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,6 @@ class StepProblem:
         ctx: the step context.
         levels: the priority levels, highest first.
         limits: the limits of this attempt (a remedy changes them).
-        cache: the controller's cache of constant rows (``None``: none kept).
         assembly: the block assembly of a one-level controller (``None``: several levels).
         relaxed: the assembly leaves the relaxable limits out (the same set as ``limits``).
         warm: the previous plan shifted, for a backend that starts from it.
@@ -51,7 +50,7 @@ class StepProblem:
     """
 
     __slots__ = (
-        "_problem", "assembly", "block_diagonal", "block_form", "cache", "ctx", "has_conflict",
+        "_problem", "assembly", "block_diagonal", "block_form", "ctx", "has_conflict",
         "levels", "limits", "lower", "upper",
     )  # fmt: skip
 
@@ -60,7 +59,6 @@ class StepProblem:
         ctx: StepContext,
         levels: tuple[Level, ...],
         limits: tuple[Limit, ...],
-        cache: dict | None = None,
         assembly: BlockAssembly | None = None,
         relaxed: bool = False,
         warm: np.ndarray | None = None,
@@ -68,7 +66,6 @@ class StepProblem:
         self.ctx = ctx
         self.levels = levels
         self.limits = limits
-        self.cache = cache
         self.assembly = assembly
         self._problem: Problem | None = None
         blocks = None if assembly is None else assembly.build(ctx, relaxed, warm)
@@ -87,7 +84,7 @@ class StepProblem:
         """Every level's terms and every limit's rows (built once)."""
         problem = self._problem
         if problem is None:
-            problem = self._problem = build_problem(self.ctx, self.levels, self.limits, self.cache)
+            problem = self._problem = build_problem(self.ctx, self.levels, self.limits)
             if self.block_form is None:
                 self.lower, self.upper = problem.lower, problem.upper
                 n = self.ctx.layout.num_joints

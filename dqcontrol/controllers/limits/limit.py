@@ -21,9 +21,11 @@ class Limit(ABC):
     Subclasses set ``name`` and implement :meth:`rows`, returning :class:`Bounds`,
     :class:`Inequality`, a tuple of them, or ``None``.
 
-    Class attributes: ``constant`` (the rows never change: evaluated once), ``hard`` (its
-    :class:`Bounds` are hard: merged after every soft bound, with the conflict rule),
-    ``relaxable`` (dropped when the problem is infeasible, to regain feasibility).
+    Class attributes: ``hard`` (its :class:`Bounds` are hard: merged after every soft
+    bound, with the conflict rule), ``relaxable`` (dropped when the problem is infeasible,
+    to regain feasibility). A limit whose rows never change builds them once from
+    read-only arrays and returns that object at every call: it is then evaluated once
+    (:func:`~dqcontrol.controllers.core.problem.constant_rows`).
 
     Optional fast paths: :meth:`tighten` (the :class:`Bounds` of this step merged into the
     variable bounds in place) and :meth:`row_bounds` (the bounds of its
@@ -31,7 +33,6 @@ class Limit(ABC):
     """
 
     name: str = "limit"
-    constant: bool = False
     hard: bool = False
     relaxable: bool = False
 

@@ -11,6 +11,7 @@ import numpy as np
 from dqcontrol.controllers.core.context import StepContext
 from dqcontrol.controllers.core.problem import Bounds, DecisionLayout
 from dqcontrol.controllers.limits.limit import Limit
+from dqcontrol.controllers.linalg.gram import frozen
 
 __all__ = ["ScalingRange"]
 
@@ -20,15 +21,15 @@ class ScalingRange(Limit):
     design (``fixed``: a backend keeps it fixed for the life of its workspace)."""
 
     name = "scaling_range"
-    constant = True
 
     def __init__(self, layout: DecisionLayout, s_min: float = 0.0, s_max: float = 1.0) -> None:
         p = layout.num_blocks
         self._rows = Bounds(
-            self.name, layout.s_index(), np.full(p, s_min), np.full(p, s_max),
-            fixed=s_min == s_max,
+            self.name, frozen(layout.s_index()), frozen(np.full(p, s_min)),
+            frozen(np.full(p, s_max)), fixed=s_min == s_max,
         )  # fmt: skip
 
     def rows(self, ctx: StepContext) -> Bounds:
-        """The bounds ``s_min ≤ s_i ≤ s_max`` of every block."""
+        """The bounds ``s_min ≤ s_i ≤ s_max`` of every block: one constant object, built
+        with the limit."""
         return self._rows

@@ -24,7 +24,6 @@ class DampingTerm(Term):
     """
 
     name = "damping"
-    constant = True
 
     def __init__(
         self,
@@ -38,11 +37,14 @@ class DampingTerm(Term):
         self.held = bool(held)
         p, n, m = layout.num_blocks, layout.num_joints, layout.block_size
         k = m if (include_scaling and layout.with_scaling) else n
-        self._blocks = np.zeros((p, k, m))
-        self._blocks[:, np.arange(k), np.arange(k)] = 1.0
-        frozen(self._blocks)
-        self._b = frozen(np.zeros(p * k))
+        blocks = np.zeros((p, k, m))
+        blocks[:, np.arange(k), np.arange(k)] = 1.0
+        b = np.zeros(p * k)
+        self._rows = Residual(
+            self.name, self.weight, frozen(b), blocks=frozen(blocks), held=self.held
+        )
 
     def residual(self, ctx: StepContext) -> Residual:
-        """The rows ``qd_i`` (and ``s_i`` with ``include_scaling``) of every block, ``b = 0``."""
-        return Residual(self.name, self.weight, self._b, blocks=self._blocks, held=self.held)
+        """The rows ``qd_i`` (and ``s_i`` with ``include_scaling``) of every block, ``b = 0``:
+        one constant residual, built with the term."""
+        return self._rows

@@ -26,17 +26,15 @@ class ScalingTerm(Term):
     """
 
     name = "scaling"
-    constant = True
 
     def __init__(self, layout: DecisionLayout, weight: float) -> None:
         self.weight = float(weight)
         p, m = layout.num_blocks, layout.block_size
-        self._blocks = np.zeros((p, 1, m))
-        self._blocks[:, 0, layout.num_joints] = 1.0
-        frozen(self._blocks)
-        self._b = frozen(np.ones(p))
         layout.s_index()  # a layout without s is refused here
+        blocks = np.zeros((p, 1, m))
+        blocks[:, 0, layout.num_joints] = 1.0
+        self._rows = Residual(self.name, self.weight, frozen(np.ones(p)), blocks=frozen(blocks))
 
     def residual(self, ctx: StepContext) -> Residual:
-        """The rows ``s_i - 1`` of every block."""
-        return Residual(self.name, self.weight, self._b, blocks=self._blocks)
+        """The rows ``s_i - 1`` of every block: one constant residual, built with the term."""
+        return self._rows

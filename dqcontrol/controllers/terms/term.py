@@ -18,8 +18,11 @@ __all__ = ["Term"]
 class Term(ABC):
     """A cost term: residual rows with a weight.
 
-    Subclasses set ``name`` and ``weight`` and implement :meth:`residual`. ``constant``
-    terms (rows independent of the step) are evaluated once per layout and cached.
+    Subclasses set ``name`` and ``weight`` and implement :meth:`residual`. A term whose
+    rows never change builds its :class:`Residual` once from read-only arrays
+    (:func:`~dqcontrol.controllers.linalg.gram.frozen`) and returns that object at every
+    call: it is then evaluated once
+    (:func:`~dqcontrol.controllers.core.problem.constant_rows`).
 
     Optional hooks: :meth:`prepare` (start of every step, before any row is read: a term
     with memory fixes this step's values there), :meth:`observe` (after every step: the
@@ -28,7 +31,6 @@ class Term(ABC):
 
     name: str = "term"
     weight: float = 1.0
-    constant: bool = False
 
     @abstractmethod
     def residual(self, ctx: StepContext) -> Residual:
