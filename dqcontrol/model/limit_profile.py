@@ -86,6 +86,18 @@ class LimitProfile:
         """Whether this is the ``urdf`` profile (the URDF's own limits, no figures)."""
         return not self.joint_names
 
+    def __eq__(self, other: object) -> bool:
+        """The same name, source, joints, periods and file, and every limit equal."""
+        if not isinstance(other, LimitProfile):
+            return NotImplemented
+        arrays = ("q_min", "q_max", "qd_max", "qdd_max", "qddd_max")
+        same = (self.name, self.source, self.joint_names, self.periods_s, self.path) == (
+            other.name, other.source, other.joint_names, other.periods_s, other.path,
+        )  # fmt: skip
+        return same and all(np.array_equal(getattr(self, a), getattr(other, a)) for a in arrays)
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays: not hashable
+
     def accepts_period(self, period_s: float) -> bool:
         """Whether the robot accepts the control period ``period_s`` [s] (to 1e-9 s)."""
         return not self.periods_s or any(abs(period_s - p) <= 1e-9 for p in self.periods_s)

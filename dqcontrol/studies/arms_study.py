@@ -107,8 +107,9 @@ def goal_misses(result: dict) -> list[str]:
         misses.append(f"execution {ratio:.2f}× the TOPP-RA bound")
     if case["controller"] == "pf" and done:
         limit = PF_DEVIATION_M[case["simulator"]]
-        if not _num(m["path_deviation_max_m"]) <= limit:
-            misses.append(f"deviation {1e3 * m['path_deviation_max_m']:.2f} mm > {1e3 * limit} mm")
+        deviation_m = _num(m["path_deviation_max_m"])
+        if not deviation_m <= limit:
+            misses.append(f"deviation {1e3 * deviation_m:.2f} mm > {1e3 * limit} mm")
     return misses
 
 

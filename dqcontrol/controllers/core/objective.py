@@ -208,7 +208,7 @@ def level_objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> 
     c = np.zeros(nv)
     for r in live:
         w2 = 2.0 * r.weight
-        if r.blocks is not None:
+        if r.blocks is not None and r.row_weights is None:
             add_diagonal_blocks(p_mat, block_gram(r.blocks), w2)
             subtract_block_lin(c, r.blocks, r.b, w2)
         elif r.states is not None and _full_states(r, nv):
@@ -216,7 +216,8 @@ def level_objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> 
             grams, lin = _state_grams(st.rows, _row_weights(r), r.b)
             _add_state_rows(p_mat, c, grams, lin, st.weights, st.phase_weights, w2)
         else:
-            _add_changing_rows(p_mat, c, np.ascontiguousarray(r.A), _row_weights(r), r.b, w2)
+            rows = np.ascontiguousarray(r.dense(layout))
+            _add_changing_rows(p_mat, c, rows, _row_weights(r), r.b, w2)
     return p_mat, c
 
 

@@ -507,8 +507,9 @@ def objective(layout: DecisionLayout, residuals: tuple[Residual, ...]) -> tuple:
 
 
 def _kind(r: Residual) -> str:
-    """How ``r`` enters the objective: ``"blocks"``, ``"dense"`` or ``"weighted"``."""
-    if r.blocks is not None:
+    """How ``r`` enters the objective: ``"blocks"``, ``"dense"`` or ``"weighted"`` (rows with
+    row weights, blocks too, enter densely)."""
+    if r.blocks is not None and r.row_weights is None:
         return "blocks"
     return "dense" if r.row_weights is None else "weighted"
 
@@ -552,7 +553,7 @@ def _add_residual(
     """Add ``2 w AᵀA`` to ``p_mat`` (``None``: not) and subtract ``2 w Aᵀ b`` from ``c``
     (each row weighted by ``row_weights`` where given), in place."""
     w2 = 2.0 * r.weight
-    if r.blocks is not None:
+    if r.blocks is not None and r.row_weights is None:
         if p_mat is not None:
             add_diagonal_blocks(p_mat, block_gram(r.blocks), w2)
         subtract_block_lin(c, r.blocks, r.b, w2)

@@ -51,13 +51,16 @@ REGULARISATION = 1e-12
 def phase_speed_per_joint(jacobians: np.ndarray, tangents: np.ndarray) -> np.ndarray:
     """``|∂q/∂σ|`` per joint ``(p, n)`` [rad per s of phase]: the least-norm ``q'`` of
     ``J q' = x_d'`` at each state (``jacobians`` ``(p, 8, n)``, ``tangents`` ``(p, 8)``),
-    from the normal equations regularised by :data:`REGULARISATION`."""
+    ``q' = Jᵀ y`` with ``(J Jᵀ + ε I) y = x_d'`` (``ε``: :data:`REGULARISATION` of the
+    mean diagonal). The dual quaternion's Jacobian has rank 6 at most, so either Gram matrix
+    is singular; in this form the rounding that ``ε`` amplifies lies in ``J``'s left null
+    space, which ``Jᵀ`` removes (docs/theory.md §8.9)."""
     jt = jacobians.transpose(0, 2, 1)
-    gram = jt @ jacobians
-    n = gram.shape[-1]
-    scale = REGULARISATION * np.trace(gram, axis1=1, axis2=2) / n + 1e-300
-    gram += scale[:, None, None] * np.eye(n)
-    dq = np.linalg.solve(gram, jt @ tangents[:, :, None])
+    gram = jacobians @ jt
+    m = gram.shape[-1]
+    scale = REGULARISATION * np.trace(gram, axis1=1, axis2=2) / m + 1e-300
+    gram += scale[:, None, None] * np.eye(m)
+    dq = jt @ np.linalg.solve(gram, tangents[:, :, None])
     return np.abs(dq[:, :, 0])
 
 
