@@ -1,11 +1,7 @@
-"""The controller registry (``dqcontrol.registry``), the thesis's numbers in one place
-(``dqcontrol.experiments.thesis``) and trajectories that describe themselves
-(``Trajectory.to_metadata`` / ``trajectory_from_metadata``): what the CLI, Table 1, the
-fault campaign and the benchmark build from."""
+"""The controller registry (``dqcontrol.registry``): every name and alias builds its controller
+with its options, and Table 1 and the fault campaign build theirs from it."""
 
 from __future__ import annotations
-
-import json
 
 import numpy as np
 import pytest
@@ -30,10 +26,6 @@ from dqcontrol.registry import (
 )
 from dqcontrol.trajectories import (
     Circle,
-    FunctionTrajectory,
-    Sinusoid,
-    WaypointTrajectory,
-    trajectory_from_metadata,
 )
 
 #: name → (canonical name, class, p, table label)
@@ -126,70 +118,3 @@ def test_every_tool_builds_from_the_registry():
         reg = controller_spec(name)
         assert (spec.cls, spec.kwargs, spec.qp) == (reg.cls, reg.kwargs, reg.qp)
     assert scenarios.ControllerSpec is ControllerSpec
-
-
-def test_the_thesis_numbers_are_shared(lbr4p):
-    from dqcontrol.cli import build_parser
-    from dqcontrol.faults.campaign import PERIOD_S
-
-    settings = t1.Table1Settings()
-    assert settings.velocity_limits == thesis.THESIS_VELOCITY_LIMITS
-    assert settings.acceleration_limit == thesis.THESIS_ACCELERATION_LIMIT == 10.0
-    assert settings.period_s == thesis.THESIS_PERIOD_S == PERIOD_S == 0.05
-    assert settings.horizon_s == thesis.THESIS_HORIZON_S == 1.0
-    np.testing.assert_array_equal(settings.start_configuration(), thesis.THESIS_Q0)
-    np.testing.assert_allclose(
-        thesis.THESIS_VELOCITY_LIMITS, np.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5]), rtol=0
-    )
-    args = build_parser().parse_args(["run"])
-    assert args.period == thesis.THESIS_PERIOD_S and args.horizon == thesis.THESIS_HORIZON_S
-    assert args.controllers == ("local", "p10", "pf")
-    # without --acceleration-limit each controller keeps its own bound: the thesis's for the
-    # thesis's controllers, the dynamics-aware one for path following
-    assert args.acceleration_limit is None
-    for name in ("local", "p10", "noscale"):
-        a_max = build_controller(name, lbr4p, Circle(2.0), thesis.THESIS_PERIOD_S).a_const
-        np.testing.assert_array_equal(a_max, thesis.THESIS_ACCELERATION_LIMIT)
-    assert build_controller("pf", lbr4p, Circle(2.0), 0.05).dynamic_acceleration
-
-
-# ---------------------------------------------------------------------------- trajectories
-_C, _S = np.cos(0.4), np.sin(0.4)
-
-
-@pytest.mark.parametrize(
-    "trajectory",
-    [
-        Circle(2.0),
-        Circle(1.5, radius_m=0.4),
-        Sinusoid(4.0, amplitude_m=0.6, omega_x_rad_per_m=15.0),
-        WaypointTrajectory([[0, 0, 0], [0.1, 0.05, 0], [0, 0.1, 0.05]], duration_s=2.0),
-        WaypointTrajectory(
-            [[0, 0, 0], [0.1, 0, 0]], orientations=[[1, 0, 0, 0], [_C, _S, 0, 0]], times_s=[0, 1.5]
-        ),
-    ],
-    ids=["circle", "circle_r04", "sinusoid", "waypoints", "waypoints_turning"],
-)
-def test_trajectories_describe_themselves(lbr4p, trajectory):
-    sigmas = np.linspace(0.0, trajectory.duration, 11)
-    for traj in (trajectory, trajectory.anchored_at(lbr4p.pose(LBR4P_Q0))):
-        meta = json.loads(json.dumps(traj.to_metadata()))  # plain JSON values
-        again = trajectory_from_metadata({**meta, "label": "p10", "q0": [0.0] * 7})
-        assert type(again) is type(traj) and again.duration == traj.duration
-        if traj.reference is None:
-            assert "reference" not in meta and again.reference is None
-            traj, again = (t.anchored_at(lbr4p.pose(LBR4P_Q0)) for t in (traj, again))
-        for a, b in zip(traj.targets(sigmas), again.targets(sigmas), strict=True):
-            np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
-
-
-def test_metadata_errors():
-    code = FunctionTrajectory(lambda s: np.array([1.0, 0, 0, 0, 0, 0, 0, 0]), None, 1.0)
-    with pytest.raises(ParameterError, match="FunctionTrajectory cannot describe itself"):
-        code.to_metadata()
-    with pytest.raises(ParameterError, match=r"known: \['circle', 'sinusoid', 'waypoints'\]"):
-        trajectory_from_metadata({"trajectory": "square", "duration_s": 1.0})
-    with pytest.raises(ParameterError, match="no duration_s"):
-        trajectory_from_metadata({"trajectory": "circle"})
-    with pytest.raises(ParameterError, match="radius_m"):
-        trajectory_from_metadata({"trajectory": "circle", "duration_s": 1.0, "radius_m": -1})

@@ -12,8 +12,9 @@ velocity of the frame origin and the angular velocity, both in world axes)::
 The quaternion products are written out on floats and compiled with Numba (``cache=True``:
 compiled once per machine, then loaded from ``__pycache__``): at 1 kHz the work is a few
 hundred flops, and the cost of one pose + Jacobian is then Pinocchio's call plus one
-dispatch instead of a chain of small numpy calls. ``tests/model/test_kinematics.py`` checks the
-result against an independent DH chain, finite differences and the Hamilton-operator form.
+dispatch instead of a chain of small numpy calls. ``tests/model/test_robot.py`` checks the
+result against an independent DH chain and finite differences, ``tests/dq/test_kernels.py``
+against the Hamilton-operator form.
 """
 
 from __future__ import annotations

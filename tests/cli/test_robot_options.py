@@ -1,25 +1,36 @@
-"""The command line for any arm: ``--robot erd:NAME``, ``--lock``, ``--package-dir``,
-``--tool``, a URDF with a continuous joint, the options every subcommand shares (``--out``,
-``--no-progress``), and bad input → a message naming what is wrong, exit code 2."""
+"""The robot of a command line (dqcontrol/cli/robot_options.py): ``--robot erd:NAME``,
+``--lock``, ``--package-dir``, ``--tool``, a URDF with a continuous joint, the option types,
+the robot rebuilt from a saved run's meta, and bad input → a message naming what is wrong,
+exit code 2."""
 
 from __future__ import annotations
 
+import argparse
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from dqcontrol.cli import build_parser, main
-from dqcontrol.cli.robot_options import RobotRequest, load_robot, robot_from_meta
+from dqcontrol.cli import main
+from dqcontrol.cli.robot_options import (
+    RobotRequest,
+    add_robot_options,
+    load_robot,
+    parse_lock,
+    parse_package_dir,
+    parse_tool,
+    robot_from_meta,
+    robot_label,
+)
+from dqcontrol.errors import ParameterError
 from dqcontrol.model import LBR4P_Q0, lbr4p_urdf_path, load_panda
 from dqcontrol.runs.storage import load_run
-
-_SUBCOMMANDS = ("run", "table1", "faults", "view", "bench", "sim-server")
 
 
 @pytest.fixture
 def no_figures(monkeypatch):
-    """Runs without figures and replays (tested in test_cli.py): the controllers and the
+    """Runs without figures and replays (tested in test_run_cmd.py): the controllers and the
     saved runs are what these tests check."""
     import dqcontrol.viz.figures as figures
     import dqcontrol.viz.meshcat_viewer as viewer
@@ -198,37 +209,94 @@ def test_bad_robot_options_exit_2_naming_the_problem(argv, messages, capsys):
         assert message in err, (message, err)
 
 
-def test_thesis_velocity_limits_need_all_seven_joints(capsys):
-    err = _bad(["run", "--lock", "lbr4p_joint_7=0", "--velocity-limits", "thesis"], capsys)
-    assert "this robot has 6 joints" in err
+# ---------------------------------------------------------------------- option types
+def test_lock_is_a_joint_and_a_finite_value():
+    assert parse_lock(" panda_finger_joint1 =0.01") == ("panda_finger_joint1", 0.01)
+    assert parse_lock("j=-1e-3") == ("j", -0.001)
+    for text in ("j", "=0", "j=", "j=nan", "j=inf", "j=x"):
+        with pytest.raises(argparse.ArgumentTypeError, match="expected JOINT=VALUE"):
+            parse_lock(text)
 
 
-# ---------------------------------------------------------------------- shared options
-def test_every_subcommand_takes_no_progress():
-    parser = build_parser()
-    minimal = {"view": ["RUN.npz"]}
-    for name in _SUBCOMMANDS:
-        args = parser.parse_args([name, *minimal.get(name, []), "--no-progress"])
-        assert args.progress is False, name
-        args = parser.parse_args([name, *minimal.get(name, [])])
-        assert args.progress is True, name
+def test_tool_is_three_or_six_finite_numbers():
+    assert parse_tool("0,0,0.1") == (0.0, 0.0, 0.1)
+    assert parse_tool(" 1, 2, 3, 0.1, 0.2, 0.3") == (1.0, 2.0, 3.0, 0.1, 0.2, 0.3)
+    for text in ("1,2", "1,2,3,4", "1,2,nan", "1,2,3,a,b,c", ""):
+        with pytest.raises(argparse.ArgumentTypeError, match="expected 3 or 6"):
+            parse_tool(text)
 
 
-def test_every_subcommand_that_writes_takes_out():
-    parser = build_parser()
-    minimal = {"view": ["RUN.npz"]}
-    for name in ("run", "table1", "faults", "view", "bench"):
-        args = parser.parse_args([name, *minimal.get(name, []), "--out", "somewhere"])
-        assert args.out == "somewhere", name
+def test_package_dir_is_an_existing_folder_made_absolute(tmp_path, monkeypatch):
+    (tmp_path / "share").mkdir()
+    monkeypatch.chdir(tmp_path)
+    assert parse_package_dir("share") == str((tmp_path / "share").resolve())
+    (tmp_path / "file").write_text("")
+    for text in ("file", "missing"):
+        with pytest.raises(argparse.ArgumentTypeError, match="is not an existing folder"):
+            parse_package_dir(text)
 
 
-def test_help_texts_speak_of_the_tool_only(capsys):
-    """No project-history words (issue numbers, work rounds or stages) in any help text."""
-    for name in _SUBCOMMANDS:
-        with pytest.raises(SystemExit):
-            main([name, "--help"])
-        text = capsys.readouterr().out
-        assert not re.search(r"\b(issue|round|stage)s?\b", text, re.IGNORECASE), name
-        if name in ("run", "sim-server"):
-            for option in ("--lock", "--package-dir", "--tool", "erd:NAME"):
-                assert option in text, (name, option)
+def test_the_options_make_the_request():
+    parser = argparse.ArgumentParser()
+    add_robot_options(parser)
+    args = parser.parse_args(
+        ["--robot", "erd:ur5", "--ee-frame", "tool0", "--lock", "a=1", "--lock", "b=2",
+         "--tool", "0,0,0.1", "--limits", "ur5e"]
+    )  # fmt: skip
+    assert RobotRequest.from_args(args) == RobotRequest(
+        "erd:ur5", "tool0", (("a", 1.0), ("b", 2.0)), (), (0.0, 0.0, 0.1), "ur5e"
+    )
+    assert RobotRequest.from_args(parser.parse_args([])) == RobotRequest()
+
+
+# ---------------------------------------------------------------------- the saved run's meta
+def test_a_request_survives_its_meta(tmp_path):
+    request = RobotRequest(
+        spec="erd:ur5", ee_frame="tool0", locked_joints=(("elbow_joint", 0.5),),
+        package_dirs=(str(tmp_path),), tool=(0.0, 0.0, 0.1, 0.0, 0.0, 0.2),
+        limits="limits.toml",
+    )  # fmt: skip
+    meta = request.to_meta({"robot": "erd", "erd": "ur5"}, "tool0")
+    assert meta["limits"] == str((Path.cwd() / "limits.toml").resolve())
+    again = RobotRequest.from_meta(meta)
+    assert again == RobotRequest(**{**request.__dict__, "limits": meta["limits"]})
+    urdf = RobotRequest.from_meta({"robot": "urdf", "urdf": "/a/arm.urdf", "ee_frame": "f"})
+    assert urdf.spec == "/a/arm.urdf" and urdf.tool is None and urdf.locked_joints == ()
+    assert RobotRequest().to_meta({"robot": "lbr4p"}, "lbr4p_flange") == {
+        "robot": "lbr4p",
+        "ee_frame": "lbr4p_flange",
+    }
+
+
+def test_a_meta_without_a_robot_is_refused():
+    with pytest.raises(ValueError, match="does not name its robot"):
+        RobotRequest.from_meta({"ee_frame": "f"})
+    with pytest.raises(ParameterError, match="no 'robot' in its meta"):
+        robot_from_meta({"trajectory": "circle"})
+    with pytest.raises(ParameterError, match="cannot rebuild the robot of this run: --robot"):
+        robot_from_meta({"robot": "urdf", "urdf": "/no/such/arm.urdf", "ee_frame": "f"})
+
+
+def test_robot_label_names_the_arm():
+    assert robot_label({"robot": "lbr4p"}) == "lbr4p"
+    assert robot_label({"robot": "erd", "erd": "ur5"}) == "ur5"
+    assert robot_label({"robot": "urdf", "urdf": "/x/my_arm.urdf"}) == "my_arm"
+
+
+def test_the_start_posture_of_a_urdf_is_the_middle_of_its_limits(lbr4p):
+    robot, q0, meta = load_robot(RobotRequest(str(lbr4p_urdf_path()), "lbr4p_flange"))
+    lim = robot.limits
+    np.testing.assert_allclose(q0, 0.5 * (lim.q_min + lim.q_max), atol=0)
+    assert meta == {"robot": "urdf", "urdf": str(lbr4p_urdf_path().resolve()),
+                    "ee_frame": "lbr4p_flange"}  # fmt: skip
+    shipped, q_shipped, _ = load_robot(RobotRequest())
+    np.testing.assert_array_equal(q_shipped, LBR4P_Q0)
+    assert shipped.joint_names == lbr4p.joint_names
+
+
+def test_the_cli_refuses_a_bad_profile_with_exit_code_2(tmp_path, capsys):
+    for option in ("nope", str(tmp_path / "absent.toml"), "ur5e"):
+        with pytest.raises(SystemExit) as info:
+            main(["run", "--robot", "panda", "--limits", option, "--out", str(tmp_path)])
+        assert info.value.code == 2
+        assert "--limits" in capsys.readouterr().err

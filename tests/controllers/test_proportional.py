@@ -1,10 +1,12 @@
-"""The fused proportional step equals the plain computation of docs/theory.md §4.1
-and §5: the box joint by joint against ``command_box`` (bit for bit), the whole step against
-a straightforward reference on seeded random states and over closed loops (to 1e-12)."""
+"""The proportional controller (dqcontrol/controllers/proportional.py): its fused step
+against the plain computation of docs/theory.md §4.1 and §5 — the box joint by joint
+against ``command_box`` (bit for bit), the whole step against a straightforward reference on
+seeded random states and over closed loops (to 1e-12), its Cholesky solve against LU (and
+its fall-back on an indefinite matrix) — and its closed-loop behaviour:
+exponential convergence at the rate ``K``, tracking, no bound crossed."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -13,13 +15,23 @@ import pytest
 from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import ProportionalController, command_box
 from dqcontrol.controllers import proportional as prop
-from dqcontrol.controllers.base import StepDiagnostics, StepResult, fast_constructor
+from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.controllers.core.bounds import braking_constants
 from dqcontrol.controllers.core.box_rules import joint_boxes, joint_constants
-from dqcontrol.dq import dq_conj, dq_mul
+from dqcontrol.dq import (
+    dq_conj,
+    dq_from_rt,
+    dq_mul,
+    qconj,
+    qfrom_axis_angle,
+    qmul,
+    rotation_angle,
+    translation,
+)
 from dqcontrol.dq.algebra import C8, haminus8
 from dqcontrol.model import LBR4P_Q0, RobotModel
-from dqcontrol.trajectories import Circle, Sinusoid
+from dqcontrol.sim import run_kinematic
+from dqcontrol.trajectories import Circle, FunctionTrajectory, Sinusoid, WaypointTrajectory
 
 #: the synthetic serial chains of the benchmark (benchmarks/bench.py)
 long_chain_urdf = load_bench().long_chain_urdf
@@ -317,6 +329,16 @@ def test_parameters_changed_after_construction_are_used(lbr4p):
             assert_same_result(new.step(q), ref.step(q))
 
 
+def test_cholesky_solve_equals_lu_and_falls_back():
+    rng = np.random.default_rng(1)
+    n_mat = rng.normal(size=(8, 7))
+    gram = n_mat @ n_mat.T + 1e-6 * np.eye(8)
+    rhs = rng.normal(size=8)
+    np.testing.assert_allclose(prop._solve_spd(gram, rhs), np.linalg.solve(gram, rhs), rtol=1e-9)
+    indefinite = np.diag([1.0, -1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0])
+    np.testing.assert_allclose(prop._solve_spd(indefinite, rhs), np.linalg.solve(indefinite, rhs))
+
+
 def test_non_finite_command_replaced_by_zero(lbr4p, monkeypatch):
     ctrl = make(lbr4p, Circle(2.0))
     ctrl.reset(LBR4P_Q0)
@@ -327,47 +349,56 @@ def test_non_finite_command_replaced_by_zero(lbr4p, monkeypatch):
     assert np.isfinite(res.qd_command).all()
 
 
-def test_fast_constructors_build_the_same_objects():
-    diag_kw = {
-        "status": "closed_form",
-        "step_time_s": 1e-5,
-        "saturated": True,
-        "conflict_joints": (2, 5),
-        "message": "m",
-    }
-    make_diag = fast_constructor(StepDiagnostics, status="closed_form")
-    fast, slow = make_diag(**diag_kw), StepDiagnostics(**diag_kw)
-    assert type(fast) is StepDiagnostics and fast == slow and repr(fast) == repr(slow)
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        fast.saturated = False
-    x = np.arange(8.0)
-    res_kw = {
-        "qd_command": np.ones(7),
-        "s": 1.0,
-        "sigma": 0.1,
-        "sigma_next": 0.2,
-        "pose": x,
-        "target": x,
-        "diagnostics": slow,
-    }
-    make_res = fast_constructor(StepResult, **res_kw)
-    fast, slow = make_res(**res_kw), StepResult(**res_kw)
-    assert type(fast) is StepResult
-    for f in dataclasses.fields(StepResult):
-        assert getattr(fast, f.name) is getattr(slow, f.name)
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        fast.s = 0.5
+# ------------------------------------------------------------------ closed-loop behaviour
 
-    @dataclasses.dataclass(frozen=True, slots=True)
-    class Slotted:
-        a: int = 0
 
-    @dataclasses.dataclass(frozen=True)
-    class Checked:
-        a: int = 0
+def test_proportional_converges_exponentially_to_a_fixed_pose(lbr4p):
+    x0 = lbr4p.pose(LBR4P_Q0)
+    offset = dq_from_rt(qfrom_axis_angle([0, 0, 1], 0.2), np.array([0.03, -0.02, 0.04]))
+    goal = dq_mul(x0, offset)
+    traj = FunctionTrajectory(lambda s: goal, lambda s: np.zeros(8), 3.0, reference=np.eye(8)[0])
+    k_gain = 5.0
+    ctrl = ProportionalController(lbr4p, traj, 0.01, gain_per_s=k_gain, velocity_limits=THESIS_VEL,
+                                  acceleration_limit=100.0)  # fmt: skip
+    res = run_kinematic(ctrl, LBR4P_Q0)
+    err = np.linalg.norm(res.log.target - res.log.pose, axis=1)
+    # e_{k+1} ≈ (1 - T K) e_k: log-linear decay at rate K while unsaturated
+    k = np.arange(err.size)
+    mid = (err < err[0] * 0.5) & (err > 1e-6)
+    slope = np.polyfit(k[mid] * 0.01, np.log(err[mid]), 1)[0]
+    assert slope == pytest.approx(-k_gain, rel=0.1)
+    assert err[-1] < 1e-5
 
-        def __post_init__(self) -> None:
-            pass
 
-    assert fast_constructor(Slotted) is Slotted
-    assert fast_constructor(Checked) is Checked
+#: The thesis's period (Table 1) for the closed-loop behaviour below.
+T_THESIS = 0.05
+
+
+def test_proportional_tracks_a_feasible_circle(lbr4p):
+    res = run_kinematic(make(lbr4p, Circle(8.0), T_THESIS), LBR4P_Q0)
+    assert res.metrics.completed and res.metrics.e_mean < 5e-4
+    assert res.metrics.path_deviation_max_m < 1e-3
+
+
+def test_whole_run_has_no_violation(lbr4p):
+    res = run_kinematic(make(lbr4p, Circle(1.0), T_THESIS), LBR4P_Q0)
+    m = res.metrics
+    assert (m.position_violations, m.velocity_violations, m.acceleration_violations) == (0, 0, 0)
+    assert not m.nan_seen
+
+
+def test_varying_orientation_is_tracked(lbr4p):
+    pos = np.array([[0, 0, 0], [0.05, 0.05, 0.02], [0.1, 0.0, -0.03], [0.12, -0.06, 0.0]])
+    rot = np.array(
+        [qfrom_axis_angle([0, 0, 1], 0.0), qfrom_axis_angle([0, 0, 1], 0.3),
+         qfrom_axis_angle([1, 0, 0], 0.25), qfrom_axis_angle([0, 1, 1], -0.3)]
+    )  # fmt: skip
+    traj = WaypointTrajectory(pos, rot, times_s=np.array([0.0, 2.0, 4.0, 6.0]))
+    res = run_kinematic(make(lbr4p, traj, T_THESIS), LBR4P_Q0)
+    m = res.metrics
+    assert m.completed
+    assert m.rotation_error_max_rad < 0.01 and m.translation_error_max_m < 2e-3
+    # the orientation did change along the run
+    turned = rotation_angle(qmul(qconj(res.log.pose[0, :4]), res.log.pose[-1, :4]))
+    assert turned > 0.2
+    assert np.linalg.norm(translation(res.log.pose[-1]) - translation(res.log.pose[0])) > 0.1

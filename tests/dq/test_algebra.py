@@ -8,6 +8,8 @@ draws are seeded.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -45,6 +47,7 @@ from dqcontrol.dq.algebra import (
     rotation_axis,
     translation,
 )
+from dqcontrol.errors import ParameterError
 
 TOL = 1e-12
 ONE8 = np.array([1.0, 0, 0, 0, 0, 0, 0, 0])
@@ -409,3 +412,16 @@ def test_pose_error_broadcasts():
     dt, angle = pose_error(xs, ONE8)
     assert_close(dt, [0.0, 0.1, 0.2, 0.3])
     assert_close(angle, np.zeros(4))
+
+
+def test_bad_algebra_arguments():
+    with pytest.raises(ParameterError, match="non-zero 3-vector"):
+        qfrom_axis_angle([0.0, 0.0, 0.0], 1.0)
+    with pytest.raises(ParameterError, match="non-zero 3-vector"):
+        qfrom_axis_angle([1.0, 0.0], 1.0)
+    with pytest.raises(ParameterError, match="no inverse"):
+        dq_inv(np.array([0.0, 0, 0, 0, 1, 0, 0, 0]))
+    with pytest.raises(ParameterError, match=re.escape("shape (8,)")):
+        dq_to_se3(np.zeros(7))
+    with pytest.raises(ParameterError, match=re.escape("shape (3, 3)")):
+        qfrom_matrix(np.eye(4))

@@ -1,21 +1,16 @@
-"""Run storage (atomic files), the ``table1`` experiment and command (the thesis's rows and
-the path-following rows, the time-optimal bound, the deviation between samples), the Dask
-path, and a short MuJoCo run of each of the four thesis controllers.
-
-Runtime budget: well under a minute (reduced grids, short trajectories, coarse bounds).
-"""
+"""``dqcontrol.experiments.table1``: grid, settings, the time-optimal bound, recording between
+samples, interrupts and executors; also (to move to its module's tests) a MuJoCo run per
+controller."""
 
 from __future__ import annotations
 
 import csv
 import math
-import os
 import pickle
 
 import numpy as np
 import pytest
 
-from dqcontrol.cli import main
 from dqcontrol.controllers import (
     LocalController,
     PredictiveController,
@@ -25,9 +20,7 @@ from dqcontrol.controllers import (
 from dqcontrol.errors import ParameterError
 from dqcontrol.experiments import table1 as t1
 from dqcontrol.model.library import LBR4P_Q0
-from dqcontrol.runs import storage
-from dqcontrol.runs.storage import atomic_write_text, load_run, save_run
-from dqcontrol.sim import run_kinematic, run_mujoco
+from dqcontrol.sim import run_mujoco
 from dqcontrol.trajectories import Circle
 
 #: Metrics that measure the computer, not the control (differ between executors).
@@ -38,13 +31,6 @@ _THESIS_BOUNDS = {
 }
 
 
-@pytest.fixture(scope="module")
-def short_run(lbr4p):
-    """A finished kinematic run (circle, 1 s, local method, thesis bounds)."""
-    ctrl = LocalController(lbr4p, Circle(1.0), 0.05, **_THESIS_BOUNDS)
-    return run_kinematic(ctrl, LBR4P_Q0, meta={"purpose": "test", "q0": LBR4P_Q0})
-
-
 def _same_metrics(a: dict, b: dict) -> None:
     assert a.keys() == b.keys()
     for key in a.keys() - _TIMING:
@@ -53,104 +39,6 @@ def _same_metrics(a: dict, b: dict) -> None:
             assert x == pytest.approx(y, rel=1e-9, abs=1e-12, nan_ok=True), key
         else:
             assert x == y, key
-
-
-# ---------------------------------------------------------------------------- storage
-def test_save_and_load_round_trip(tmp_path, short_run):
-    npz, js = save_run(short_run, tmp_path / "runs", "circle_local")
-    assert npz.name == "circle_local.npz" and js.name == "circle_local.json"
-    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == [js.name, npz.name]
-    for path in (js, npz, tmp_path / "runs" / "circle_local"):
-        log, record = load_run(path)
-        for name, arr in short_run.log.arrays().items():
-            got = getattr(log, name)
-            assert got.dtype == arr.dtype and got.shape == arr.shape, name
-            np.testing.assert_array_equal(got, arr, err_msg=name)
-        assert log.meta["purpose"] == "test"
-        assert log.meta["q0"] == pytest.approx(LBR4P_Q0.tolist())
-        assert record["interrupted"] is False and record["note"] == ""
-        metrics = short_run.metrics.as_dict()
-        # NaN (no torque in the kinematic loop) is stored as null: strict JSON
-        assert math.isnan(metrics["torque_peak_nm"]) and record["metrics"]["torque_peak_nm"] is None
-        for key, value in metrics.items():
-            if not (isinstance(value, float) and math.isnan(value)):
-                assert record["metrics"][key] == value, key
-    assert "NaN" not in js.read_text()
-
-
-def test_save_run_rejects_path_in_name(tmp_path, short_run):
-    with pytest.raises(ParameterError, match="separator"):
-        save_run(short_run, tmp_path, "a/b")
-
-
-@pytest.mark.parametrize("fail_at", ["write", "fsync", "replace", "interrupt"])
-def test_crash_while_writing_leaves_no_file(tmp_path, short_run, monkeypatch, fail_at):
-    """A failure in the middle of a write leaves no target file and no stray temp file."""
-
-    def bad_fsync(fd):
-        raise OSError(28, "No space left on device (simulated)")
-
-    def bad_replace(src, dst):
-        raise OSError(5, "I/O error (simulated)")
-
-    class Boom(BaseException):  # like KeyboardInterrupt: not an Exception
-        pass
-
-    if fail_at == "write":
-        real_fdopen = os.fdopen
-
-        class HalfWriter:
-            def __init__(self, fh):
-                self.fh = fh
-
-            def __enter__(self):
-                return self
-
-            def __exit__(self, *exc):
-                self.fh.close()
-
-            def write(self, data):
-                self.fh.write(data[: len(data) // 2])  # half the bytes reach the disk
-                raise OSError(28, "No space left on device (simulated)")
-
-            def __getattr__(self, name):
-                return getattr(self.fh, name)
-
-        monkeypatch.setattr(
-            storage.os, "fdopen", lambda fd, mode: HalfWriter(real_fdopen(fd, mode))
-        )
-        expected = OSError
-    elif fail_at == "fsync":
-        monkeypatch.setattr(storage.os, "fsync", bad_fsync)
-        expected = OSError
-    elif fail_at == "replace":
-        monkeypatch.setattr(storage.os, "replace", bad_replace)
-        expected = OSError
-    else:
-
-        def interrupted_fsync(fd):
-            raise Boom
-
-        monkeypatch.setattr(storage.os, "fsync", interrupted_fsync)
-        expected = Boom
-    folder = tmp_path / "runs"
-    with pytest.raises(expected):
-        save_run(short_run, folder, "crash")
-    assert list(folder.iterdir()) == []
-
-
-def test_crash_keeps_the_previous_version(tmp_path, monkeypatch):
-    target = tmp_path / "table.md"
-    atomic_write_text(target, "version 1\n")
-
-    def bad_replace(src, dst):
-        raise OSError(5, "I/O error (simulated)")
-
-    monkeypatch.setattr(storage.os, "replace", bad_replace)
-    with pytest.raises(OSError):
-        atomic_write_text(target, "version 2, longer\n")
-    assert target.read_text() == "version 1\n"
-    assert [p.name for p in tmp_path.iterdir()] == ["table.md"]
 
 
 # ---------------------------------------------------------------------------- grid and job
@@ -222,77 +110,6 @@ def _read_csv(path):
     with open(path, newline="") as fh:
         reader = csv.DictReader(fh)
         return reader.fieldnames, list(reader)
-
-
-@pytest.mark.parametrize("simulator", ["kinematic", "mujoco"])
-def test_table1_command_reduced_grid(tmp_path, capsys, simulator):
-    out = tmp_path / "results"
-    argv = ["table1", "--quick", "--simulator", simulator, "--out", str(out)]
-    code = main([*argv, "--workers", "1", "--no-progress", "--bound-samples", "201"])
-    assert code == 0
-    printed = capsys.readouterr().out
-    header, rows = _read_csv(out / "table1.csv")
-    assert header == [k for k, _, _ in t1.COLUMNS]
-    for key in ("toppra_bound_s", "exec_over_bound", "path_dev_max_between_mm"):
-        assert key in header
-    assert len(rows) == 8
-    md = (out / "table1.md").read_text()
-    assert md in printed
-    for _, title, _ in t1.COLUMNS:
-        assert f" {title} |" in md, title
-    for needed in ("3.1416, 3.1416", "7.8540", "10 rad/s²", "T = 0.05 s", "τ_p = 1 s", "K = 10"):
-        assert needed in md, needed
-    assert "wall time" in md and "CPUs" in md
-    assert "## The thesis's claim at the short periods" in md
-    assert "## The path-following rows (path-following)" in md and "201 path samples" in md
-    assert ("MuJoCo" if simulator == "mujoco" else "kinematic loop") in md
-    assert {r["controller"] for r in rows} == {"Local", "p=6", "p=10", "path-following"}
-    for row in rows:
-        assert row["completed"] == "yes"
-        assert row["viol_position"] == row["viol_velocity"] == row["viol_acceleration"] == "0"
-        thesis_row = row["controller"] != "path-following"
-        assert bool(row["e_mean_thesis"] and row["u_mean_thesis"]) == thesis_row
-        assert math.isfinite(float(row["e_mean"])) and 0.0 < float(row["s_mean"]) <= 1.0
-        torque = float(row["torque_peak_nm"]) if row["torque_peak_nm"] else math.nan
-        assert math.isfinite(torque) == (simulator == "mujoco")
-        bound, ratio = float(row["toppra_bound_s"]), float(row["exec_over_bound"])
-        assert float(row["T_tot_s"]) < bound < float(row["exec_time_s"]) + 1.0
-        assert ratio == pytest.approx(float(row["exec_time_s"]) / bound, rel=1e-12)
-        between, at = float(row["path_dev_max_between_mm"]), float(row["path_dev_max_mm"])
-        assert between >= at - 1e-9  # the samples are among the states between them
-    runs = sorted(p.name for p in (out / "table1_runs").iterdir())
-    assert len(runs) == 16 and "circle_T1s_p10.npz" in runs and "circle_T1s_pf.npz" in runs
-    log, record = load_run(out / "table1_runs" / "sinusoid_T2s_local.json")
-    assert record["meta"]["simulator"] == simulator and len(log) == record["metrics"]["samples"]
-    assert not [p for p in out.rglob("*.tmp")]
-
-
-@pytest.mark.parametrize(
-    ("argv", "message"),
-    [
-        (["--periods", "3"], "not in the thesis's grid"),
-        (["--control-period", "0.0015"], "whole number of 0.001 s physics steps"),
-        (["--control-period", "1", "--simulator", "kinematic"], "shorter than the horizon"),
-    ],
-)
-def test_bad_option_is_one_line_error(tmp_path, capsys, argv, message):
-    assert main(["table1", *argv, "--out", str(tmp_path), "--no-progress"]) == 1
-    err = capsys.readouterr().err
-    assert message in err and "Traceback" not in err
-
-
-def test_table1_command_at_another_control_period(tmp_path):
-    out = tmp_path / "results"
-    argv = ["table1", "--controllers", "pf", "--trajectories", "circle", "--periods", "1",
-            "--simulator", "kinematic", "--control-period", "0.005", "--out", str(out)]  # fmt: skip
-    assert main([*argv, "--workers", "1", "--no-progress", "--bound-samples", "0"]) == 0
-    md = (out / "table1.md").read_text()
-    assert "control period T = 0.005 s" in md and "T = 0.05 s (not this table's)" in md
-    assert "--control-period 0.005" in md
-    _, (row,) = _read_csv(out / "table1.csv")
-    assert row["completed"] == "yes" and float(row["path_dev_max_mm"]) <= 0.1
-    _, record = load_run(out / "table1_runs" / "circle_T1s_pf.json")
-    assert record["meta"]["period_s"] == 0.005
 
 
 #: The kinematic loop without the time-optimal bound.

@@ -1,17 +1,9 @@
-"""Hard bounds under faults: property tests of the bounds and the fallback, the
-fault-injection wrappers, a reduced fault campaign, and ``dqcontrol faults``.
-
-``tests/controllers/test_controllers.py`` already checks three steps of the QP controllers
-from random states against :func:`command_box`; here the properties are over random *parameters* too
-(periods, limits, trajectories, σ0), over whole admissible command sequences, for the
-fallback and for the proportional controller, and under corrupted measurements.
-"""
+"""``dqcontrol.faults.campaign``: single cases in both simulators and a reduced campaign, judged on
+the hard bounds; also (to move to their modules' tests) every controller's command within its
+bounds under random parameters and noisy states."""
 
 from __future__ import annotations
 
-import csv
-import io
-import math
 from dataclasses import replace
 
 import numpy as np
@@ -19,22 +11,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dqcontrol.cli import main
 from dqcontrol.controllers import (
     LocalController,
-    PathFollowingController,
     PredictiveController,
     PredictiveNoScalingController,
     ProportionalController,
     command_box,
-    safe_command,
 )
 from dqcontrol.errors import ParameterError
 from dqcontrol.faults import (
-    ContradictoryBoundsQP,
-    contradictory,
-    fault_driver,
-    render_csv,
     render_markdown,
     run_campaign,
     run_case,
@@ -47,91 +32,13 @@ from dqcontrol.faults.scenarios import (
     Fault,
     fault_by_name,
 )
-from dqcontrol.model import LBR4P_Q0
 from dqcontrol.registry import controller_spec
 from dqcontrol.sim import (
-    FaultyDriver,
-    KinematicDriver,
-    MujocoDriver,
-    NotASimulatorError,
-    PayloadDriver,
-    TorqueLimitDriver,
-    run_loop,
     run_mujoco,
 )
 from dqcontrol.trajectories import Circle, Sinusoid
 
 TOL = 1e-9
-
-
-# =========================================================================== bounds.py
-@st.composite
-def joint_setups(draw, n=3):
-    """Random limits, period, velocity and acceleration bounds for ``n`` joints."""
-    period = draw(st.sampled_from([0.001, 0.005, 0.02, 0.05, 0.1]))
-    lo = np.array(draw(st.lists(st.floats(-3.0, 0.5), min_size=n, max_size=n)))
-    width = np.array(draw(st.lists(st.floats(0.05, 4.0), min_size=n, max_size=n)))
-    qd_max = np.array(draw(st.lists(st.floats(0.1, 8.0), min_size=n, max_size=n)))
-    a_max = np.array(draw(st.lists(st.floats(0.5, 60.0), min_size=n, max_size=n)))
-    return period, lo, lo + width, qd_max, a_max
-
-
-@settings(max_examples=200)
-@given(setup=joint_setups(), data=st.data())
-def test_the_fallback_is_always_admissible(setup, data):
-    """From any state (even beyond a limit, even moving faster than allowed), the fallback
-    is in the box and respects the acceleration bound; inside the limits it slows every joint
-    down, beyond a limit it heads back."""
-    period, q_min, q_max, qd_max, a_max = setup
-    n = q_min.size
-    span = q_max - q_min
-    q = q_min + span * np.array(data.draw(st.lists(st.floats(-0.2, 1.2), min_size=n, max_size=n)))
-    qd_prev = qd_max * np.array(data.draw(st.lists(st.floats(-1.5, 1.5), min_size=n, max_size=n)))
-    box = command_box(q, qd_prev, q_min, q_max, qd_max, a_max, period)
-    qd = safe_command(box)
-    assert np.all(box.lower <= box.upper + TOL)  # never empty
-    assert box.contains(qd, TOL)
-    assert np.all(np.abs(qd - qd_prev) <= period * a_max + TOL)  # acceleration: always
-    inside = (q >= q_min) & (q <= q_max)
-    # inside the limits it never speeds a joint up; beyond one it only heads back
-    assert np.all(np.abs(qd[inside]) <= np.abs(qd_prev[inside]) + TOL)
-    below, above = q < q_min, q > q_max
-    assert np.all((qd[below] >= qd_prev[below] - TOL) | (qd[below] >= -TOL))
-    assert np.all((qd[above] <= qd_prev[above] + TOL) | (qd[above] <= TOL))
-    ok = ~box.conflict
-    # where the bounds do not conflict, the fallback is also within velocity and position
-    assert np.all(np.abs(qd[ok]) <= qd_max[ok] + TOL)
-    inner = ok & inside
-    assert np.all(q[inner] + period * qd[inner] <= q_max[inner] + TOL)
-    assert np.all(q[inner] + period * qd[inner] >= q_min[inner] - TOL)
-    # it is the admissible command closest to standing still
-    assert np.all((qd == 0.0) | (qd == box.lower) | (qd == box.upper))
-
-
-@settings(max_examples=100)
-@given(setup=joint_setups(), data=st.data(), steps=st.integers(5, 80))
-def test_admissible_commands_never_lead_out_of_the_limits(setup, data, steps):
-    """Start at rest inside the limits and apply *any* command of each period's box (here
-    a random one, or the extreme towards a limit): the joints never leave their limits and
-    the bounds never conflict — what the braking-aware position bound is for."""
-    period, q_min, q_max, qd_max, a_max = setup
-    n = q_min.size
-    q = q_min + (q_max - q_min) * np.array(
-        data.draw(st.lists(st.floats(0.0, 1.0), min_size=n, max_size=n))
-    )
-    qd_prev = np.zeros(n)
-    for _ in range(steps):
-        box = command_box(q, qd_prev, q_min, q_max, qd_max, a_max, period)
-        assert not box.conflict.any()
-        pick = data.draw(st.sampled_from(["random", "upper", "lower"]))
-        if pick == "random":
-            frac = np.array(data.draw(st.lists(st.floats(0.0, 1.0), min_size=n, max_size=n)))
-            qd = box.lower + frac * (box.upper - box.lower)
-        else:
-            qd = box.upper if pick == "upper" else box.lower
-        q = q + period * qd
-        qd_prev = qd
-        assert np.all(q <= q_max + 1e-9) and np.all(q >= q_min - 1e-9)
 
 
 # =========================================================================== controllers
@@ -188,67 +95,6 @@ def test_no_command_crosses_a_bound_under_random_parameters_and_noisy_states(
 
 
 # =========================================================================== wrappers
-@pytest.mark.parametrize("delay", [0, 1, 2, 3])
-def test_delay_returns_the_measurement_of_d_periods_ago(lbr4p, delay):
-    drv = FaultyDriver(KinematicDriver(lbr4p, 0.05), delay_periods=delay)
-    seen = [drv.reset(LBR4P_Q0).q]
-    for k in range(6):
-        drv.write(np.full(7, 0.1 * (k + 1)))
-        seen.append(drv.read().q)
-    true = drv.true_q
-    for k, q in enumerate(seen):
-        np.testing.assert_array_equal(q, true[max(0, k - delay)])
-    assert drv.read().t_s == pytest.approx(6 * 0.05)  # the clock itself is not delayed
-
-
-def test_noise_is_seeded_gaussian_and_restarts_at_reset(lbr4p):
-    drv = FaultyDriver(KinematicDriver(lbr4p, 0.05), q_noise_rad=2e-3, qd_noise_rad_s=0.02, seed=7)
-
-    def run() -> list[np.ndarray]:
-        seen = [drv.reset(LBR4P_Q0).q]
-        for _ in range(400):
-            drv.hold()
-            seen.append(drv.read().q)
-        return seen
-
-    first, again = run(), run()
-    np.testing.assert_array_equal(first, again)
-    err = np.array(first) - LBR4P_Q0
-    assert abs(err.mean()) < 2e-4 and err.std() == pytest.approx(2e-3, rel=0.05)
-    np.testing.assert_array_equal(drv.true_q[-1], LBR4P_Q0)  # the arm itself did not move
-
-
-@pytest.mark.parametrize(
-    ("kwargs", "fragment"),
-    [
-        ({"q_noise_rad": -1e-3}, "q_noise_rad must be finite and ≥ 0 [rad]"),
-        ({"qd_noise_rad_s": math.nan}, "qd_noise_rad_s must be finite and ≥ 0 [rad/s]"),
-        ({"delay_periods": -1}, "delay_periods must be an integer ≥ 0"),
-        ({"delay_periods": 1.5}, "delay_periods must be an integer ≥ 0"),
-        ({"seed": "x"}, "seed must be an integer"),
-    ],
-)
-def test_bad_fault_parameters(lbr4p, kwargs, fragment):
-    with pytest.raises(ParameterError) as info:
-        FaultyDriver(KinematicDriver(lbr4p, 0.05), **kwargs)
-    assert fragment in str(info.value)
-
-
-def test_a_case_driver_wraps_the_arm_in_its_faults(lbr4p):
-    fault = fault_by_name("payload_3kg_torque_half")
-    drv = fault_driver(fault, "mujoco", lbr4p, 0.05, seed=4)
-    assert isinstance(drv, FaultyDriver) and drv.faults.seed == 4
-    assert isinstance(drv.inner, TorqueLimitDriver)
-    assert isinstance(drv.inner.inner, PayloadDriver)
-    assert isinstance(drv.inner.inner.inner, MujocoDriver)
-    assert drv.simulation.payload_kg == 3.0 and drv.simulation.effort_scale == 0.5
-    assert drv.meta["payload_kg"] == 3.0 and drv.meta["effort_scale"] == 0.5
-    plain = fault_driver(fault_by_name("noise"), "kinematic", lbr4p, 0.05)
-    assert isinstance(plain.inner, KinematicDriver) and plain.faults.q_noise_rad == 2e-3
-    with pytest.raises(NotASimulatorError, match="KinematicDriver cannot"):
-        fault_driver(fault, "kinematic", lbr4p, 0.05)
-    with pytest.raises(ParameterError, match="simulator must be one of"):
-        fault_driver(fault, "gazebo", lbr4p, 0.05)
 
 
 def test_a_model_fault_case_equals_the_simulation_built_with_it(lbr4p):
@@ -270,83 +116,7 @@ def test_a_model_fault_case_equals_the_simulation_built_with_it(lbr4p):
     assert not np.array_equal(nominal.log.torque, row.log.torque)  # the fault is felt
 
 
-def test_contradictory_bounds_reach_the_solver(lbr4p):
-    ctrl = contradictory(PredictiveController)(
-        lbr4p, Circle(2.0), 0.05, num_instants=6, contradiction="coupled", window_steps=(1, 3)
-    )
-    assert isinstance(ctrl.qp, ContradictoryBoundsQP)
-    assert type(ctrl).__name__ == "ContradictoryPredictiveController"
-    ctrl.reset(LBR4P_Q0)
-    q = LBR4P_Q0.copy()
-    relaxed = []
-    for _ in range(5):
-        res = ctrl.step(q)
-        relaxed.append(res.diagnostics.relaxed)
-        q = q + 0.05 * res.qd_command
-    # the controller's own remedy (dropping the predicted boxes) restores feasibility
-    assert relaxed == [False, True, True, False, False]
-    assert ctrl.qp.corrupted_solves == 2 and ctrl.qp.false_successes == 0
-    lo, up, made = ctrl.qp.corrupt(*ctrl.last_problem()[3:])
-    assert made and np.any(lo > ctrl.last_problem().lower)
-
-
-def _corrupted(ctrl, steps: int, period_s: float) -> tuple[int, int, np.ndarray]:
-    """``(corrupted solves, fallbacks, |qd| largest over the run)`` of a closed loop."""
-    q = LBR4P_Q0.copy()
-    ctrl.reset(q)
-    fallbacks, qd_peak = 0, np.zeros(ctrl.n)
-    for _ in range(steps):
-        res = ctrl.step(q)
-        fallbacks += res.diagnostics.fallback
-        qd_peak = np.maximum(qd_peak, np.abs(res.qd_command))
-        q = q + period_s * res.qd_command
-    return ctrl.backend.corrupted_solves, fallbacks, qd_peak
-
-
-@pytest.mark.parametrize("mode", ["crossed", "coupled"])
-def test_contradictory_reaches_every_priority_mode(lbr4p, mode):
-    """The wrapper sits on the one backend every QP of a step goes to: the strict
-    priority's levels (the warm levels, the reduced levels) see it as the weighted
-    controller's single level does."""
-    counts = {}
-    for priority in ("weighted", "strict"):
-        ctrl = contradictory(PredictiveController)(
-            lbr4p, Circle(2.0), 0.05, num_instants=6, contradiction=mode,
-            window_steps=(2, 7), priority=priority,
-        )  # fmt: skip
-        counts[priority] = _corrupted(ctrl, 10, 0.05)[:2]
-    assert counts["strict"] == counts["weighted"]
-    assert counts["weighted"][0] >= 5  # every step of the window, and its relaxed retry
-
-
-@pytest.mark.parametrize("mode", ["crossed", "coupled"])
-def test_path_following_runs_the_contradictory_faults(lbr4p, mode):
-    """No feasible point in the window: the path-following controller tries its remedies,
-    then brakes within its bounds (the safe fallback), and resumes after the window."""
-    ctrl = contradictory(PathFollowingController)(
-        lbr4p, Circle(2.0), 0.05, contradiction=mode, window_steps=(2, 5),
-        velocity_limits=1.0, acceleration_limit=5.0,
-    )  # fmt: skip
-    assert isinstance(ctrl.backend, ContradictoryBoundsQP) and ctrl.qp is ctrl.backend
-    corrupted, fallbacks, qd_peak = _corrupted(ctrl, 12, 0.05)
-    assert corrupted >= 3 and fallbacks == 3
-    assert ctrl.backend.false_successes == 0
-    assert np.all(qd_peak <= 1.0 + 1e-9)
-    assert ctrl.sigma > 0.0  # the task went on after the window
-
-
-def test_contradictory_needs_a_qp_controller(lbr4p):
-    with pytest.raises(ParameterError, match="QP controller class"):
-        contradictory(ProportionalController)
-    with pytest.raises(ParameterError, match="mode 'coupled' needs a predictive controller"):
-        contradictory(LocalController)(lbr4p, Circle(1.0), 0.05, contradiction="coupled")
-
-
 # =========================================================================== the campaign
-@pytest.fixture(scope="module")
-def quick_campaign():
-    """The reduced campaign of CI: kinematic loop, 4 controllers, the circle, 11 faults."""
-    return run_campaign(simulator="kinematic", quick=True)
 
 
 def _row(result, fault, controller):
@@ -407,19 +177,6 @@ def test_crossed_bounds_are_never_reported_solved(quick_campaign):
     for name in ("local", "predictive_p6", "predictive_noscale_p6"):
         r = _row(quick_campaign, "qp_crossed", name)
         assert r.false_successes == 0 and r.fallbacks >= 20
-
-
-def test_report_and_csv(quick_campaign):
-    md = render_markdown(quick_campaign, command="dqcontrol faults --quick")
-    for heading in ("## Checks (QP controllers)", "## QP controllers", "## Proportional",
-                    "## Graceful degradation: unreachable path", "## Faults"):  # fmt: skip
-        assert heading in md
-    for check in ("no exception from inside the loop", "no NaN", "no true joint-position",
-                  "no commanded velocity/acceleration violation", "σ never decreases"):  # fmt: skip
-        assert f"PASS — {check}" in md
-    rows = list(csv.DictReader(io.StringIO(render_csv(quick_campaign))))
-    assert len(rows) == len(quick_campaign.rows)
-    assert {"fault", "controller", "status", "q_violations_true", "nan_seen"} <= set(rows[0])
 
 
 def test_campaign_interrupted_keeps_the_completed_rows():
@@ -486,42 +243,7 @@ def test_delay_near_the_limits_overshoots_by_at_most_d_periods_of_motion(lbr4p, 
     assert 0.0 < r.q_excess_true_rad <= delay * 0.05 * lbr4p.limits.qd_max.max() + 1e-9
 
 
-def test_the_loop_sees_the_faulty_measurements_of_a_mujoco_arm(lbr4p):
-    drv = FaultyDriver(MujocoDriver(lbr4p, 0.05), q_noise_rad=1e-3, delay_periods=1)
-    ctrl = LocalController(lbr4p, Circle(1.0), 0.05)
-    res = run_loop(ctrl, drv, q0=LBR4P_Q0, max_time_s=0.5, brake=False)
-    assert len(res.log) == 10 and drv.true_q.shape == (11, 7)
-    # the log holds what the controller measured: one period late and noisy
-    assert np.abs(res.log.q[1:] - drv.true_q[:-2]).max() < 6e-3  # [k] is true [k - 1]
-    assert np.abs(res.log.q[1:] - drv.true_q[:-2]).max() > 0.0
-
-
-# =========================================================================== the command
-def test_cli_writes_the_report_atomically(tmp_path, capsys):
-    code = main(
-        ["faults", "--quick", "--simulator", "kinematic", "--controllers", "local,proportional",
-         "--faults", "nominal,solver_fails", "--out", str(tmp_path), "--no-progress"]
-    )  # fmt: skip
-    assert code == 0
-    md = (tmp_path / "faults.md").read_text(encoding="utf-8")
-    assert "solver_fails" in md and "simulator **kinematic**" in md
-    assert len(list(csv.DictReader(open(tmp_path / "faults.csv", encoding="utf-8")))) == 3
-    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp files
-    out = capsys.readouterr().out
-    assert "wrote" in out and "2/2 cases without violation" in out
-
-
-def test_cli_help_and_bad_options(capsys):
-    with pytest.raises(SystemExit) as info:
-        main(["faults", "--help"])
-    assert info.value.code == 0
-    assert "--simulator" in capsys.readouterr().out
-    with pytest.raises(SystemExit) as info:
-        main(["faults", "--workers", "0"])
-    assert info.value.code == 2
-    assert main(["faults", "--controllers", "pid", "--out", "/nonexistent"]) == 1
-
-
+# =========================================================================== delays and QP faults
 @pytest.mark.parametrize("delay", [1, 2])
 def test_delay_compensation_keeps_the_joints_within_their_limits(delay):
     """With ``measurement_delay_periods = d`` the controller works from q + T Σ(last d
@@ -558,3 +280,47 @@ def test_path_following_runs_every_qp_fault_safely(fault):
     assert r.false_successes == 0
     if fault.startswith("qp_"):
         assert r.completed and r.fallbacks == 20, r.row()
+
+
+# =========================================================================== path following
+PF = "path_following"
+
+
+def _case(fault: str, traj: str, simulator: str) -> CaseSpec:
+    """The campaign's case (the controller from the registry, as the campaign takes it)."""
+    return CaseSpec(
+        controller_spec("pf").renamed(PF), TRAJECTORIES[traj], fault_by_name(fault), simulator,
+        TRAJECTORIES[traj].duration_s,
+    )  # fmt: skip
+
+
+def _judged(r) -> None:
+    """The campaign's judgement of a QP controller's row."""
+    assert r.safe and r.raised == "" and not r.nan_seen, r.row()
+    assert r.status in ("completed", "stopped", "advancing"), r.row()
+
+
+def test_noise_near_the_limits_stops_still():
+    """A task stalled near the limits under measurement noise stands still (the noise-free
+    case stops there too) instead of chasing the noise."""
+    r = run_case(_case("near_limits_noise", "circle", "kinematic"))
+    _judged(r)
+    assert r.status in ("stopped", "completed"), r.row()
+
+
+class _FirstTwoSeconds(CaseSpec):
+    """A case cut at 2 s (the joint reaches its limit at 1.75 s)."""
+
+    max_time_s = 2.0
+
+
+def test_delay_near_the_limits_keeps_the_true_joints_inside_in_mujoco():
+    """Near the limits with a 2-period delay (compensated) the servo's lag must not carry
+    a joint past its limit: the sinusoid's first swing brings joint 6 to its lower limit at
+    1.36 rad/s. The campaign tells the controller the MuJoCo servo it drives (τ_v), whose
+    lag its prediction then counts."""
+    base = _case("near_limits_delay_2", "sinusoid", "mujoco")
+    spec = _FirstTwoSeconds(base.controller, base.trajectory, base.fault, "mujoco", 4.0)
+    r = run_case(spec)
+    assert r.raised == "" and not r.nan_seen, r.row()
+    assert r.q_violations_true == 0, r.row()

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from model.test_continuous_joint import _TILTED  # a tilted two-joint arm, first joint's kind open
+from model.test_pinocchio_model import _TILTED  # a tilted two-joint arm, first joint's kind open
 
 import dqcontrol
 from dqcontrol.cli.bench_cmd import load_bench

@@ -19,7 +19,6 @@ from dqcontrol.model.collision_bounds import bounding_capsule, support_form
 from dqcontrol.model.collision_kernels import (
     FORM_SIZE,
     capsule_gaps,
-    segment_distance,
 )
 
 SHAPES = (
@@ -28,28 +27,6 @@ SHAPES = (
     coal.Capsule(0.05, 0.3),
     coal.Box(0.1, 0.2, 0.05),
 )
-
-
-def _brute_segments(ends: np.ndarray) -> float:
-    """Distance of two segments by a dense grid, refined once around the best cell."""
-    s = np.linspace(0.0, 1.0, 401)
-    a = ends[0, 0] + s[:, None] * (ends[0, 1] - ends[0, 0])
-    b = ends[1, 0] + s[:, None] * (ends[1, 1] - ends[1, 0])
-    return float(np.linalg.norm(a[:, None] - b[None], axis=2).min())
-
-
-def test_segment_distance_is_a_tight_lower_bound():
-    rng = np.random.default_rng(3)
-    for trial in range(300):
-        ends = rng.uniform(-0.3, 0.3, (2, 2, 3))
-        if trial % 3 == 0:  # nearly parallel
-            ends[1, 1] = ends[1, 0] + (ends[0, 1] - ends[0, 0]) * (1 + 1e-9 * trial)
-        if trial % 7 == 0:  # a point
-            ends[0, 1] = ends[0, 0]
-        found = segment_distance(ends, 0, 1)[0]
-        dense = _brute_segments(ends)
-        assert found <= dense + 1e-12
-        assert found >= dense - 2e-3  # the grid's resolution
 
 
 def _random_pose(rng: np.random.Generator) -> pin.SE3:

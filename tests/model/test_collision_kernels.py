@@ -1,6 +1,5 @@
-"""The screening pass of the collision queries: the motion bounds' selection against its
-formula in numpy, and the one compiled pass against the bounds, the selection and the
-closed forms run one by one, on seeded random states of the LBR4p with obstacles."""
+"""The compiled kernels of ``dqcontrol.model.collision_kernels`` against numpy (segment distances,
+support functions, motion bounds) and the screening pass against its steps run one by one."""
 
 from __future__ import annotations
 
@@ -12,7 +11,14 @@ import pytest
 from dqcontrol import load_lbr4p
 from dqcontrol.model.collision import Box, CollisionModel, HalfSpace, Sphere
 from dqcontrol.model.collision_closed_forms import solve_closed_forms
-from dqcontrol.model.collision_kernels import close_pairs, screen_pairs
+from dqcontrol.model.collision_kernels import (
+    FORM_SIZE,
+    close_pairs,
+    screen_pairs,
+    segment_distance,
+    separation,
+    support,
+)
 
 
 @pytest.fixture(scope="module")
@@ -69,3 +75,82 @@ def test_screen_pairs_is_its_passes_in_turn(model, influence):
     np.testing.assert_array_equal(got[2], solved)
     np.testing.assert_array_equal(got[3], points)
     assert got[4].tolist() == np.stack([todo, states[todo], pairs[todo]], axis=1).tolist()
+
+
+def _brute_segments(ends: np.ndarray) -> float:
+    """Distance of two segments by a dense grid, refined once around the best cell."""
+    s = np.linspace(0.0, 1.0, 401)
+    a = ends[0, 0] + s[:, None] * (ends[0, 1] - ends[0, 0])
+    b = ends[1, 0] + s[:, None] * (ends[1, 1] - ends[1, 0])
+    return float(np.linalg.norm(a[:, None] - b[None], axis=2).min())
+
+
+def test_segment_distance_is_a_tight_lower_bound():
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        ends = rng.uniform(-0.3, 0.3, (2, 2, 3))
+        if trial % 3 == 0:  # nearly parallel
+            ends[1, 1] = ends[1, 0] + (ends[0, 1] - ends[0, 0]) * (1 + 1e-9 * trial)
+        if trial % 7 == 0:  # a point
+            ends[0, 1] = ends[0, 0]
+        found = segment_distance(ends, 0, 1)[0]
+        dense = _brute_segments(ends)
+        assert found <= dense + 1e-12
+        assert found >= dense - 2e-3  # the grid's resolution
+
+
+def _form(centre, spans=None, axis=None, disc=0.0, ball=0.0) -> np.ndarray:
+    """One row of support forms: ``c, s_0, s_1, s_2, a, ρ, r``."""
+    spans = np.zeros((3, 3)) if spans is None else spans
+    axis = np.zeros(3) if axis is None else axis
+    return np.concatenate((centre, np.ravel(spans), axis, [disc, ball]))
+
+
+def _unit(rng: np.random.Generator) -> np.ndarray:
+    u = rng.standard_normal(3)
+    return u / np.linalg.norm(u)
+
+
+def test_support_is_the_largest_projection_of_the_shape():
+    """Against numpy maxima of ``uᵀx`` over a box's corners, a ball and a cylinder's rims."""
+    rng = np.random.default_rng(17)
+    rotation = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    half = np.array([0.1, 0.2, 0.05])
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    box_points = np.array([0.3, -0.1, 0.2]) + (corners * half) @ rotation.T
+    axis, radius, half_length = rotation[:, 2], 0.06, 0.15
+    angles = np.linspace(0.0, 2.0 * np.pi, 20001)
+    rim = radius * (
+        np.outer(np.cos(angles), rotation[:, 0]) + np.outer(np.sin(angles), rotation[:, 1])
+    )
+    cylinder_points = np.concatenate((rim + half_length * axis, rim - half_length * axis))
+    forms = np.array(
+        [
+            _form([0.3, -0.1, 0.2], spans=(half[:, None] * rotation.T)),
+            _form([-0.2, 0.1, 0.4], ball=0.07),
+            _form(
+                np.zeros(3),
+                spans=np.vstack((half_length * axis, np.zeros((2, 3)))),
+                axis=axis,
+                disc=radius,
+            ),
+        ]
+    )
+    assert forms.shape[1] == FORM_SIZE
+    for _ in range(100):
+        u = _unit(rng)
+        np.testing.assert_allclose(support(forms, 0, *u), (box_points @ u).max(), atol=1e-14)
+        np.testing.assert_allclose(support(forms, 1, *u), u @ [-0.2, 0.1, 0.4] + 0.07, atol=1e-15)
+        assert 0.0 <= support(forms, 2, *u) - (cylinder_points @ u).max() <= 1e-8
+
+
+def test_separation_of_two_balls_along_their_centres_is_their_distance():
+    forms = np.array([_form([0.1, 0.2, 0.3], ball=0.05), _form([0.4, -0.1, 0.5], ball=0.1)])
+    v = np.array([0.3, -0.3, 0.2])
+    exact = np.linalg.norm(v) - 0.15
+    np.testing.assert_allclose(separation(forms, 0, 1, *v), exact - 1e-9, rtol=0, atol=1e-15)
+    # any other direction gives a lower bound; a zero direction gives none
+    rng = np.random.default_rng(18)
+    for _ in range(20):
+        assert separation(forms, 0, 1, *_unit(rng)) <= exact
+    assert separation(forms, 0, 1, 0.0, 0.0, 0.0) == -math.inf

@@ -3,13 +3,13 @@ the bounds the controllers take from it."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from dqcontrol.cli import main
 from dqcontrol.controllers import LocalController, PathFollowingController
 from dqcontrol.controllers.proportional import ProportionalController
 from dqcontrol.model.limit_profile import ProfileError, load_profile, profile_names
@@ -166,35 +166,6 @@ def test_a_profile_in_another_joint_order_is_matched_by_name(panda, tmp_path):
     assert robot.limits.qd_max[6] == 1.0 and np.all(robot.limits.qd_max[:6] == 2.0)
 
 
-def test_the_cli_refuses_a_bad_profile_with_exit_code_2(tmp_path, capsys):
-    for option in ("nope", str(tmp_path / "absent.toml"), "ur5e"):
-        with pytest.raises(SystemExit) as info:
-            main(["run", "--robot", "panda", "--limits", option, "--out", str(tmp_path)])
-        assert info.value.code == 2
-        assert "--limits" in capsys.readouterr().err
-
-
-def test_a_run_records_its_profile_and_the_checker_reads_it(tmp_path, capsys):
-    from dqcontrol.runs.storage import load_run
-
-    argv = ["run", "--robot", "panda", "--limits", "franka_panda", "--simulator", "kinematic"]
-    argv += ["--period", "0.001", "--duration", "0.3", "--controllers", "local", "--short"]
-    assert main([*argv, "--no-viewer", "--out", str(tmp_path)]) == 0
-    (saved,) = tmp_path.glob("**/local.json")
-    log, _ = load_run(saved)
-    profile = load_profile("franka_panda")
-    assert log.meta["limits"] == "franka_panda"
-    np.testing.assert_array_equal(log.meta["velocity_limits"], profile.qd_max)
-    acc = np.abs(np.diff(np.vstack((np.zeros(7), log.qd_command)), axis=0)) / 0.001
-    assert np.all(acc <= profile.qdd_max * (1 + 1e-9))  # the profile's acceleration flowed in
-    capsys.readouterr()
-    code = main(["check", str(saved)])
-    out = capsys.readouterr().out
-    # the profile's jerk flowed in too, and the run ends with the stop along the path
-    assert code == 0 and "check PASS" in out and "against 'franka_panda'" in out, out
-    assert log.stopping.any() and not log.qd_command[-1].any()
-
-
 @pytest.mark.parametrize(("spec", "name"), [("erd:ur5", "ur5e"), ("erd:ur10", "ur10e")])
 def test_the_ur_profiles_fit_the_ur_arms_of_example_robot_data(spec, name):
     from dqcontrol.cli.robot_options import RobotRequest, load_robot
@@ -203,3 +174,10 @@ def test_the_ur_profiles_fit_the_ur_arms_of_example_robot_data(spec, name):
     profile = load_profile(name)
     np.testing.assert_array_equal(robot.limits.qd_max, profile.qd_max)
     assert robot.limits.q_max[2] == pytest.approx(math.pi) and robot.limit_profile == name
+
+
+def test_profiles_compare_by_their_figures():
+    panda = load_profile("franka_panda")
+    assert panda == load_profile("franka_panda")
+    assert panda != load_profile("kuka_iiwa7_r800")
+    assert panda != dataclasses.replace(panda, qd_max=panda.qd_max * 0.5)

@@ -1,19 +1,8 @@
-"""Malformed and hostile robot descriptions, fuzzed with hypothesis from the LBR4p's URDF
-(``robots/lbr4p/lbr4p.urdf``), and the other parameters a user touches.
-
-Every bad input must end in a dqcontrol error (:class:`URDFError`, :class:`ParameterError`,
-:class:`ConfigurationError` …) whose message names the problem — never a crash, and never
-an exception from deep inside the XML parser, Pinocchio, MuJoCo or numpy.
-
-``tests/test_bad_input.py`` covers each URDF error once on a two-link arm, and
-``tests/controllers/test_controllers.py`` / ``tests/sim/test_mujoco_sim.py`` the main
-parameter errors;
-this file fuzzes the real robot and adds what those do not cover.
-"""
+"""``dqcontrol.model.urdf_source``: the LBR4p's URDF fuzzed with hypothesis and a two-link arm
+broken one way per test; every bad input ends in a dqcontrol error that names the problem."""
 
 from __future__ import annotations
 
-import math
 import os
 import re
 import tempfile
@@ -28,20 +17,14 @@ from hypothesis import strategies as st
 import dqcontrol
 from dqcontrol.controllers import (
     LocalController,
-    PredictiveController,
-    PredictiveNoScalingController,
-    ProportionalController,
-    TrackingController,
 )
 from dqcontrol.errors import (
-    ConfigurationError,
-    DQControlError,
     FrameError,
     ParameterError,
     URDFError,
 )
 from dqcontrol.model import LBR4P_Q0, lbr4p_urdf_path, urdf_source
-from dqcontrol.sim import MujocoSimulation, run_kinematic, run_mujoco
+from dqcontrol.sim import MujocoSimulation, run_kinematic
 from dqcontrol.trajectories import Circle
 
 EE = "lbr4p_flange"
@@ -432,120 +415,127 @@ def test_removing_any_element_loads_or_raises_a_dqcontrol_error(index):
         assert str(exc)
 
 
-# =========================================================================== parameters
-# tests/controllers/test_controllers.py covers: gain, weights, 'fast'/negative acceleration_limit,
-# velocity_limits = 0, phase_prediction, p = 1, tau_p = 0, period -0.05 (local), q of the
-# wrong shape / NaN in step(); tests/sim/test_mujoco_sim.py the simulation's options.
-CONTROLLER_CLASSES = {
-    "local": LocalController,
-    "predictive": PredictiveController,
-    "noscale": PredictiveNoScalingController,
-    "proportional": ProportionalController,
-}
+# =========================================================================== a two-link arm
+# Each URDF error once on a small string: a two-link arm (``base`` → ``link1`` by the revolute
+# ``joint1``) that loads, and one mutation of it per test.
+INERTIAL = """
+    <inertial>
+      <origin xyz="0 0 0.1" rpy="0 0 0"/>
+      <mass value="{mass}"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/>
+    </inertial>"""
 
 
-_PERIODS = (0.0, -0.05, math.nan, math.inf, "50 ms", None)
+def make_urdf(
+    *,
+    root: str = "robot",
+    parent: str = "base",
+    origin_xyz: str = "0 0 0.2",
+    mass: str = "1.0",
+    lower: str = "-1.5",
+    upper: str = "1.5",
+    joint_type: str = "revolute",
+) -> str:
+    """A two-link arm; every keyword is one place a test can break it."""
+    return f"""<?xml version="1.0"?>
+<{root} name="tiny">
+  <link name="base"/>
+  <link name="link1">{INERTIAL.format(mass=mass)}
+  </link>
+  <link name="tip"/>
+  <joint name="joint1" type="{joint_type}">
+    <parent link="{parent}"/>
+    <child link="link1"/>
+    <origin xyz="{origin_xyz}" rpy="0 0 0"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="{lower}" upper="{upper}" effort="10" velocity="2"/>
+  </joint>
+  <joint name="tip_joint" type="fixed">
+    <parent link="link1"/>
+    <child link="tip"/>
+    <origin xyz="0.3 0 0" rpy="0 0 0"/>
+  </joint>
+</{root}>
+"""
 
 
-_BAD_PERIODS = [
-    pytest.param(cls, period, id=f"{cls}-{period!r}")
-    for cls in CONTROLLER_CLASSES
-    for period in _PERIODS
-]
+def load_arm(xml: str, ee: str = "tip", **kwargs) -> dqcontrol.RobotModel:
+    return dqcontrol.RobotModel.from_urdf(xml, ee, **kwargs)
 
 
-@pytest.mark.parametrize(("cls", "period"), _BAD_PERIODS)
-def test_bad_period_of_every_controller(lbr4p, cls, period):
-    with pytest.raises(ParameterError, match=r"period_s \(T\) must be") as info:
-        CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), period)
-    assert "[s]" in str(info.value)
+def test_the_unbroken_urdf_loads():
+    """The control case: every failure below comes from the one mutation."""
+    model = load_arm(make_urdf())
+    assert model.nq == 1
+    np.testing.assert_allclose(
+        model.placement(np.array([np.pi / 2])).translation, [0.0, 0.3, 0.2], atol=1e-15
+    )
 
 
-@pytest.mark.parametrize("p", [0, -3, 1.5, True, "6"], ids=repr)
-def test_bad_number_of_instants(lbr4p, p):
-    with pytest.raises(ParameterError, match="p must be an integer ≥ 2"):
-        PredictiveController(lbr4p, Circle(1.0), 0.05, num_instants=p)
+def test_missing_file(tmp_path):
+    path = tmp_path / "no_such_robot.urdf"
+    with pytest.raises(URDFError, match="not found") as info:
+        dqcontrol.RobotModel.from_urdf(path, "tip")
+    assert str(path) in str(info.value)
 
 
-@pytest.mark.parametrize("tau", [-1.0, math.nan, -math.inf], ids=repr)
-def test_bad_horizon(lbr4p, tau):
-    with pytest.raises(ParameterError, match="tau_p must be > 0"):
-        PredictiveController(lbr4p, Circle(1.0), 0.05, horizon_s=tau)
+def test_missing_file_given_as_str(tmp_path):
+    path = str(tmp_path / "nothing_here.urdf")
+    with pytest.raises(URDFError, match=re.escape(path)):
+        dqcontrol.RobotModel.from_urdf(path, "tip")
 
 
-@pytest.mark.parametrize(
-    "instants", [[0.1, 0.5], [0.0, 0.5, 0.5], [0.0, 0.5, 0.2], [], [[0.0, 0.1]]], ids=repr
-)
-def test_bad_prediction_instants(lbr4p, instants):
-    with pytest.raises(ParameterError, match="instants_s must start at 0 and increase"):
-        TrackingController(lbr4p, Circle(1.0), 0.05, instants_s=instants)
+def test_malformed_xml_truncated():
+    xml = make_urdf()
+    with pytest.raises(URDFError, match="malformed XML"):
+        load_arm(xml[: len(xml) // 2])
 
 
-@pytest.mark.parametrize("cls", list(CONTROLLER_CLASSES), ids=str)
-@pytest.mark.parametrize("name", ["velocity_limits", "acceleration_limit"])
-@pytest.mark.parametrize("value", [math.nan, math.inf, -1.0], ids=repr)
-def test_non_finite_or_negative_limits(lbr4p, cls, name, value):
-    with pytest.raises(ParameterError, match=name) as info:
-        CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), 0.05, **{name: value})
-    assert "> 0" in str(info.value)
+def test_malformed_xml_from_file_names_the_file(tmp_path):
+    path = tmp_path / "broken.urdf"
+    path.write_text(make_urdf()[:300])
+    with pytest.raises(URDFError, match="malformed XML") as info:
+        dqcontrol.RobotModel.from_urdf(path, "tip")
+    assert str(path) in str(info.value)
 
 
-@pytest.mark.parametrize("cls", list(CONTROLLER_CLASSES), ids=str)
-@pytest.mark.parametrize("name", ["velocity_limits", "acceleration_limit"])
-def test_limits_of_the_wrong_shape(lbr4p, cls, name):
-    with pytest.raises(ParameterError, match=f"{name}.*shape"):
-        CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), 0.05, **{name: np.ones(3)})
+def test_wrong_root_tag():
+    with pytest.raises(URDFError, match="root element must be <robot>, got <model>"):
+        load_arm(make_urdf(root="model"))
 
 
-@pytest.mark.parametrize("cls", list(CONTROLLER_CLASSES), ids=str)
-@pytest.mark.parametrize("margin", [-1e-3, math.nan, 3.5, "1 mrad"], ids=repr)
-def test_bad_position_margin(lbr4p, cls, margin):
-    with pytest.raises(ParameterError, match=r"position_margin_rad must be"):
-        CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), 0.05, position_margin_rad=margin)
+def test_joint_with_unknown_parent_link():
+    with pytest.raises(URDFError, match="parent link 'ghost' does not exist") as info:
+        load_arm(make_urdf(parent="ghost"))
+    assert "joint1" in str(info.value)
+    assert "'base'" in str(info.value)  # lists the links that exist
 
 
-@pytest.mark.parametrize("cls", list(CONTROLLER_CLASSES), ids=str)
-@pytest.mark.parametrize("delay", [-1, 1.5, True, "2"], ids=repr)
-def test_bad_measurement_delay(lbr4p, cls, delay):
-    with pytest.raises(ParameterError, match=r"measurement_delay_periods must be an integer ≥ 0"):
-        CONTROLLER_CLASSES[cls](lbr4p, Circle(1.0), 0.05, measurement_delay_periods=delay)
+@pytest.mark.parametrize("xyz", ["0 nan 0.2", "0 0 inf", "0 0 -inf"])
+def test_non_finite_origin_of_the_two_link_arm(xyz):
+    with pytest.raises(URDFError, match="must be finite") as info:
+        load_arm(make_urdf(origin_xyz=xyz))
+    assert "joint1" in str(info.value)
 
 
-def test_unknown_daqp_setting_is_refused_at_construction(lbr4p):
-    pytest.importorskip("daqp")
-    with pytest.raises(ParameterError, match="iter_limitz"):
-        LocalController(
-            lbr4p, Circle(1.0), 0.05, solver="daqp", solver_settings={"iter_limitz": 10}
-        )
+def test_origin_with_wrong_count():
+    with pytest.raises(URDFError, match="must hold 3 numbers"):
+        load_arm(make_urdf(origin_xyz="0 0"))
 
 
-def test_unknown_solver_setting_is_refused_at_construction(lbr4p):
-    with pytest.raises(ParameterError, match="max_iterz"):
-        LocalController(lbr4p, Circle(1.0), 0.05, solver_settings={"max_iterz": 10})
+def test_negative_mass_of_the_two_link_arm():
+    with pytest.raises(URDFError, match="mass must be ≥ 0") as info:
+        load_arm(make_urdf(mass="-2.5"))
+    assert "link1" in str(info.value) and "-2.5" in str(info.value)
 
 
-def test_bad_reset_arguments(lbr4p):
-    ctrl = LocalController(lbr4p, Circle(1.0), 0.05)
-    with pytest.raises(ConfigurationError, match=re.escape("qd0 must have shape (7,)")):
-        ctrl.reset(LBR4P_Q0, qd0=np.zeros(3))
-    with pytest.raises(ConfigurationError, match="q0 must be finite"):
-        ctrl.reset(np.full(7, np.inf))
-    with pytest.raises(ParameterError, match=r"sigma0 must be finite and ≥ 0 \[s\]"):
-        ctrl.reset(LBR4P_Q0, sigma0=-1.0)
+def test_limit_lower_above_upper():
+    with pytest.raises(URDFError, match=re.escape("lower=1.0 > upper=-1.0")) as info:
+        load_arm(make_urdf(lower="1.0", upper="-1.0"))
+    assert "joint1" in str(info.value)
 
 
-@pytest.mark.parametrize("run", [run_kinematic, run_mujoco], ids=["kinematic", "mujoco"])
-@pytest.mark.parametrize("limit", [0.0, -1.0, math.nan], ids=repr)
-def test_bad_time_limit_of_the_loops(lbr4p, run, limit):
-    with pytest.raises(ParameterError, match=r"max_time_s must be finite and > 0 \[s\]"):
-        run(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0, max_time_s=limit)
-
-
-def test_period_not_a_multiple_of_the_physics_step(lbr4p):
-    with pytest.raises(ParameterError, match="not a whole number of physics steps"):
-        run_mujoco(LocalController(lbr4p, Circle(1.0), 0.0015), LBR4P_Q0, max_time_s=0.1)
-
-
-def test_every_error_here_is_a_dqcontrol_error():
-    for cls in (URDFError, ParameterError, ConfigurationError, FrameError):
-        assert issubclass(cls, DQControlError)
+def test_multi_dof_joint_is_refused():
+    with pytest.raises(URDFError, match="joints with more") as info:
+        load_arm(make_urdf(joint_type="floating"))
+    assert "joint1" in str(info.value)

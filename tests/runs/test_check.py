@@ -1,36 +1,20 @@
-"""The checker: hand-made logs with one violation of each kind (found at the right sample and
-joint), a clean log, a numpy reference on random commands, and ``dqcontrol check``."""
+"""The checker (dqcontrol/runs/check.py): hand-made logs with one violation of each kind (found
+at the right sample and joint), a clean log, a numpy reference on random commands, refused
+profiles and the summary line."""
 
 from __future__ import annotations
 
 import dataclasses
-import json
 
 import numpy as np
 import pytest
 
-from dqcontrol.cli import main
 from dqcontrol.model.limit_profile import LimitProfile, ProfileError
 from dqcontrol.runs import RunLog, Violation, check_run
 from dqcontrol.runs.check import summary_line
 
 T = 0.01
 NAMES = ("a", "b")
-PROFILE_TOML = """source = "a test"
-control_periods_s = [0.01]
-[[joint]]
-name = "a"
-position_rad = [-1.0, 1.0]
-velocity_rad_s = 1.0
-acceleration_rad_s2 = 1.5
-jerk_rad_s3 = 1000.0
-[[joint]]
-name = "b"
-position_rad = [-1.0, 1.0]
-velocity_rad_s = 1.0
-acceleration_rad_s2 = 1.5
-jerk_rad_s3 = 1000.0
-"""
 
 
 def _profile(**per_joint_a) -> LimitProfile:
@@ -183,62 +167,3 @@ def test_the_summary_line():
     assert line.startswith("check FAIL run.json: 40 samples at T = 0.01 s against 'test'")
     assert "jerk 1" in line and "the reflex that would have fired: jerk of a at sample 20" in line
     assert summary_line([], 40, T, "test", "run.json").startswith("check PASS run.json")
-
-
-def _save(tmp_path, u: np.ndarray, meta: dict | None = None) -> str:
-    log = _log(u)
-    np.savez(tmp_path / "run.npz", **log.arrays())
-    record = {"format": "dqcontrol-run", "version": 1, "npz": "run.npz", "meta": meta or log.meta}
-    (tmp_path / "run.json").write_text(json.dumps(record), encoding="utf-8")
-    (tmp_path / "test.toml").write_text(PROFILE_TOML, encoding="utf-8")
-    return str(tmp_path / "run.json")
-
-
-def test_the_cli_exit_codes_and_lines(tmp_path, capsys):
-    path = _save(tmp_path, _clean())
-    limits = str(tmp_path / "test.toml")
-    assert main(["check", path, "--limits", limits]) == 0
-    assert capsys.readouterr().out.startswith("check PASS run.json: 40 samples")
-    u = _clean()
-    u[:, 1] = _commands([1.0] * 9 + [2.0, 0.0] + [1.0] * 9 + [-1.0] * 20)
-    path = _save(tmp_path, u)
-    assert main(["check", path, "--limits", limits]) == 1
-    lines = capsys.readouterr().out.splitlines()
-    assert lines[0].startswith("acceleration of b at sample 9 (t = 0.09 s): 2 > 1.5 rad/s²")
-    assert lines[-1].startswith("check FAIL") and "acceleration 1" in lines[-1]
-
-
-def test_the_cli_refuses_bad_input_with_exit_code_2(tmp_path, capsys):
-    path = _save(tmp_path, _clean(), meta={"joint_names": list(NAMES)})  # no period
-    limits = str(tmp_path / "test.toml")
-    cases = [
-        (["check", str(tmp_path / "none.json")], "no saved run"),
-        (["check", path, "--limits", "nope", "--period", "0.01"], "franka_panda"),
-        (["check", path, "--limits", "franka_panda", "--period", "0.01"], "panda_joint1"),
-        (["check", path, "--limits", limits], "--period"),
-        (["check", path, "--period", "0.01"], "--limits"),  # no robot to take the URDF of
-    ]
-    for argv, word in cases:
-        assert main(argv) == 2, argv
-        assert word in capsys.readouterr().err, argv
-    assert main(["check", path, "--limits", limits, "--period", "0.01"]) == 0
-
-
-def test_the_cli_defaults_to_the_runs_profile_and_urdf_means_the_urdfs_limits(tmp_path, capsys):
-    from dqcontrol.model.library import PANDA_Q0
-
-    panda = [f"panda_joint{k}" for k in range(1, 8)]
-    u = np.zeros((3, 7))
-    u[0] = 0.01  # from rest: 10 rad/s² and 10000 rad/s³, beyond Franka's jerk, no URDF limit
-    log = _log(np.zeros((3, 2)))
-    arrays = {**log.arrays(), "q": np.tile(PANDA_Q0, (3, 1)), "qd_command": u}
-    arrays.update(qd_measured=np.zeros((3, 7)), torque=np.zeros((3, 7)))
-    arrays.update(torque_peak=np.zeros((3, 7)))
-    np.savez(tmp_path / "run.npz", **arrays)
-    meta = {"robot": "panda", "limits": "franka_panda", "period_s": 0.001, "joint_names": panda}
-    record = {"format": "dqcontrol-run", "version": 1, "npz": "run.npz", "meta": meta}
-    (tmp_path / "run.json").write_text(json.dumps(record), encoding="utf-8")
-    assert main(["check", str(tmp_path / "run.json")]) == 1
-    assert "against 'franka_panda'" in capsys.readouterr().out
-    assert main(["check", str(tmp_path / "run.json"), "--limits", "urdf"]) == 0
-    assert "check PASS run.json: 3 samples at T = 0.001 s against 'urdf'" in capsys.readouterr().out

@@ -1,6 +1,6 @@
-"""The contacts of a run in its saved files (docs/run_logs.md): measured once, printed and
-saved by ``dqcontrol run``, loaded back equal, shown by ``dqcontrol view``; a run saved
-without them still loads and says so."""
+"""The contacts of a run in its saved files (dqcontrol/runs/contacts.py, docs/run_logs.md):
+measured once, printed and saved by ``dqcontrol run``, loaded back equal; a run saved without
+them still loads and says so."""
 
 from __future__ import annotations
 
@@ -136,51 +136,3 @@ def test_a_run_without_contacts_says_not_checked_and_an_old_file_not_recorded(tm
     np.testing.assert_array_equal(old_log.q, log.q)
     assert loaded_contacts(old_record) is None
     assert contacts_text(old_record).startswith("contacts: not recorded")
-
-
-def test_view_shows_the_contacts_and_draws_them(blocked_run, tmp_path, capsys, monkeypatch):
-    import dqcontrol.viz.figures as figures
-
-    monkeypatch.setattr(figures, "plot_run", lambda *a, **k: [])
-    _, folder = blocked_run
-    code = main(["view", str(folder / "pf.json"), "--figures", "--out", str(tmp_path)])
-    assert code == 0
-    out = capsys.readouterr().out
-    _, record = load_run(folder / "pf.json")
-    assert f"contacts: {loaded_contacts(record).summary()}" in out
-    assert "robot-obstacle 0, self 0" in out and "closest pair lbr4p_link_" in out
-    assert (tmp_path / "pf_contacts.png").stat().st_size > 3000
-
-
-def test_view_of_an_old_file_says_not_recorded(tmp_path, capsys, monkeypatch):
-    import dqcontrol.viz.figures as figures
-
-    monkeypatch.setattr(figures, "plot_run", lambda *a, **k: [])
-    log = _log(np.tile(LBR4P_Q0, (3, 1)))
-    log.meta.update(robot="lbr4p", simulator="kinematic")
-    save_run(_result(log), tmp_path, "old")
-    old = json.loads((tmp_path / "old.json").read_text())
-    del old["contacts"]
-    (tmp_path / "old.json").write_text(json.dumps(old))
-    assert main(["view", str(tmp_path / "old.json"), "--figures"]) == 0
-    assert "contacts: not recorded" in capsys.readouterr().out
-    assert not (tmp_path / "old_contacts.png").exists()
-
-
-def test_the_figure_draws_the_columns_and_names_the_pair(lbr4p):
-    from dqcontrol.viz.contacts_figure import contacts_figure
-
-    collision = CollisionModel(lbr4p, [_PLANE], self_collision=False)
-    qs = LBR4P_Q0 + np.linspace(0.0, 0.2, 5)[:, None]
-    log = _log(qs)
-    contacts = measure_contacts(lbr4p, collision, log.q, log.t_s)
-    fig = contacts_figure(contacts, log.t_s, safety_distance_m=0.02)
-    ax_d, ax_c = fig.axes
-    np.testing.assert_allclose(
-        ax_d.lines[0].get_ydata(), 1e3 * contacts.per_sample["contacts_closest_m"]
-    )
-    obstacle = contacts.per_sample["contacts_obstacle"]
-    np.testing.assert_array_equal(ax_c.lines[0].get_ydata(), obstacle)
-    title = ax_d.get_title()
-    assert f"robot-obstacle {contacts.obstacle.count}" in title
-    assert "–".join(contacts.closest_links) in title

@@ -38,7 +38,7 @@ from dqcontrol.sim.bridge import (
     encode_command,
     run_origin,
 )
-from dqcontrol.sim.bridge_transport import client_endpoint, parse_address
+from dqcontrol.sim.bridge_transport import client_endpoint
 from dqcontrol.trajectories import Circle
 
 zmq = pytest.importorskip("zmq")
@@ -390,17 +390,6 @@ def test_no_server_is_a_clear_error(transport):
         BridgeDriver(f"{transport}://127.0.0.1:9", hello_timeout_s=0.2)
 
 
-@pytest.mark.parametrize(
-    "address", ["127.0.0.1:5555", "http://127.0.0.1:5555", "udp://127.0.0.1", "udp://:5555",
-                "tcp://127.0.0.1:port", "udp://127.0.0.1:70000", 5555],
-)  # fmt: skip
-def test_a_bad_address_says_which_forms_are_accepted(address):
-    with pytest.raises(ParameterError, match=r"tcp://HOST:PORT|port must be 0\.\.65535"):
-        parse_address(address)
-    with pytest.raises(ParameterError):
-        BridgeDriver(address, hello_timeout_s=0.1)
-
-
 def test_a_udp_client_started_before_its_server_repeats_its_hello(lbr4p):
     """A datagram sent before the server is up is lost (ZMQ would queue it): the client
     repeats ``HELLO`` until an answer comes, and the repeats leave no trace."""
@@ -422,54 +411,6 @@ def test_a_udp_client_started_before_its_server_repeats_its_hello(lbr4p):
     assert res.log.meta["driver_report"] == {"rejected": {}, "timeouts": 0}
 
 
-@TRANSPORTS
-def test_the_sim_server_command_serves_a_client(lbr4p, capsys, transport):
-    from dqcontrol.cli import main
-
-    with socket_port(transport) as port:
-        pass
-    done = threading.Event()
-    codes = []
-
-    def serve():
-        codes.append(
-            main(
-                [
-                    "sim-server",
-                    "--port",
-                    str(port),
-                    "--max-messages",
-                    "80",
-                    "--payload",
-                    "3",
-                    "--transport",
-                    transport,
-                ]
-            )  # fmt: skip
-        )
-        done.set()
-
-    thread = threading.Thread(target=serve, daemon=True)
-    thread.start()
-    client = BridgeDriver(f"{transport}://127.0.0.1:{port}", hello_timeout_s=10.0)
-    res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), client, q0=LBR4P_Q0)
-    client.close()
-    server = res.log.meta["server"]
-    assert server["robot"] == "lbr4p" and server["robot_spec"] == "lbr4p"
-    assert server["motor"] == "velocity" and server["simulator"] == "mujoco"
-    assert server["payload_kg"] == 3.0  # through PayloadDriver
-    # hello, describe, reset, the samples (the stop's too), the ramp, hold
-    sent = 3 + len(res.log) + res.log.meta["stop"]["brake_periods"] + 1
-    assert res.metrics.completed and sent < 80
-    link = client_endpoint(f"{transport}://127.0.0.1:{port}")
-    for _ in range(80 - sent):  # the server stops after its 80th message
-        _exchange(link, _header(1, 0, 0))
-    link.close()
-    thread.join(timeout=20.0)
-    assert done.is_set() and codes == [0]
-    assert f"on {transport}://127.0.0.1:" in capsys.readouterr().out
-
-
 class socket_port:
     """A free TCP (or UDP) port on the loopback address."""
 
@@ -486,11 +427,3 @@ class socket_port:
 
     def __exit__(self, *exc) -> None:
         self.sock.close()
-
-
-def test_the_sim_server_refuses_a_negative_payload(capsys):
-    from dqcontrol.cli import main
-
-    with pytest.raises(SystemExit) as info:
-        main(["sim-server", "--port", "0", "--payload", "-1", "--max-messages", "1"])
-    assert info.value.code == 2 and "--payload must be >= 0 kg" in capsys.readouterr().err

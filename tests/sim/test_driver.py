@@ -1,4 +1,5 @@
-"""Joint drivers: the protocol, the simulated drivers, the position wrapper and the faults."""
+"""dqcontrol/sim/driver.py: the driver protocols, the kinematic and simulation drivers, the
+position wrapper and the joint map by name (against exact integration and hand-built arms)."""
 
 from __future__ import annotations
 
@@ -21,7 +22,6 @@ from dqcontrol.sim.driver import (
     VelocityFromPosition,
     joint_map,
 )
-from dqcontrol.sim.measurement_faults import FaultyDriver
 from dqcontrol.sim.mujoco_sim import Measurement, MujocoSimulation
 
 NAMES = tuple(f"j{i}" for i in range(1, 8))
@@ -105,33 +105,6 @@ def test_velocity_from_position_starts_at_the_first_measurement_when_written_fir
     drv = VelocityFromPosition(arm, 0.5)
     drv.write(np.ones(7))
     np.testing.assert_allclose(arm.targets[0], np.full(7, 0.8))
-
-
-@pytest.mark.parametrize("delay", [0, 2])
-def test_faulty_driver_observes_the_delayed_state_plus_seeded_noise(lbr4p, delay):
-    """Observation k is true state ``max(0, k - d)`` plus the k-th draws of
-    ``default_rng(seed)``: q's noise, then qd's."""
-    opts = {"q_noise_rad": 1e-3, "qd_noise_rad_s": 0.01, "delay_periods": delay, "seed": 3}
-    drv = FaultyDriver(KinematicDriver(lbr4p, 0.05), **opts)
-    seen = [drv.reset(LBR4P_Q0)]
-    for k in range(8):
-        drv.write(np.full(7, 0.1 * (k + 1)))
-        seen.append(drv.read())
-    rng = np.random.default_rng(3)
-    for k, m in enumerate(seen):
-        old = drv.true_measurements[max(0, k - delay)]
-        np.testing.assert_array_equal(m.q, old.q + rng.normal(0.0, 1e-3, 7))
-        np.testing.assert_array_equal(m.qd, old.qd + rng.normal(0.0, 0.01, 7))
-        assert m.t_s == drv.true_measurements[k].t_s  # stamped with the present time
-    np.testing.assert_array_equal(drv.true_qd[-1], np.full(7, 0.1 * 8))
-    assert drv.meta["delay_periods"] == delay
-
-
-def test_faulty_driver_rejects_what_is_not_a_driver(lbr4p):
-    with pytest.raises(ParameterError, match="must be a JointDriver"):
-        FaultyDriver(object())
-    with pytest.raises(ParameterError, match="delay_periods must be an integer"):
-        FaultyDriver(KinematicDriver(lbr4p, 0.05), delay_periods=-1)
 
 
 def test_joint_map_orders_by_name():

@@ -1,5 +1,5 @@
-"""The control loop against joint drivers: equal to the reference loops, joint mapping,
-warm-up, watchdog (stale, deadline, end, Ctrl-C), braking and the run log."""
+"""dqcontrol/sim/loop.py: the control loop against joint drivers (recording wrappers, hand-made
+arms): joint mapping, warm-up, watchdog (stale, deadline, end, Ctrl-C), braking, the log."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ import pytest
 from dqcontrol.controllers import LocalController, ProportionalController
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.library import LBR4P_Q0
-from dqcontrol.runs.log import LogRecorder
 from dqcontrol.runs.storage import load_run, save_run
 from dqcontrol.sim import (
     JointMismatchError,
@@ -22,7 +21,6 @@ from dqcontrol.sim import (
     VelocityFromPosition,
     run_kinematic,
     run_loop,
-    run_mujoco,
 )
 from dqcontrol.sim.mujoco_sim import Measurement
 from dqcontrol.trajectories import Circle, Sinusoid
@@ -30,59 +28,11 @@ from dqcontrol.trajectories import Circle, Sinusoid
 TIMING = ("solve_time_s", "step_time_s")
 
 
-def _reference_kinematic(controller, q0):
-    """The kinematic loop written out: q_{k+1} = q_k + T u_k, qd measured = u_{k-1}."""
-    q = controller.robot.check_q(q0).copy()
-    controller.reset(q)
-    period = controller.period_s
-    rec = LogRecorder(controller.robot.nq)
-    qd = np.zeros(controller.robot.nq)
-    for k in range(int(np.ceil((10.0 * controller.trajectory.duration + 1.0) / period - 1e-9))):
-        result = controller.step(q, qd)
-        rec.record(k * period, q, qd, result)
-        qd = result.qd_command
-        q = q + period * result.qd_command
-        if controller.done:
-            break
-    return rec.finish()
-
-
-def _reference_mujoco(controller, q0):
-    """The MuJoCo loop written out: measure, step, hold one period, record with torques."""
-    sim = MujocoSimulation(controller.robot)
-    meas = sim.reset(q0)
-    controller.reset(meas.q)
-    rec = LogRecorder(controller.robot.nq)
-    for _ in range(int(np.ceil((10.0 * controller.trajectory.duration + 1.0) / 0.05 - 1e-9))):
-        result = controller.step(meas.q, meas.qd)
-        before = meas
-        meas = sim.step(result.qd_command, controller.period_s)
-        rec.record(before.t_s, before.q, before.qd, result, meas.torque, meas.torque_peak)
-        if controller.done:
-            break
-    return rec.finish()
-
-
 def _assert_same_log(a, b):
     assert len(a) == len(b)
     for name, x in a.arrays().items():
         if name not in TIMING:
             np.testing.assert_array_equal(x, b.arrays()[name], err_msg=name)
-
-
-@pytest.mark.parametrize("traj", [Circle(1.0), Sinusoid(2.0)], ids=["circle1", "sinusoid2"])
-def test_kinematic_loop_is_bit_identical_to_the_reference(lbr4p, traj):
-    ref = _reference_kinematic(LocalController(lbr4p, traj, 0.05), LBR4P_Q0)
-    res = run_kinematic(LocalController(lbr4p, traj, 0.05), LBR4P_Q0)
-    _assert_same_log(ref, res.log)
-
-
-def test_mujoco_loop_is_bit_identical_to_the_reference(lbr4p):
-    ref = _reference_mujoco(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
-    res = run_mujoco(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
-    _assert_same_log(ref, res.log)
-    assert res.log.meta["joint_names"] == list(lbr4p.joint_names)
-    assert res.log.meta["simulator"] == "mujoco" and res.log.meta["physics_dt_s"] == 0.001
 
 
 class Recording:

@@ -9,7 +9,6 @@ import threading
 import numpy as np
 import pytest
 
-from dqcontrol.cli import main
 from dqcontrol.controllers import LocalController
 from dqcontrol.model.library import PANDA_Q0
 from dqcontrol.runs.reflexes import CommandMonitor
@@ -140,13 +139,6 @@ def test_the_client_stops_and_its_run_log_records_the_reflex(panda):
     assert "reflex (franka_panda limits)" in result.note
     assert "reflex" in result.log.meta["driver_report"]
     assert reflexes.fired is not None and len(result.log) == reflexes.fired.sample
-
-
-def test_the_cli_refuses_a_period_the_profiles_robot_does_not_accept(capsys):
-    with pytest.raises(SystemExit) as info:
-        main(["sim-server", "--robot", "panda", "--limits", "franka_panda", "--period", "0.05"])
-    assert info.value.code == 2
-    assert "accepts control periods of 0.001 s" in capsys.readouterr().err
 
 
 def test_the_mujoco_driver_in_this_process_with_a_profile(panda):

@@ -132,25 +132,6 @@ def test_the_log_records_plan_id_and_age_per_sample(lbr4p, tmp_path):
     assert synchronous.log.plan_id is None
 
 
-@pytest.mark.parametrize(
-    "options",
-    [
-        ["--plan-period", "0.0015"],
-        ["--plan-period", "0.0005"],
-        ["--controllers", "local", "--plan-period", "0.01"],
-    ],
-)
-def test_bad_stream_options_exit_2(options, tmp_path, capsys):
-    from dqcontrol.cli import main
-
-    with pytest.raises(SystemExit) as stop:
-        main(["run", "--period", "0.001", "--controllers", "pf", *options, "--duration",
-              "0.5", "--out", str(tmp_path)])  # fmt: skip
-    assert stop.value.code == 2
-    err = capsys.readouterr().err
-    assert "--plan-period" in err
-
-
 def test_a_run_with_its_stop_keeps_the_plan_columns(lbr4p, tmp_path):
     from dqcontrol.runs import load_run
     from dqcontrol.sim import KinematicDriver, run_loop

@@ -1,6 +1,6 @@
-"""The jerk-limited tracker and the streamer against plans (docs/theory.md §12.2–12.3):
-every command within the velocity, acceleration and jerk limits, positions equal to the
-plan's, late plans refused, the play-out a stop at rest."""
+"""dqcontrol/streaming/tracker.py: the reachable acceleration against its definition (the
+velocity gained while the acceleration is brought to zero at the jerk bound), and the
+tracker's commands within the limits by finite differences."""
 
 from __future__ import annotations
 
@@ -8,14 +8,9 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dqcontrol.streaming.kernels import stream_period
-from dqcontrol.streaming.plan import Plan
-from dqcontrol.streaming.streamer import Streamer
 from dqcontrol.streaming.tracker import JerkLimitedTracker, reachable_acceleration
 
 T = 0.001
-N_JOINTS = 3
-V_MAX, A_MAX, J_MAX = 2.0, 10.0, 5000.0
 
 
 def _gain(a: float, jerk_step: float) -> float:
@@ -34,133 +29,34 @@ def test_reachable_acceleration_is_the_largest_within_the_gap(gap, jerk_step):
     assert _gain(a * (1 + 1e-6) + 1e-9, jerk_step) > gap - 1e-9
 
 
-def _random_plan(rng, start_k: int, q0, sigma0: float, scale: float, grid=False) -> Plan:
-    p = 6
-    durations = np.concatenate(([0.01], rng.uniform(0.02, 0.2, p - 1)))
-    if grid:  # breakpoints on the stream's samples
-        durations = np.round(durations / T) * T
-    qd = rng.uniform(-scale, scale, (p, N_JOINTS))
-    return Plan(start_k + 1, start_k, start_k * T, np.array(q0), sigma0, durations, qd,
-                rng.uniform(0, 1, p))  # fmt: skip
-
-
-def _feasible_plan(rng) -> Plan:
-    """A plan whose interval velocities change by at most ``ā`` times the time between
-    interval centres (the controller's acceleration rows)."""
-    durations = np.round(np.concatenate(([0.01], rng.uniform(0.02, 0.2, 5))) / T) * T
-    centres = 0.5 * (durations[1:] + durations[:-1])
-    steps = rng.uniform(-1, 1, (5, N_JOINTS)) * A_MAX * centres[:, None]
-    first = rng.uniform(-1, 1, (1, N_JOINTS)) * A_MAX * durations[0]
-    qd = np.cumsum(np.vstack((first, steps)), axis=0)
-    return Plan(1, 0, 0.0, np.zeros(N_JOINTS), 0.0, durations, qd, np.ones(6))
-
-
-def _limits() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    return (np.full(N_JOINTS, V_MAX), np.full(N_JOINTS, A_MAX), np.full(N_JOINTS, J_MAX))
-
-
-def _check_within(u: np.ndarray) -> None:
-    a = np.diff(np.vstack((np.zeros(N_JOINTS), u)), axis=0) / T
-    j = np.diff(np.vstack((np.zeros(N_JOINTS), a)), axis=0) / T
-    tol = 1e-9
-    assert np.all(np.abs(u) <= V_MAX * (1 + tol))
-    assert np.all(np.abs(a) <= A_MAX * (1 + tol))
-    assert np.all(np.abs(j) <= J_MAX * (1 + tol))
-
-
-@given(st.integers(0, 2**32 - 1), st.lists(st.integers(5, 400), min_size=1, max_size=5))
-def test_every_streamed_command_is_within_every_limit(seed, gaps):
-    rng = np.random.default_rng(seed)
-    streamer = Streamer(JerkLimitedTracker(*_limits(), T), 0.02, patience_k=10_000)
-    streamer.restart(np.zeros(N_JOINTS), 0.0)
-    switches = set(np.cumsum(gaps).tolist())
-    streamer.offer(_random_plan(rng, 0, np.zeros(N_JOINTS), 0.0, 2.5))  # beyond v̄ too
+def test_the_tracker_reaches_its_target_within_the_limits():
+    rng = np.random.default_rng(17)
+    v_max, a_max, j_max = np.array([2.0, 1.0, 3.0]), np.array([10.0, 5.0, 20.0]), 5000.0
+    tracker = JerkLimitedTracker(v_max, a_max, np.full(3, j_max), T)
+    tracker.restart(np.zeros(3), np.zeros(3))
+    targets = [rng.uniform(-3.0, 3.0, 3) for _ in range(3)]  # beyond v̄ too
     out = []
-    for k in range(int(max(switches)) + 300):
-        if k in switches:
-            streamer.offer(_random_plan(rng, k, streamer.q, 0.0, 2.5))
-        out.append(streamer.step().u)
-    _check_within(np.array(out))
+    for target in targets:
+        for _ in range(1500):
+            out.append(tracker.step(target).copy())
+        np.testing.assert_allclose(out[-1], np.clip(target, -v_max, v_max), atol=1e-9)
+    u = np.array(out)
+    a = np.diff(np.vstack((np.zeros(3), u)), axis=0) / T
+    j = np.diff(np.vstack((np.zeros(3), a)), axis=0) / T
+    assert np.all(np.abs(u) <= v_max * (1 + 1e-9))
+    assert np.all(np.abs(a) <= a_max * (1 + 1e-9))
+    assert np.all(np.abs(j) <= j_max * (1 + 1e-9))
 
 
-def test_kernel_is_the_tracker():
-    rng = np.random.default_rng(3)
-    limits = _limits()
-    reference = JerkLimitedTracker(*limits, T)
-    plan = _random_plan(rng, 0, np.zeros(N_JOINTS), 0.0, 1.5)
-    q, u, a = np.zeros(N_JOINTS), np.zeros(N_JOINTS), np.zeros(N_JOINTS)
-    tau, q_ref = 0.0, np.zeros(N_JOINTS)
-    for _ in range(400):
-        wanted = plan.mean_velocity(tau, tau + T) + 50.0 * (plan.position(tau) - q_ref)
-        expected = reference.step(wanted)
-        q_ref = q_ref + T * expected
-        tau, _, _ = stream_period(plan.ends_s, plan.q_at, plan.qd, plan.sigma_at, plan.s,
-                                  False, tau, 1.0, 50.0, T, 0.0, q, u, a, limits[0], limits[1],
-                                  limits[2] * T)  # fmt: skip
-        np.testing.assert_allclose(u, expected, rtol=0, atol=1e-12)
-
-
-def test_unbounded_stream_integrates_to_the_plan_states():
-    rng = np.random.default_rng(7)
-    inf = np.full(N_JOINTS, np.inf)
-    streamer = Streamer(JerkLimitedTracker(np.full(N_JOINTS, 5.0), inf, inf, T), 0.02, 10_000)
-    q0 = rng.uniform(-1, 1, N_JOINTS)
-    streamer.restart(q0, 0.0)
-    plan = _random_plan(rng, 0, q0, 0.0, 1.0, grid=True)
-    streamer.offer(plan)
-    q = q0.copy()
-    ends_k = np.round(plan.ends_s / T).astype(int)
-    states = plan.states()
-    for k in range(ends_k[-1] + 1):
-        if k in ends_k:  # a breakpoint (or the last state)
-            np.testing.assert_allclose(q, states[list(ends_k).index(k)], atol=1e-12)
-        q = q + T * streamer.step().u
-
-
-def test_bounded_stream_stays_within_its_tolerance_of_the_plan():
-    """The blend's stated tolerance (docs/theory.md §12.2): ``v̄ (v̄/ā + ā/j̄)``, the
-    distance of the longest transition, and the plan's end reached within 1e-6 rad."""
-    rng = np.random.default_rng(11)
-    streamer = Streamer(JerkLimitedTracker(*_limits(), T), 0.02, 10_000)
-    streamer.restart(np.zeros(N_JOINTS), 0.0)
-    plan = _feasible_plan(rng)
-    streamer.offer(plan)
-    jumps = np.abs(np.diff(np.vstack((np.zeros(N_JOINTS), plan.qd, np.zeros(N_JOINTS))), axis=0))
-    tol = float(np.max(jumps * (jumps / A_MAX + A_MAX / J_MAX)))
-    q, tau = np.zeros(N_JOINTS), 0.0
-    for _ in range(int(round(plan.duration_s / T)) + 2000):
-        assert np.max(np.abs(q - plan.position(tau))) <= tol
-        q = q + T * streamer.step().u
-        tau += T
-    np.testing.assert_allclose(q, plan.position(plan.duration_s), atol=1e-6)
-
-
-def test_a_plan_offered_after_its_start_is_refused_and_counted():
-    rng = np.random.default_rng(5)
-    streamer = Streamer(JerkLimitedTracker(*_limits(), T), 0.02, 10_000)
-    streamer.restart(np.zeros(N_JOINTS), 0.0)
-    first = _random_plan(rng, 0, np.zeros(N_JOINTS), 0.0, 1.0)
-    streamer.offer(first)
-    for _ in range(20):
-        streamer.step()
-    late = _random_plan(rng, 10, streamer.q, 0.0, 1.0)
-    assert not streamer.offer(late)
-    assert streamer.refused == 1
-    assert streamer.step().plan_id == first.plan_id
-
-
-def test_without_new_plans_the_last_is_played_out_to_rest_on_its_path():
-    rng = np.random.default_rng(9)
-    streamer = Streamer(JerkLimitedTracker(*_limits(), T), 0.02, patience_k=20)
-    streamer.restart(np.zeros(N_JOINTS), 0.0)
-    plan = _random_plan(rng, 0, np.zeros(N_JOINTS), 0.0, 0.5)
-    streamer.offer(plan)
-    out, modes = [], []
-    for _ in range(int(round(plan.duration_s / T)) * 3):
-        sample = streamer.step()
-        out.append(sample.u)
-        modes.append(sample.mode)
-    _check_within(np.array(out))
-    assert modes[-1] == "stopped" and "no new plan" in streamer.playout_note
-    assert streamer.tau_s < plan.duration_s  # it stopped within the plan
-    np.testing.assert_allclose(streamer.q, plan.position(streamer.tau_s), atol=1e-6)
+def test_a_copy_goes_on_alone():
+    tracker = JerkLimitedTracker(np.full(2, 1.0), np.full(2, 5.0), np.full(2, 1000.0), T)
+    tracker.restart(np.zeros(2), np.zeros(2))
+    tracker.step(np.ones(2))
+    twin = tracker.copy()
+    a = [tracker.step(np.ones(2)).copy() for _ in range(5)]
+    b = [twin.step(np.ones(2)).copy() for _ in range(5)]
+    np.testing.assert_array_equal(a, b)
+    u, acc = tracker.u.copy(), tracker.a.copy()
+    twin.step(-np.ones(2))
+    np.testing.assert_array_equal(tracker.u, u)
+    np.testing.assert_array_equal(tracker.a, acc)

@@ -60,3 +60,37 @@ def test_the_figures_are_written_with_the_stop(stopped, tmp_path):
     assert [p.name for p in paths] == [
         "run_path_2d.png", "run_joint_velocities.png", "run_scaling.png",
     ]  # fmt: skip
+
+
+class _Flags:
+    """A log stand-in: only its ``stopping`` flags."""
+
+    def __init__(self, flags: list[int]) -> None:
+        self.stopping = np.array(flags, dtype=bool)
+
+
+def test_every_run_of_flagged_samples_is_one_span():
+    from dqcontrol.viz.stop_marks import _spans
+
+    assert _spans(np.array([0, 1, 1, 0, 1, 0, 0, 1], dtype=bool)) == [(1, 2), (4, 4), (7, 7)]
+    assert _spans(np.zeros(4, dtype=bool)) == []
+
+
+def test_each_span_runs_to_the_sample_after_it_and_is_labelled_once():
+    ax = Figure().add_subplot()
+    x = np.arange(8) * 0.5
+    shade_stop(ax, _Flags([0, 1, 1, 0, 1, 0, 0, 1]), x)
+    spans = [(p.get_bbox().x0, p.get_bbox().x1) for p in ax.patches]
+    assert spans == [(0.5, 1.5), (2.0, 2.5), (3.5, 3.5)]  # the last one ends at the last x
+    assert ax.get_legend_handles_labels()[1] == ["stop"]
+    quiet = Figure().add_subplot()
+    shade_stop(quiet, _Flags([1, 0]), x[:2], label=False)
+    assert quiet.get_legend_handles_labels()[1] == []
+
+
+def test_the_stop_is_marked_where_it_began_on_the_path():
+    ax = Figure().add_subplot()
+    points = np.array([[0.0, 0.0], [1.0, 2.0], [3.0, 4.0]])
+    mark_stop_on_path(ax, _Flags([0, 1, 1]), points)
+    (marker,) = ax.lines
+    assert (marker.get_xdata()[0], marker.get_ydata()[0]) == (1.0, 2.0)

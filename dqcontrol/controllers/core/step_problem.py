@@ -7,7 +7,7 @@ level assembles straight from its terms and limits (``None`` when there are seve
 levels, or the terms are not block diagonal); :meth:`StepProblem.problem` gives the
 :class:`~dqcontrol.controllers.core.problem.Problem` of every level, built once when
 asked. Both come from the same terms and limits and hold the same numbers
-(tests/controllers/limits/test_limits.py); the bounds the applied command is clipped to, and
+(tests/controllers/core/test_block_assembly.py); the bounds the applied command is clipped to, and
 the joints whose hard bound won a conflict, are read from the block form where there is one.
 """
 

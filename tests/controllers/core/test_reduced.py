@@ -3,12 +3,14 @@ dense formation ``Zᵀ P Z``, ``Zᵀ (P z₀ + c)``, ``[I; A Z]`` on seeded rand
 
 import numpy as np
 import pytest
-from controllers.core.test_levels_properties import _problem
+from controllers.core.test_levels import _problem
 
 from dqcontrol.controllers.core.levels import level_in_basis
 from dqcontrol.controllers.core.problem import DecisionLayout, Residual, objective
 from dqcontrol.controllers.core.reduced import (
+    level_rows,
     nonzero_entries,
+    objective_in_basis,
     reduced_objective,
     rows_in_basis,
     sparse_product,
@@ -131,3 +133,39 @@ def test_the_reduced_qp_is_the_level_in_the_basis(seed):
     shift = problem.A @ point
     assert np.allclose(qp.lower[dim:], problem.lower - shift, rtol=0, atol=1e-13)
     assert np.allclose(qp.upper[dim:], problem.upper - shift, rtol=0, atol=1e-13)
+
+
+def test_level_rows_follow_changed_weights_and_writable_rows():
+    rng = np.random.default_rng(3)
+    point, basis = rng.normal(size=6), np.linalg.qr(rng.normal(size=(6, 4)))[0]
+    rows = frozen(rng.normal(size=(3, 6)))
+    first = (Residual("a", 1.0, rng.normal(size=3), A=rows),)
+    again = (Residual("a", 2.0, first[0].b, A=rows),)  # the same rows, another weight
+    for residuals in (first, again, first):
+        got = objective_in_basis(level_rows(residuals), point, basis)
+        dense = 2.0 * residuals[0].weight * (rows @ basis).T @ (rows @ basis)
+        np.testing.assert_allclose(got.hessian, dense, rtol=1e-12)
+    writable = rng.normal(size=(3, 6))
+    live = (Residual("b", 1.0, rng.normal(size=3), A=writable),)
+    before = reduced_objective(live, point, basis).hessian
+    writable *= 2.0  # rows that may change are read again at every call
+    np.testing.assert_allclose(reduced_objective(live, point, basis).hessian, 4.0 * before)
+
+
+def test_level_rows_of_strided_blocks_are_their_dense_rows():
+    # a term may give a view of wider blocks (the tracking term's rows without the s column)
+    rng = np.random.default_rng(5)
+    wide = rng.normal(size=(3, 4, 6))
+    wide[np.abs(wide) < 0.5] = 0.0
+    blocks = wide[:, :, :5]
+    residual = Residual("view", 0.5, rng.normal(size=12), blocks=blocks)
+    dense = np.zeros((12, 15))
+    for i in range(3):
+        dense[4 * i : 4 * i + 4, 5 * i : 5 * i + 5] = blocks[i]
+    point, basis = rng.normal(size=15), np.linalg.qr(rng.normal(size=(15, 6)))[0]
+    got = reduced_objective((residual,), point, basis)
+    rows = dense @ basis
+    np.testing.assert_allclose(got.hessian, 2.0 * 0.5 * rows.T @ rows, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(
+        got.gradient, 2.0 * 0.5 * rows.T @ (dense @ point - residual.b), rtol=1e-12, atol=1e-14
+    )

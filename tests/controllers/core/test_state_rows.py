@@ -1,82 +1,50 @@
-"""Dense rows given through the predicted states they read (``StateRows``): the first
-level's objective summed from each state's Gram matrix against the one of the dense rows,
-for the weights of the consistent prediction with and without a servo lag, and for any
-weights."""
+"""The compiled kernel of :mod:`dqcontrol.controllers.core.state_rows` (dense rows from the
+rows of each predicted state) against numpy, also as read by ``Residual.dense``."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from dqcontrol.controllers.core.objective import level_objective
-from dqcontrol.controllers.core.problem import Residual, StateRows, objective
-from dqcontrol.controllers.prediction.consistent import (
-    ConsistentPrediction,
-    interval_breakpoints,
-)
+from dqcontrol.controllers.core.problem import DecisionLayout, Residual, StateRows
+from dqcontrol.controllers.core.state_rows import state_rows_into
 
 
-def _dense(states: StateRows) -> np.ndarray:
-    """``A`` ``(p r, p m)`` from the rows of each state, block by block."""
-    p, r, m = states.rows.shape
-    a = np.zeros((p * r, p * m))
+def _numpy_rows(rows, weights, phase_weights) -> np.ndarray:
+    """``(p, r, q, n + 1)``: block ``(i, j)`` is ``rows[i]`` with its first ``n`` columns
+    times ``weights[i, j]`` and its last times ``phase_weights[i, j]``."""
+    scale = np.concatenate(
+        (np.repeat(weights[:, :, None], rows.shape[2] - 1, axis=2), phase_weights[:, :, None]),
+        axis=2,
+    )  # (p, q, n + 1)
+    return rows[:, :, None, :] * scale[:, None, :, :]
+
+
+@pytest.mark.parametrize(("p", "q", "r", "n"), [(1, 1, 6, 7), (4, 4, 3, 7), (3, 5, 2, 2)])
+def test_state_rows_into_is_the_weighted_rows(p, q, r, n):
+    rng = np.random.default_rng(p * 100 + q * 10 + n)
+    rows = rng.normal(size=(p, r, n + 1))
+    weights, phase_weights = rng.normal(size=(p, q)), rng.normal(size=(p, q))
+    out = np.full((p, r, q, n + 1), np.nan)
+    state_rows_into(rows, weights, phase_weights, out)
+    np.testing.assert_array_equal(out, _numpy_rows(rows, weights, phase_weights))
+
+
+def test_a_residual_given_by_states_is_dense_block_by_block():
+    rng = np.random.default_rng(3)
+    p, r, n = 3, 4, 5
+    layout = DecisionLayout(n, np.arange(p) * 0.1, np.full(p, 0.1))
+    states = StateRows(rng.normal(size=(p, r, n + 1)), rng.normal(size=(p, p)),
+                       rng.normal(size=(p, p)))  # fmt: skip
+    a = Residual("path", 1.0, np.zeros(p * r), states=states).dense(layout)
+    assert a.shape == (p * r, layout.num_vars)
+    m = n + 1
     for i in range(p):
         for j in range(p):
-            block = states.rows[i].copy()
-            block[:, : m - 1] *= states.weights[i, j]
-            block[:, m - 1] *= states.phase_weights[i, j]
-            a[i * r : (i + 1) * r, j * m : (j + 1) * m] = block
-    return a
-
-
-def _weights(kind: str, model: ConsistentPrediction, rng: np.random.Generator) -> np.ndarray:
-    p = model.layout.num_blocks
-    if kind == "any":  # no structure: every block in every state
-        return rng.normal(size=(p, p))
-    return model.weights
-
-
-@pytest.mark.parametrize(
-    ("kind", "lag_s", "seed"),
-    [("prediction", 0.0, 0), ("prediction", 0.004, 1), ("any", 0.0, 2), ("prediction", 0.0, 3)],
-)
-def test_objective_from_state_rows_equals_the_dense_one(kind, lag_s, seed):
-    rng = np.random.default_rng(seed)
-    n, period = 7, 1e-3
-    model = ConsistentPrediction(interval_breakpoints(10, 1.0, period), n, period, 1.0, lag_s)
-    layout = model.layout
-    p = layout.num_blocks
-    states = StateRows(
-        rng.normal(size=(p, 6, n + 1)), _weights(kind, model, rng), model.sigma_weights
-    )
-    b, row_weights = rng.normal(size=6 * p), rng.uniform(0.1, 1.0, size=6 * p)
-    a = _dense(states)
-    eye = np.tile(np.eye(n + 1), (p, 1, 1))
-    damping = Residual("damping", 1e-6, np.zeros(p * (n + 1)), blocks=eye)
-    with_states = Residual("path", 1e4, b, A=a, row_weights=row_weights, states=states)
-    dense = with_states._replace(states=None)
-    p_ref, c_ref = objective(layout, (dense, damping))
-    p_mat, c = level_objective(layout, (with_states, damping))
-    assert np.abs(p_mat - p_ref).max() <= 1e-13 * np.abs(p_ref).max()
-    assert np.abs(c - c_ref).max() <= 1e-13 * np.abs(c_ref).max()
-    assert np.abs(p_mat - p_mat.T).max() <= 1e-15 * np.abs(p_ref).max()
-    # the dense rows alone through the same function: the same objective as objective()
-    p_dense, c_dense = level_objective(layout, (dense, damping))
-    assert np.abs(p_dense - p_ref).max() <= 1e-13 * np.abs(p_ref).max()
-    assert np.abs(c_dense - c_ref).max() <= 1e-13 * np.abs(c_ref).max()
-
-
-def test_a_wrong_structure_would_be_seen():
-    """The check can fail: state rows that do not match the dense rows give another
-    objective."""
-    rng = np.random.default_rng(7)
-    n, period = 7, 1e-3
-    model = ConsistentPrediction(interval_breakpoints(4, 0.2, period), n, period)
-    p = model.layout.num_blocks
-    states = StateRows(rng.normal(size=(p, 6, n + 1)), model.weights, model.sigma_weights)
-    b = rng.normal(size=6 * p)
-    wrong = states._replace(weights=model.weights * 1.001)
-    res = Residual("path", 1.0, b, A=_dense(states), states=wrong)
-    p_ref, _ = objective(model.layout, (res._replace(states=None),))
-    p_mat, _ = level_objective(model.layout, (res,))
-    assert np.abs(p_mat - p_ref).max() > 1e-6 * np.abs(p_ref).max()
+            block = a[i * r : (i + 1) * r, j * m : (j + 1) * m]
+            np.testing.assert_array_equal(
+                block[:, :n], states.weights[i, j] * states.rows[i][:, :n]
+            )
+            np.testing.assert_array_equal(
+                block[:, n], states.phase_weights[i, j] * states.rows[i][:, n]
+            )

@@ -2,11 +2,13 @@
 its rows against their definition, and the behaviours it must show in the kinematic loop —
 an obstacle on the path stops the path-following controller before it (on the path, at
 rest), an obstacle at the elbow is avoided in the null space while the tool keeps the path,
-a task folding the arm into itself stops before self-contact — and a seeded fuzz of
-obstacles near the path."""
+a task folding the arm into itself stops before self-contact — a seeded fuzz of obstacles
+near the path, and, with MuJoCo as the oracle, no contact in the runs with the limit
+replayed in MuJoCo."""
 
 from __future__ import annotations
 
+import importlib.util
 import math
 
 import numpy as np
@@ -22,7 +24,6 @@ from dqcontrol.controllers import (
     PredictiveNoScalingController,
 )
 from dqcontrol.controllers.limits.collision import CollisionLimit
-from dqcontrol.controllers.limits.collision_rows import predicted_rows
 from dqcontrol.controllers.path_following.controller import PathFollowingController
 from dqcontrol.dq.algebra import dq_to_se3
 from dqcontrol.errors import ParameterError
@@ -160,51 +161,6 @@ def test_predicted_rows_linearise_the_distance(robot):
     num_states = problem.layout.num_blocks
     assert rows.keys is not None and np.unique(rows.keys).size == rows.lower.size
     assert rows.keys.min() >= cm.num_pairs and rows.keys.max() < (num_states + 1) * cm.num_pairs
-
-
-def _braked_distance(now_m, approach, braking, t_s, steps=20000):
-    """The distance at ``t_s`` of a pair closing at ``approach`` [m/s] whose closing rate is
-    braked at ``braking`` [m/s²] until it stops, integrated in small steps."""
-    dt = t_s / steps
-    d, v = now_m, approach
-    for _ in range(steps):
-        v_next = max(v - braking * dt, 0.0)
-        d -= 0.5 * (v + v_next) * dt
-        v = v_next
-    return d
-
-
-@pytest.mark.parametrize("now_m", [0.05, 0.021, 0.015])
-def test_predicted_floors_allow_only_the_approach_braking_cannot_avoid(now_m):
-    """A pair at ``d(q)`` closing at 0.4 m/s: each state's floor is the safety distance, or
-    where braking at the full bound (``Σ |∇d_k| a_k``) cannot keep the pair out, the
-    distance braking reaches by that state's time; a pair not closing keeps
-    ``min(d_s, d(q))``."""
-    n, p, num_pairs = 3, 4, 2
-    gradient_now = np.array([0.2, -0.1, 0.3])
-    qd = np.array([-1.0, 0.5, -0.5])  # closing rate -∇dᵀ q̇ = 0.2 + 0.05 + 0.15 = 0.4 m/s
-    a_max = np.array([2.0, 4.0, 1.0])  # braking Σ |∇d_k| a_k = 0.4 + 0.4 + 0.3 = 1.1 m/s²
-    times = np.array([0.001, 0.1, 0.3, 1.0])
-    state = np.array([0, 1, 2, 3, 4, 0, 4])
-    pair = np.array([0, 0, 0, 0, 0, 1, 1])
-    distance = np.array([now_m, 0.04, 0.04, 0.04, 0.04, 0.015, 0.03])
-    gradient = np.vstack([gradient_now] + [gradient_now] * 4 + [-gradient_now] * 2)
-    weights = np.tril(np.ones((p, p))) * 0.1
-    q_lin = np.zeros((p, n))
-    c, lower, keys, closest = predicted_rows(
-        state, pair, distance, gradient, (weights, q_lin, q_lin.copy(), times),
-        (qd, a_max, 1.0), SAFETY_M, num_pairs, n + 1, p * (n + 1),
-    )  # fmt: skip
-    floors = lower[:4] + 0.04  # the offset is zero: q̄ = q_base
-    expected = [min(SAFETY_M, _braked_distance(now_m, 0.4, 1.1, t)) for t in times]
-    np.testing.assert_allclose(floors, expected, rtol=0, atol=1e-9)
-    if now_m - 0.4**2 / 2.2 >= SAFETY_M:  # braking stops the pair before d_s: d_s itself
-        assert np.all(floors == SAFETY_M)
-    else:
-        assert floors[-1] < SAFETY_M
-    # the second pair moves away (rate -0.4 m/s): it may not come closer than it is
-    assert lower[4] + 0.03 == pytest.approx(min(SAFETY_M, 0.015))
-    assert closest == min(now_m, 0.015) and keys.tolist()[:4] == [2, 4, 6, 8]
 
 
 def test_closing_faster_than_braking_allows_keeps_the_qp_feasible(robot):
@@ -428,3 +384,65 @@ def test_moving_rows_refresh_the_backend_like_a_new_setup(robot):
         assert ra.s == pytest.approx(rb.s, abs=1e-12)
         q = q + T * ra.qd_command
     assert refreshed > 50  # the rows were there and the structure was kept
+
+
+# ---------------------------------------------------------------------- MuJoCo as the oracle
+# the runs with the limit replayed in MuJoCo's own collision detection
+# (tests/sim/test_mjcf_builder.py's ``Replay``): no contact where the limit holds them apart
+needs_mujoco = pytest.mark.skipif(
+    importlib.util.find_spec("mujoco") is None, reason="MuJoCo is not installed (the 'sim' extra)"
+)
+
+
+@needs_mujoco
+def test_runs_with_the_limit_make_no_contact(robot):
+    from sim.test_mjcf_builder import Replay
+
+    ball = Sphere(name="ball", position_m=tuple(circle_point(robot, 1.0)), radius_m=0.03)
+    cm = CollisionModel(robot, (ball,))
+    replay = Replay(robot, cm.obstacles)
+    free = closed_loop(robot, make(robot, "path_following", Circle(2.0)), cm, 2.5)
+    assert replay.contacts(free["q"])[0] > 0
+    for name in ("path_following", "local"):
+        run = closed_loop(robot, make(robot, name, Circle(2.0), (CollisionLimit(cm),)), cm, 3.0)
+        assert replay.contacts(run["q"]) == (0, 0, 0.0)
+
+
+@needs_mujoco
+@settings(
+    max_examples=4,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    phase=st.floats(0.3, 1.9),
+    offset=st.lists(st.floats(-0.06, 0.06), min_size=3, max_size=3),
+    radius=st.floats(0.02, 0.06),
+)
+def test_fuzz_no_contact_in_mujoco(robot, phase, offset, radius):
+    from sim.test_mjcf_builder import Replay
+
+    centre = circle_point(robot, phase) + np.array(offset)
+    ball = Sphere(name="ball", position_m=tuple(centre), radius_m=radius)
+    cm = CollisionModel(robot, (ball,))
+    if cm.min_distance(LBR4P_Q0) < 0.03:
+        return  # a start inside the margin is not this test's case
+    run = closed_loop(
+        robot, make(robot, "path_following", Circle(2.0), (CollisionLimit(cm),)), cm, 2.5
+    )
+    assert Replay(robot, cm.obstacles).contacts(run["q"])[:2] == (0, 0)
+    assert not math.isnan(run["d_min"].min())
+
+
+@needs_mujoco
+def test_the_folding_task_has_no_self_contact_with_the_limit(robot):
+    from sim.test_mjcf_builder import Replay
+
+    cm = CollisionModel(robot)
+    replay = Replay(robot, ())
+    task = fold_task(robot)
+    free = closed_loop(robot, make(robot, "path_following", task), cm, 5.0)
+    assert replay.contacts(free["q"])[1] > 0  # MuJoCo sees the wrist in the pedestal
+    run = closed_loop(robot, make(robot, "path_following", task, (CollisionLimit(cm),)), cm, 5.0)
+    assert replay.contacts(run["q"]) == (0, 0, 0.0)

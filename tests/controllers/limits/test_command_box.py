@@ -1,14 +1,16 @@
 """The applied block's command box as one limit (docs/theory.md §5): its rows are the joint
 box's and the acceleration bound's, and its one-pass fast path merges exactly what the two
-limits give merged apart, conflicts included."""
+limits give merged apart, conflicts included; and ``command_box`` where the position and
+acceleration bounds conflict: the acceleration bound kept, the joint braking."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from controllers.limits.test_limits import near_limits, numpy_box, numpy_conflict_rule
-from controllers.terms.test_terms import random_context
+from controllers.limits.test_joint_box import near_limits, numpy_box, numpy_conflict_rule
+from controllers.terms.step_contexts import random_context
 
+from dqcontrol.controllers import command_box
 from dqcontrol.controllers.core.block_assembly import BlockAssembly
 from dqcontrol.controllers.core.levels import build_problem
 from dqcontrol.controllers.core.problem import Level
@@ -67,14 +69,20 @@ def test_command_box_equals_its_two_limits(lbr4p, p, seed, braking):
     np.testing.assert_array_equal(qp.C, apart.C)
 
 
-def test_joint_boxes_given_one_values_array_share_their_bounds(lbr4p):
+def test_a_predicted_box_is_refused(lbr4p):
     ctx = random_context(lbr4p, 3, seed=1)
     box, _ = pieces(ctx, True)
     other = JointBoxLimit(ctx.layout, box.q_min, box.q_max, box.qd_max, True, predicted=True)
-    other.values = box.values
-    box.qd_max[2] = 0.25  # in place
-    box.q_min = box.q_min - 0.1  # assigned: copied in
-    assert other.qd_max[2] == 0.25
-    np.testing.assert_array_equal(other.q_min, box.q_min)
     with pytest.raises(ParameterError, match="applied block"):
         CommandBoxLimit(other, AccelerationLimit(ctx.layout, 0.01, np.ones(2)))
+
+
+def test_command_box_conflict_keeps_acceleration_and_brakes():
+    q_max = np.array([1.0])
+    box = command_box(
+        q=np.array([0.99]), qd_prev=np.array([2.0]), q_min=-q_max, q_max=q_max,
+        qd_max=np.array([3.0]), a_max=np.array([10.0]), period_s=0.05,
+    )  # fmt: skip
+    # one period allows at most (1 - 0.99)/T = 0.2 rad/s; the brake reaches only 1.5
+    assert box.conflict[0]
+    assert box.lower[0] == box.upper[0] == pytest.approx(1.5)

@@ -1,39 +1,67 @@
-"""The compiled element-wise parts of the consistent prediction and of the context's sign
-alignment against the numpy expressions they stand for (seeded random draws)."""
+"""The consistent prediction (dqcontrol/controllers/prediction/consistent.py): its
+breakpoints against their formula, the shift matrix against sampled averages, the predicted
+states against the integrated plan and, behind a velocity lag, a fine simulation of it
+(seeded random draws)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.linalg import expm
 
-from dqcontrol.controllers.core.context import align_into
 from dqcontrol.controllers.prediction.consistent import (
     ConsistentPrediction,
     interval_breakpoints,
+    shift_matrix,
 )
-from dqcontrol.controllers.prediction.consistent_kernels import clip_into, states_into
+from dqcontrol.errors import ParameterError
 
 
-def test_clip_into_is_numpys_clip():
-    values = np.random.default_rng(0).normal(size=50) * 2.0
-    values[[3, 7]] = [np.nan, -0.0]
-    expected = np.minimum(np.maximum(values, 0.0), 1.3)
-    clip_into(values, 0.0, 1.3)
-    np.testing.assert_array_equal(values, expected)
+def test_breakpoints_first_interval_is_the_period_and_grow():
+    b = interval_breakpoints(10, 1.0, 0.05)
+    assert b[0] == 0.0 and b[1] == pytest.approx(0.05) and b[-1] == pytest.approx(1.0)
+    assert np.all(np.diff(np.diff(b[1:])) > 0.0)
 
 
-@pytest.mark.parametrize("lagging", [False, True])
-def test_states_into_adds_the_zero_decisions_states(lagging):
-    rng = np.random.default_rng(1)
-    p, n = 6, 7
-    q, v0, qd, sigma = rng.normal(size=n), rng.uniform(size=p), rng.normal(size=n), 0.7
-    moved, advanced = rng.normal(size=(p, n)), rng.normal(size=p)
-    base = q + v0[:, None] * qd if lagging else np.repeat(q[None, :], p, axis=0)
-    expected = (base + moved, sigma + advanced)
-    q_base, sigma_base = np.empty((p, n)), np.empty(p)
-    states_into(q, v0, qd, lagging, sigma, moved, advanced, q_base, sigma_base)
-    assert np.array_equal(q_base, base) and np.array_equal(sigma_base, np.full(p, sigma))
-    assert np.array_equal(moved, expected[0]) and np.array_equal(advanced, expected[1])
+def test_breakpoints_grow_as_the_given_power():
+    k = np.arange(1, 11, dtype=float)
+    for growth in (2.0, 3.0, 1.0):
+        b = interval_breakpoints(10, 1.0, 0.001, growth)
+        expected = 0.001 + 0.999 * ((k - 1.0) / 9.0) ** growth  # b_1 … b_10
+        np.testing.assert_allclose(b[1:], expected, rtol=1e-15)
+    default = interval_breakpoints(10, 1.0, 0.001)
+    np.testing.assert_array_equal(default, interval_breakpoints(10, 1.0, 0.001, 2.0))
+    with pytest.raises(ParameterError, match="growth"):
+        interval_breakpoints(10, 1.0, 0.001, 0.5)
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        ((1, 1.0, 0.01), "num_intervals"),
+        ((True, 1.0, 0.01), "num_intervals"),
+        ((2.5, 1.0, 0.01), "num_intervals"),
+        ((5, 0.0, 0.01), "horizon_s"),
+        ((5, np.inf, 0.01), "horizon_s"),
+        ((5, 0.01, 0.01), "longer than the control period"),
+    ],
+)
+def test_bad_breakpoints_are_named(args, fragment):
+    with pytest.raises(ParameterError, match=fragment):
+        interval_breakpoints(*args)
+
+
+def test_shift_matrix_rows_are_averages():
+    b = interval_breakpoints(6, 1.0, 0.05)
+    s = shift_matrix(b, 0.05)
+    np.testing.assert_allclose(s.sum(axis=1), 1.0)
+    v = np.arange(6.0)
+    # the mean of the shifted piecewise-constant profile, computed by fine sampling
+    fine = np.linspace(0.0, 2.0, 400001)
+    idx = np.minimum(np.searchsorted(b, fine, side="right") - 1, 5)
+    for i in range(6):
+        mask = (fine >= b[i] + 0.05) & (fine < b[i + 1] + 0.05)
+        assert (s @ v)[i] == pytest.approx(v[idx[mask]].mean(), abs=1e-3)
 
 
 @pytest.mark.parametrize("lag_s", [0.0, 0.004])
@@ -56,14 +84,39 @@ def test_the_prediction_is_the_integrated_plan(lag_s):
     np.testing.assert_array_equal(pred.sigma_base, np.full(5, 0.3))
 
 
-def test_align_into_negates_the_poses_on_the_far_side():
-    rng = np.random.default_rng(3)
-    wide = rng.normal(size=(6, 8 + 8 * 7))  # poses beside their Jacobians, as a batch gives
-    xs, jacs = wide[:, :8], wide[:, 8:].reshape(6, 8, 7)
-    xd = xs + rng.normal(scale=0.1, size=(6, 8))
-    xd[::2] *= -1.0
-    flip = np.einsum("pk,pk->p", xs, xd) < 0.0
-    assert flip.any() and not flip.all()
-    expected = (np.where(flip[:, None], -xs, xs), np.where(flip[:, None, None], -jacs, jacs))
-    align_into(xs, jacs, xd)
-    assert np.array_equal(xs, expected[0]) and np.array_equal(jacs, expected[1])
+def test_behind_a_velocity_lag_the_states_are_the_simulated_joints():
+    """The states at the breakpoints behind a first-order velocity lag against the exact
+    solution of ``dq/dt = v``, ``dv/dt = (qd_j - v)/τ_v`` over each interval (the matrix
+    exponential of the augmented linear system), from the measured velocity."""
+    period, lag = 0.01, 0.004
+    breaks = interval_breakpoints(4, 0.2, period)
+    model = ConsistentPrediction(breaks, 2, period, 1.0, lag)
+    rng = np.random.default_rng(4)
+    qd, v0, q = rng.normal(size=(4, 2)), rng.normal(size=2), rng.normal(size=2)
+    model.qd_measured = v0
+    pred = model.at(q, 0.0, qd, np.zeros(4))
+    # state (q, v, 1): the constant command enters through the last column
+    states = []
+    for k in range(2):
+        x = np.array([q[k], v0[k], 1.0])
+        for j, duration in enumerate(np.diff(breaks)):
+            a = np.array([[0.0, 1.0, 0.0], [0.0, -1.0 / lag, qd[j, k] / lag], [0.0, 0.0, 0.0]])
+            x = expm(a * duration) @ x
+            states.append((j, k, x[0]))
+    exact = np.empty((4, 2))
+    for j, k, value in states:
+        exact[j, k] = value
+    np.testing.assert_allclose(pred.q_lin, exact, rtol=0, atol=1e-13)
+    # the first state alone, as the linearisation check takes it
+    np.testing.assert_allclose(model.state_after_first(q, qd[0]), pred.q_lin[0], atol=1e-15)
+
+
+def test_reset_holds_the_start_velocity_and_no_progress():
+    model = ConsistentPrediction(interval_breakpoints(3, 0.1, 0.01), 2, 0.01)
+    model.reset(np.zeros(2), np.array([0.5, -1.0]))
+    np.testing.assert_array_equal(model.plan_qd, [[0.5, -1.0]] * 3)
+    np.testing.assert_array_equal(model.plan_s, np.zeros(3))
+    plan = np.ones((3, 2))
+    model.commit(plan, np.ones(3))
+    plan[0, 0] = 7.0  # the model keeps its own copy
+    assert model.plan_qd[0, 0] == 1.0

@@ -1,115 +1,21 @@
-"""The compiled path-error rows against a plain numpy formation of the same formula
-(docs/theory.md §8.2), on seeded random states, and the summation order of ``lane_dot``."""
+"""The path-error term (dqcontrol/controllers/terms/path_error.py): its rows with the time
+weights, and its tangent projectors, against a plain numpy formation (docs/theory.md §8.2)."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-import pytest
+from controllers.terms.step_contexts import random_context
+from controllers.terms.test_path_error_kernels import CONJ, PURE, numpy_path_rows
 
-from dqcontrol.controllers.core.state_rows import state_rows_into
-from dqcontrol.controllers.terms.path_error import (
-    PROJECTOR_BASIS,
-    PathErrorTerm,
-    tangent_projectors,
-)
-from dqcontrol.controllers.terms.path_error_kernels import lane_dot, path_states_into
+from dqcontrol.controllers.terms.path_error import PathErrorTerm, tangent_projectors
 from dqcontrol.dq.algebra import hamiplus8
-
-_PURE = [1, 2, 3, 5, 6, 7]
-
-
-def path_rows_into(*args) -> None:
-    """The state rows and ``b`` (:func:`path_states_into`), and the dense rows formed from
-    them (:func:`state_rows_into`): ``args`` the states' inputs, the weights, the basis,
-    then ``rows``, ``b``, ``states``."""
-    *inputs, weights, phase_weights, basis, rows, b, states = args
-    path_states_into(*inputs, basis, b, states)
-    state_rows_into(states, weights, phase_weights, rows)
-
-
-_CONJ = np.array([1.0, -1.0, -1.0, -1.0, 1.0, -1.0, -1.0, -1.0])
-
-
-def _numpy_rows(x, xd, dxd, jac, q_base, q_lin, s_base, s_lin, w, w_s):
-    """``A`` ``(6 p, p (n + 1))`` and ``b`` by matrix products: ``E_i = P H+8(x_i*)``."""
-    p, n = q_lin.shape
-    a = np.zeros((6 * p, p * (n + 1)))
-    b = np.zeros(6 * p)
-    for i in range(p):
-        e = hamiplus8(_CONJ * x[i])[_PURE]
-        ej, ed = e @ jac[i], e @ dxd[i]
-        for j in range(p):
-            a[6 * i : 6 * i + 6, j * (n + 1) : j * (n + 1) + n] = w[i, j] * ej
-            a[6 * i : 6 * i + 6, j * (n + 1) + n] = -w_s[i, j] * ed
-        gap = e @ (x[i] - xd[i]) + ej @ (q_base[i] - q_lin[i]) - ed * (s_base[i] - s_lin[i])
-        b[6 * i : 6 * i + 6] = -gap
-    return a, b
-
-
-@pytest.mark.parametrize(("p", "n", "seed"), [(1, 7, 0), (4, 6, 1), (10, 7, 2), (5, 9, 3)])
-def test_path_rows_equal_the_numpy_formation(p, n, seed):
-    rng = np.random.default_rng(seed)
-    x = rng.normal(size=(p, 8))
-    x /= np.linalg.norm(x[:, :4], axis=1)[:, None]
-    args = (
-        x, x + rng.normal(scale=0.1, size=(p, 8)), rng.normal(size=(p, 8)),
-        rng.normal(size=(p, 8, n)), rng.normal(size=(p, n)), rng.normal(size=(p, n)),
-        rng.normal(size=p), rng.normal(size=p),
-        np.tril(rng.uniform(size=(p, p))), np.tril(rng.uniform(size=(p, p))),
-    )  # fmt: skip
-    blocks, b = np.empty((p, 6, p, n + 1)), np.empty(6 * p)
-    states = np.empty((p, 6, n + 1))
-    path_rows_into(*args, PROJECTOR_BASIS, blocks, b, states)
-    a_ref, b_ref = _numpy_rows(*args)
-    np.testing.assert_allclose(blocks.reshape(6 * p, -1), a_ref, rtol=1e-13, atol=1e-14)
-    np.testing.assert_allclose(b, b_ref, rtol=1e-13, atol=1e-14)
-    # the rows of each state, through the weights, are the dense rows exactly
-    w, w_s = args[8], args[9]
-    for i in range(p):
-        for j in range(p):
-            assert np.array_equal(blocks[i, :, j, :n], w[i, j] * states[i, :, :n])
-            assert np.array_equal(blocks[i, :, j, n], w_s[i, j] * states[i, :, n])
-
-
-def test_path_rows_on_strided_poses_equal_contiguous_ones():
-    rng = np.random.default_rng(5)
-    p, n = 3, 7
-    wide = rng.normal(size=(p, 8 + 8 * n))  # the poses as a view with the Jacobians beside
-    x = wide[:, :8]
-    jac = wide[:, 8:].reshape(p, 8, n)
-    rest = (rng.normal(size=(p, 8)), rng.normal(size=(p, 8)))
-    tail = (np.zeros((p, n)), rng.normal(size=(p, n)), np.zeros(p), np.ones(p))
-    tail += (np.tril(np.ones((p, p))), np.tril(np.ones((p, p))), PROJECTOR_BASIS)
-    out = [(np.empty((p, 6, p, n + 1)), np.empty(6 * p), np.empty((p, 6, n + 1))) for _ in range(2)]
-    path_rows_into(x, *rest, jac, *tail, *out[0])
-    path_rows_into(x.copy(), *rest, jac.copy(), *tail, *out[1])
-    for strided, contiguous in zip(*out, strict=True):
-        assert np.array_equal(strided, contiguous)
-
-
-@pytest.mark.parametrize("length", [0, 1, 2, 5, 7, 8, 9, 15, 16, 21])
-def test_lane_dot_sums_every_product_once(length):
-    rng = np.random.default_rng(length)
-    x, y = rng.normal(size=length), rng.normal(size=length)
-    exact = math.fsum(x * y)
-    bound = 1e-15 * length * float(np.sum(np.abs(x * y)))
-    assert abs(lane_dot(x, y) - exact) <= bound
-    # the order: two running sums over even and odd entries, blocks of eight last pair first
-    if length == 8:
-        even = x[6] * y[6] + x[4] * y[4] + x[2] * y[2] + x[0] * y[0]
-        odd = x[7] * y[7] + x[5] * y[5] + x[3] * y[3] + x[1] * y[1]
-        assert lane_dot(x, y) == even + odd
 
 
 def test_the_term_gives_the_kernel_rows_with_the_time_weights(lbr4p):
-    from controllers.terms.test_terms import random_context
-
     ctx = random_context(lbr4p, 4, seed=7)
     res = PathErrorTerm(2.0, 0.5).residual(ctx)
     pred = ctx.prediction
-    a_ref, b_ref = _numpy_rows(
+    a_ref, b_ref = numpy_path_rows(
         ctx.poses, ctx.targets, ctx.target_derivatives, ctx.jacobians, pred.q_base,
         pred.q_lin, pred.sigma_base, pred.sigma_lin, pred.weights, pred.phase_weights,
     )  # fmt: skip
@@ -122,5 +28,5 @@ def test_the_term_gives_the_kernel_rows_with_the_time_weights(lbr4p):
 
 def test_the_projector_basis_gives_the_tangent_projectors():
     x = np.random.default_rng(9).normal(size=(3, 8))
-    expected = np.array([hamiplus8(_CONJ * xi)[_PURE] for xi in x])
+    expected = np.array([hamiplus8(CONJ * xi)[PURE] for xi in x])
     np.testing.assert_allclose(tangent_projectors(x), expected, rtol=1e-15, atol=1e-15)

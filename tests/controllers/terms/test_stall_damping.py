@@ -1,12 +1,16 @@
-"""Graceful degradation on an unreachable path: time scaling drives s to 0, and the
-stall damping brings the arm to rest near the path instead of chattering at the bounds."""
+"""The stall damping (dqcontrol/controllers/terms/stall_damping.py): its weight from the
+applied scalings against the rule written out (docs/theory.md §4.3), and graceful
+degradation on an unreachable path: time scaling drives s to 0, and the stall damping
+brings the arm to rest near the path instead of chattering at the bounds."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from controllers.terms.step_contexts import random_context, split
 
 from dqcontrol.controllers import LocalController, PredictiveController
+from dqcontrol.controllers.terms.stall_damping import StallDampingTerm
 from dqcontrol.dq import translation
 from dqcontrol.errors import ParameterError
 from dqcontrol.model import LBR4P_Q0
@@ -81,3 +85,46 @@ def test_a_slow_start_is_not_a_stall(lbr4p):
     assert runs[1].metrics.completed
     assert runs[0].log.s[:10].max() < 0.05  # it does start slowly
     np.testing.assert_array_equal(runs[0].log.qd_command, runs[1].log.qd_command)
+
+
+def numpy_stall_weights(s_applied: list[float], mu: float, s_stall: float, delay: int):
+    """The stall damping's weight at each step from the applied ``s`` of the steps before
+    (docs/theory.md §4.3), written out."""
+    weights, below, last = [], 0, 1.0
+    for s in s_applied:
+        weights.append(mu * (1.0 - last / s_stall) if below >= delay and mu else 0.0)
+        below = below + 1 if s < s_stall else 0
+        last = s
+    return weights
+
+
+def test_stall_damping_memory_and_weight(lbr4p):
+    ctx = random_context(lbr4p, 2, seed=3)
+    layout = ctx.layout
+    term = StallDampingTerm(layout, weight_max=1e-3, stall_scaling=0.05, delay_steps=3)
+    rng = np.random.default_rng(4)
+    s_seq = list(np.where(rng.random(60) < 0.7, rng.uniform(0.0, 0.05, 60), 0.5))
+    expected = numpy_stall_weights(s_seq, 1e-3, 0.05, 3)
+    assert any(w > 0 for w in expected) and any(w == 0 for w in expected)
+    for s_now, want in zip(s_seq, expected, strict=True):
+        term.prepare(ctx)
+        assert term.weight == pytest.approx(want, abs=0)
+        res = term.residual(ctx)
+        assert res.weight == term.weight and not res.held
+        z = rng.normal(size=layout.num_vars)
+        np.testing.assert_allclose(res.value(layout, z), split(layout, z)[0].ravel(), atol=0)
+        hessian = np.zeros((2, 8, 8))
+        assert term.add_gram(ctx, hessian)
+        expected_h = np.zeros((2, 8, 8))
+        expected_h[:, np.arange(7), np.arange(7)] = 2.0 * want
+        np.testing.assert_array_equal(hessian, expected_h)
+        term.observe(None, s_now)
+    term.reset()
+    term.prepare(ctx)
+    assert term.weight == 0.0 and term.stalled_steps == 0
+
+
+def test_delay_in_steps():
+    assert StallDampingTerm.delay_steps_for(0.5, 1e-3) == 500
+    assert StallDampingTerm.delay_steps_for(0.5, 0.05) == 10
+    assert StallDampingTerm.delay_steps_for(0.0, 0.05) == 0

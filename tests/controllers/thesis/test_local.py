@@ -18,7 +18,6 @@ import quadprog
 from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import LocalController, command_box
 from dqcontrol.controllers.backends import DaqpBackend, ForwardingBackend
-from dqcontrol.controllers.backends.daqp.blocks import DaqpBlocks
 from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.controllers.core.bounds import _vp_box, braking_constants, intersect_acceleration
 from dqcontrol.faults.qp_faults import contradictory
@@ -374,40 +373,3 @@ def test_box_equals_the_bounds_functions_bit_for_bit(lbr4p, seed):
         assert res.diagnostics.conflict_joints == tuple(np.flatnonzero(box.conflict).tolist())
         if not res.diagnostics.fallback:
             np.testing.assert_array_equal(res.qd_command, box.project(res.qd_command))
-
-
-# ------------------------------------------------------------------ the DAQP entry
-
-
-def test_solve_dense_equals_solve():
-    """``solve_dense`` (whole H, checked bounds) and ``solve`` (stored values, checks) give
-    the same solutions, through setups, updates, a new f and failures."""
-    import scipy.sparse as sp
-
-    m = 4
-    pattern = sp.csc_matrix(np.triu(np.ones((m, m))))
-    a_matrix = sp.identity(m, format="csc")
-    fast, ref = DaqpBlocks(pattern, a_matrix), DaqpBlocks(pattern, a_matrix)
-    rows, cols = np.triu_indices(m)
-    order = np.lexsort((rows, cols))  # CSC order of the upper triangle
-    rng = np.random.default_rng(5)
-    c = np.array([0.1, -0.2, 0.0, -2e-3])
-    for k in range(300):
-        g = rng.normal(size=(6, m))
-        h = g.T.dot(g) + 1e-6 * np.eye(m)
-        lower = rng.uniform(-1.0, 0.0, m)
-        upper = lower + rng.uniform(0.0, 1.0, m)
-        if k % 50 == 10:
-            upper[1] = lower[1]  # a collapsed box
-        if k % 100 == 60:
-            c = c + 0.01  # a new f
-        if k % 70 == 30:
-            h = -h  # not convex: both fail and rebuild
-        x_fast, ok, status, iterations, t = fast.solve_dense(h.copy(), c, lower, upper)
-        sol = ref.solve(h[rows[order], cols[order]], c, lower, upper)
-        assert (ok, status, iterations) == (sol.ok, sol.status, sol.iterations)
-        assert t >= 0.0
-        if ok:
-            np.testing.assert_array_equal(x_fast, sol.x)
-        else:
-            assert x_fast is None and sol.x is None

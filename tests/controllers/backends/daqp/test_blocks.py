@@ -1,6 +1,8 @@
-"""The DAQP backend keeps no stale equality: a row that happens to have lower == upper at
-the first solve after a setup (a joint braking at a conflict) must move freely once its
-bounds widen again."""
+"""The DAQP block path (:mod:`dqcontrol.controllers.backends.daqp.blocks`): no stale
+equality (a row with lower == upper at the first solve after a setup must move freely once
+its bounds widen again), ``solve_dense`` (the whole Hessian) against ``solve``, the
+least-distance form against the plain one, and the predictive controllers' solves taking that
+form."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import scipy.sparse as sp
 
 from dqcontrol.controllers.backends.daqp.blocks import DaqpBlocks
 from dqcontrol.errors import ParameterError
+from dqcontrol.trajectories import Circle
 
 
 def _qp(**kwargs) -> DaqpBlocks:
@@ -43,6 +46,38 @@ def test_equalities_by_design_stay_fixed():
         sol = qp.solve(_values(H), C, lo, up)
         assert sol.ok
         np.testing.assert_allclose(sol.x, [0.5, 0.3], atol=1e-12)
+
+
+def test_solve_dense_equals_solve():
+    """``solve_dense`` (whole H, checked bounds) and ``solve`` (stored values, checks) give
+    the same solutions, through setups, updates, a new f and failures."""
+    m = 4
+    pattern = sp.csc_matrix(np.triu(np.ones((m, m))))
+    a_matrix = sp.identity(m, format="csc")
+    fast, ref = DaqpBlocks(pattern, a_matrix), DaqpBlocks(pattern, a_matrix)
+    rows, cols = np.triu_indices(m)
+    order = np.lexsort((rows, cols))  # CSC order of the upper triangle
+    rng = np.random.default_rng(5)
+    c = np.array([0.1, -0.2, 0.0, -2e-3])
+    for k in range(300):
+        g = rng.normal(size=(6, m))
+        h = g.T.dot(g) + 1e-6 * np.eye(m)
+        lower = rng.uniform(-1.0, 0.0, m)
+        upper = lower + rng.uniform(0.0, 1.0, m)
+        if k % 50 == 10:
+            upper[1] = lower[1]  # a collapsed box
+        if k % 100 == 60:
+            c = c + 0.01  # a new f
+        if k % 70 == 30:
+            h = -h  # not convex: both fail and rebuild
+        x_fast, ok, status, iterations, t = fast.solve_dense(h.copy(), c, lower, upper)
+        sol = ref.solve(h[rows[order], cols[order]], c, lower, upper)
+        assert (ok, status, iterations) == (sol.ok, sol.status, sol.iterations)
+        assert t >= 0.0
+        if ok:
+            np.testing.assert_array_equal(x_fast, sol.x)
+        else:
+            assert x_fast is None and sol.x is None
 
 
 # ------------------------------------------------------------------ block-diagonal P
@@ -128,3 +163,22 @@ def test_block_size_must_match_the_pattern():
     pattern = sp.csc_matrix(np.triu(np.ones((4, 4))))
     with pytest.raises(ParameterError, match="not block diagonal"):
         DaqpBlocks(pattern, sp.identity(4, format="csc"), block_size=2)
+
+
+def test_predictive_daqp_takes_the_least_distance_form(lbr4p):
+    """The predictive controllers' DAQP solves take the least-distance form (their blocks are
+    positive definite with the default μ and λ2): the plain workspace is never set up."""
+    from dqcontrol.controllers import PredictiveController, PredictiveNoScalingController
+    from dqcontrol.model import LBR4P_Q0
+
+    robot = lbr4p
+    for cls in (PredictiveController, PredictiveNoScalingController):
+        ctrl = cls(robot, Circle(2.0), 1e-3, num_instants=6, acceleration_limit=10.0)
+        q = np.array(LBR4P_Q0)
+        ctrl.reset(q)
+        for _ in range(200):
+            res = ctrl.step(q)
+            assert res.diagnostics.status == "solved"
+            q = q + 1e-3 * res.qd_command
+        assert ctrl.backend._blocks._block == robot.nq + 1
+        assert ctrl.backend._blocks._ldp_model is not None and ctrl.backend._blocks._model is None
