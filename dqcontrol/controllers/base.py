@@ -262,6 +262,10 @@ class Controller(ABC):
     #: Whether :meth:`request_stop` is handled by the controller's own steps (else by a
     #: path-following controller's stop on the same task).
     stops_itself: bool = False
+    #: Whether the controller's own steps bring the phase to rest at ``σ = T_tot`` (else
+    #: its task ends at speed, the thesis's convention; :meth:`finish_at_rest` ends it at
+    #: rest).
+    ends_at_rest: bool = False
 
     def __init__(
         self,
@@ -300,7 +304,9 @@ class Controller(ABC):
         self._q_shape = (self.n,)
         #: Whether a stop was requested (:meth:`request_stop`) since the last reset.
         self.stopping = False
-        self._stop_delegate: Controller | None = None
+        #: The controller whose steps are this one's after :meth:`request_stop` or
+        #: :meth:`finish_at_rest` (``None``: its own).
+        self._delegate: Controller | None = None
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray | None = None, sigma0: float = 0.0) -> None:
         """Start a new run from joint positions ``q0`` [rad] (and velocity ``qd0`` [rad/s]).
@@ -319,7 +325,7 @@ class Controller(ABC):
         self._sent.clear()
         self._reset_done = True
         self.stopping = False
-        self._stop_delegate = None
+        self._delegate = None
         self._reset_memory(q0, qd0)
 
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:  # noqa: B027
@@ -336,7 +342,32 @@ class Controller(ABC):
             raise ConfigurationError("call reset(q0) before request_stop()")
         if not self.stopping:
             self.stopping = True
-            self._begin_stop()
+            if self._delegate is not None:  # ending at rest: its delegate stops
+                self._delegate.request_stop()
+            else:
+                self._begin_stop()
+
+    def finish_at_rest(self, q: np.ndarray) -> None:
+        """End the task at rest on the path, from the measured ``q`` [rad] on: every later
+        :meth:`step` is that of a path-following controller with its rest-to-rest end
+        (docs/theory.md §8.9, §8.10) on the same task, robot, period and bounds, started at
+        this controller's phase and last commands, which brings the phase velocity to zero
+        exactly at ``σ = T_tot``. For a task that ends at speed, called while its end is
+        still at least :func:`~dqcontrol.controllers.stop_delegate.end_lead_s` away
+        (``run_loop`` does so with ``brake=True``); nothing changes for a controller that
+        ends at rest by itself, or one already stopping or finishing."""
+        if not self._reset_done:
+            raise ConfigurationError("call reset(q0) before finish_at_rest()")
+        if self.ends_at_rest or self.stopping or self._delegate is not None:
+            return
+        from dqcontrol.controllers.stop_delegate import stop_delegate
+
+        self._delegate = stop_delegate(self, self.robot.check_q(q), at_end=True)
+
+    @property
+    def finishing(self) -> bool:
+        """Whether the task's end at rest has been handed over (:meth:`finish_at_rest`)."""
+        return self._delegate is not None and not self.stopping
 
     def _begin_stop(self) -> None:  # noqa: B027 - optional hook
         """Hook of a controller that stops by itself: its next steps brake."""
@@ -367,7 +398,7 @@ class Controller(ABC):
             q = self.robot.check_q(q)
         if qd is not None:
             qd = self.robot.check_q(qd, "qd")
-        if self.stopping and not self.stops_itself:
+        if self._delegate is not None or (self.stopping and not self.stops_itself):
             return self._delegated_step(q, qd)
         if self.measurement_delay_periods and self._sent:
             q = q + self.period_s * np.sum(self._sent, axis=0)
@@ -379,13 +410,15 @@ class Controller(ABC):
         return result
 
     def _delegated_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
-        """A step of the stop's delegate (:meth:`request_stop`), its phase and command kept
-        as this controller's."""
-        if self._stop_delegate is None:
+        """A step of the delegate (:meth:`request_stop`, :meth:`finish_at_rest`), its phase
+        and command kept as this controller's."""
+        if self._delegate is None:
             from dqcontrol.controllers.stop_delegate import stop_delegate
 
-            self._stop_delegate = stop_delegate(self, q)
-        result = self._stop_delegate.step(q, qd)
+            self._delegate = stop_delegate(self, q)
+        delegate = self._delegate
+        result = delegate.step(q, qd)
+        self.qd_before_prev = getattr(delegate, "qd_before_prev", self.qd_prev)
         self.qd_prev = result.qd_command
         self.sigma = result.sigma_next
         return result

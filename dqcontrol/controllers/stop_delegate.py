@@ -1,14 +1,19 @@
-"""The path-maintaining stop of a controller without one of its own (docs/theory.md §8.10).
+"""The path-maintaining stop of a controller without one of its own, and the end at rest
+of a task that ends at speed (docs/theory.md §8.10).
 
 The thesis's controllers (and the proportional one) weigh the path against the other goals
 in one cost, so asked to brake hard they would trade path accuracy for it. Their stop is
 therefore the path-following controller's: one is built on the same robot, (anchored)
 task, period and bounds, started at the stopping controller's phase and last command, and
-asked to stop; it keeps the path first and brings the phase to rest.
+asked to stop; it keeps the path first and brings the phase to rest. Their task ends at
+speed (the thesis's convention), and at ``σ = T_tot`` no path is left to brake along: to
+end at rest, the last stretch is the path-following controller's rest-to-rest end instead,
+handed over once the end is :func:`end_lead_s` away.
 """
 
 from __future__ import annotations
 
+from functools import cache
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -16,7 +21,7 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     from dqcontrol.controllers.base import Controller
 
-__all__ = ["stop_delegate"]
+__all__ = ["END_HANDOVER_ERROR_M", "END_LEAD_DISTANCES", "end_lead_s", "stop_delegate"]
 
 
 def _acceleration_of(controller: Controller) -> np.ndarray | str:
@@ -29,15 +34,52 @@ def _acceleration_of(controller: Controller) -> np.ndarray | str:
     return "dynamics"
 
 
-def stop_delegate(controller: Controller, q: np.ndarray) -> Controller:
+def end_lead_s(s: float, qd: np.ndarray, a_max: np.ndarray, jerk_max: np.ndarray) -> float:
+    """How far before ``σ = T_tot`` [s of phase] a task that ends at speed hands its end to
+    the rest-to-rest path-following controller, moving at time scaling ``s`` with joint
+    velocities ``qd`` [rad/s] under ``a_max`` [rad/s²] and ``jerk_max`` [rad/s³]
+    (``inf``: none).
+
+    With ``∂q/∂σ ≈ qd/s`` and the phase braking on the rest share ``ρ`` of each joint's
+    bound, the phase decelerates at ``b = ρ s min_j a_j/|qd_j|`` and stops within
+    ``s²/(2b)``; the rest rows bind from four such distances on (§8.9). The lead is six,
+    plus the phase covered while a jerk bound turns the deceleration on and off
+    (``2 s max_j a_j/j_j``).
+    """
+    share = _rest_share()
+    a = np.broadcast_to(np.asarray(a_max, dtype=float), np.shape(qd))
+    j = np.broadcast_to(np.asarray(jerk_max, dtype=float), np.shape(qd))
+    braking = s * float(np.max(np.abs(qd) / a)) / (2.0 * share)
+    turning = 2.0 * s * float(np.max(a / j))
+    return END_LEAD_DISTANCES * braking + turning
+
+
+#: Braking distances before the end at which a task that ends at speed hands over.
+END_LEAD_DISTANCES = 2.0
+#: The farthest the tool may be from its target [m] for the handover: a controller farther
+#: off is not on the path the end at rest would keep (the path-following controller would
+#: first bring the tool back, without progress), and its task ends at speed.
+END_HANDOVER_ERROR_M = 0.02
+
+
+@cache
+def _rest_share() -> float:
+    """The path-following controller's default share of the bounds its end may brake on."""
+    from dqcontrol.controllers.path_following.tuning import PathFollowingTuning
+
+    return PathFollowingTuning().rest_deceleration_share
+
+
+def stop_delegate(controller: Controller, q: np.ndarray, at_end: bool = False) -> Controller:
     """A path-following controller at ``controller``'s phase and last command and at the
-    measured ``q`` [rad], its stop requested."""
+    measured ``q`` [rad]: its stop requested, or (``at_end``) with its rest-to-rest end, to
+    finish the task at rest."""
     from dqcontrol.controllers.path_following.controller import PathFollowingController
 
     options: dict = {
         "velocity_limits": getattr(controller, "qd_max", None),
         "acceleration_limit": _acceleration_of(controller),
-        "end": "at_speed",
+        "end": "rest" if at_end else "at_speed",
     }
     margin = getattr(controller, "position_margin_rad", None)
     if margin is not None:
@@ -49,5 +91,6 @@ def stop_delegate(controller: Controller, q: np.ndarray) -> Controller:
     before = getattr(controller, "qd_before_prev", None)
     if before is not None:  # the acceleration it stops from (its jerk rows read it)
         delegate.qd_before_prev = np.array(before, dtype=float)
-    delegate.request_stop()
+    if not at_end:
+        delegate.request_stop()
     return delegate

@@ -49,6 +49,8 @@ import numpy as np
 from dqcontrol._blas import single_blas_thread
 from dqcontrol._gc import young_gc_only
 from dqcontrol.controllers.base import Controller, StepResult, check_positive
+from dqcontrol.controllers.stop_delegate import END_HANDOVER_ERROR_M, end_lead_s
+from dqcontrol.dq.algebra import translation
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
 from dqcontrol.runs.contacts import RunContacts
@@ -334,6 +336,8 @@ def _samples_then_brake(run: _Samples, num, stale_periods, on_sample, on_progres
     """The run's samples on its clock, then the brake; ``meta["stop"]``. An exception that
     leaves it closes a streamed log without its end record (it then reads as cut short;
     the log's own write errors give way to that exception)."""
+    if brake and not run.controller.ends_at_rest:
+        run.end_watch = _EndWatch(run.controller)
     try:
         with realtime_priority(run.clock.priority):
             with young_gc_only(run.clock.realtime), single_blas_thread():
@@ -403,6 +407,8 @@ def _stop_and_brake(run: _Samples, brake: bool) -> dict:
     (``ramp``)."""
     clock = run.clock
     stop: dict = {"reason": run.reason or "end", "brake_periods": 0, **clock.report()}
+    if run.finished_at is not None:  # the task's end at rest, handed over from here
+        stop["end_at_rest_from"] = {"sample": run.finished_at[0], "sigma": run.finished_at[1]}
     if not brake:
         return stop
     rate = _brake_rate(run.controller, run.q)
@@ -470,6 +476,33 @@ def _run_info(driver, controller: Controller, names, q, warm_up: bool, meta) -> 
     return info
 
 
+class _EndWatch:
+    """Whether a task that ends at speed is :func:`~dqcontrol.controllers.stop_delegate.
+    end_lead_s` from its end with the tool within :data:`~dqcontrol.controllers.
+    stop_delegate.END_HANDOVER_ERROR_M` of its target, where it hands its end to the
+    rest-to-rest controller (:meth:`~dqcontrol.controllers.base.Controller.finish_at_rest`);
+    the acceleration bound at the measured state refreshed every :data:`REFRESH` samples."""
+
+    REFRESH = 10
+
+    def __init__(self, controller: Controller) -> None:
+        self.controller = controller
+        self.jerk = np.asarray(controller.robot.limits.qddd_max, dtype=float)
+        self.a_max = np.zeros(0)
+        self.count = 0
+
+    def due(self, result: StepResult, q: np.ndarray) -> bool:
+        controller = self.controller
+        if self.count % self.REFRESH == 0:
+            self.a_max = _brake_rate(controller, q) / controller.period_s
+        self.count += 1
+        remaining = controller.trajectory.duration - controller.sigma
+        if remaining > end_lead_s(result.s, result.qd_command, self.a_max, self.jerk):
+            return False
+        error_m = float(np.linalg.norm(translation(result.pose) - translation(result.target)))
+        return error_m <= END_HANDOVER_ERROR_M
+
+
 class _Samples:
     """The samples of one run: step, write, read, record, until the task ends or the
     watchdog (stale measurement, missed deadline), Ctrl-C or a driver error stops it."""
@@ -482,6 +515,11 @@ class _Samples:
         #: where the commands sent since the last fresh measurement took the arm [rad]
         self.drift_rad = np.zeros(controller.robot.nq)
         self.interrupted, self.note, self.reason = False, "", ""
+        #: when a task that ends at speed hands its end to the rest-to-rest controller
+        #: (``None``: it does not; set where the run ends with the brake)
+        self.end_watch: _EndWatch | None = None
+        #: ``(sample, σ)`` where the task's end at rest was handed over (``None``: not)
+        self.finished_at: tuple[int, float] | None = None
 
     def loop(self, num: int, stale_periods: int, on_sample, on_progress) -> None:
         try:
@@ -528,6 +566,9 @@ class _Samples:
             self.q, self.qd = self.order.to_model(nxt)
             if unchanged:  # not renewed: where the commands since took the arm
                 self.q = self.q + self.drift_rad
+            if self.end_watch is not None and self.end_watch.due(result, self.q):
+                controller.finish_at_rest(self.q)
+                self.end_watch, self.finished_at = None, (len(rec), float(controller.sigma))
             if controller.done:
                 return
             if controller.stopping:

@@ -238,6 +238,9 @@ class StreamedController(Controller):
         s = (sample.sigma_next - sample.sigma) / self.period_s
         return StepResult(sample.u, s, sample.sigma, sample.sigma_next, pose, target, diag)
 
+    def finish_at_rest(self, q: np.ndarray) -> None:
+        """Nothing: the stream ends as its plans do (the planner's own end)."""
+
     @property
     def done(self) -> bool:
         """The task's end, or the play-out finished at rest."""

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from dqcontrol.controllers import LocalController, PathFollowingController, ProportionalController
-from dqcontrol.controllers.stop_delegate import _acceleration_of, stop_delegate
+from dqcontrol.controllers.stop_delegate import _acceleration_of, end_lead_s, stop_delegate
 from dqcontrol.dq import translation
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.trajectories import Circle
@@ -57,7 +57,7 @@ def test_a_requested_stop_brakes_to_rest_on_the_path(lbr4p):
     for _ in range(10):
         q = q + T * ctrl.step(q).qd_command
     ctrl.request_stop()
-    assert ctrl.stopping and ctrl._stop_delegate is None  # built at the next step
+    assert ctrl.stopping and ctrl._delegate is None  # built at the next step
     sigma, qd_prev, scalings = ctrl.sigma, ctrl.qd_prev.copy(), []
     for _ in range(30):
         res = ctrl.step(q)
@@ -67,8 +67,52 @@ def test_a_requested_stop_brakes_to_rest_on_the_path(lbr4p):
         assert ctrl.sigma == sigma and ctrl.qd_prev is res.qd_command
         scalings.append(res.s)
         q = q + T * res.qd_command
-    assert isinstance(ctrl._stop_delegate, PathFollowingController)
+    assert isinstance(ctrl._delegate, PathFollowingController)
     assert np.all(np.diff(scalings) <= 1e-9) and scalings[-1] == 0.0  # solver noise: 1e-10
     assert np.max(np.abs(qd_prev)) < 1e-6  # at rest
     tool = translation(lbr4p.pose(q))[None, :]
     assert ctrl.trajectory.path_deviation(tool)[0] <= 0.5e-3
+
+
+def test_the_lead_is_two_braking_distances_and_the_jerk_turn():
+    """By hand: joint 1 at 2 rad/s under 8 rad/s², s = 0.5, the rest share 0.5: the phase
+    brakes at ``0.5 · 0.5 · 8/2 = 1`` 1/s and stops within ``0.5²/2 = 0.125`` s of phase;
+    the jerk turn adds ``2 · 0.5 · max(8/4000, 4/1000)``."""
+    qd, a_max = np.array([2.0, -0.5]), np.array([8.0, 4.0])
+    assert end_lead_s(0.5, qd, a_max, np.full(2, np.inf)) == pytest.approx(2 * 0.125)
+    jerk = np.array([4000.0, 1000.0])
+    assert end_lead_s(0.5, qd, a_max, jerk) == pytest.approx(0.25 + 2 * 0.5 * 4e-3)
+    assert end_lead_s(0.0, qd, a_max, jerk) == 0.0  # at rest: nothing to brake
+
+
+def test_finishing_at_rest_hands_the_end_to_a_rest_to_rest_controller(lbr4p):
+    ctrl = LocalController(lbr4p, Circle(1.0), T, velocity_limits=THESIS_VEL)
+    ctrl.reset(LBR4P_Q0)
+    q = LBR4P_Q0.copy()
+    while ctrl.sigma < 0.7:
+        q = q + T * ctrl.step(q).qd_command
+    ctrl.finish_at_rest(q)
+    assert ctrl.finishing and ctrl._delegate.ends_at_rest and not ctrl.stopping
+    for _ in range(200):
+        result = ctrl.step(q)
+        q = q + T * result.qd_command
+        if ctrl.done:
+            break
+    assert ctrl.done and result.s < 0.02  # the phase at rest within a period of 50 ms
+    end = translation(ctrl.trajectory.target(1.0))
+    assert np.linalg.norm(translation(lbr4p.pose(q)) - end) <= 1e-4
+    ctrl.request_stop()  # a stop after the handover is the delegate's
+    assert ctrl.stopping and ctrl._delegate.stopping and not ctrl.finishing
+
+
+def test_a_controller_that_ends_at_rest_is_left_alone(lbr4p):
+    ctrl = PathFollowingController(lbr4p, Circle(1.0), T, velocity_limits=THESIS_VEL)
+    ctrl.reset(LBR4P_Q0)
+    ctrl.finish_at_rest(LBR4P_Q0)
+    assert ctrl.ends_at_rest and not ctrl.finishing
+    at_speed = PathFollowingController(
+        lbr4p, Circle(1.0), T, velocity_limits=THESIS_VEL, end="at_speed"
+    )
+    at_speed.reset(LBR4P_Q0)
+    at_speed.finish_at_rest(LBR4P_Q0)
+    assert not at_speed.ends_at_rest and at_speed.finishing

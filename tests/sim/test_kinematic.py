@@ -64,5 +64,9 @@ def test_with_the_brake_the_run_ends_at_rest(lbr4p):
     free = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
     braked = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0, brake=True)
     assert free.log.meta["stop"] == {"reason": "end", "brake_periods": 0}
-    assert braked.log.meta["stop"]["at_rest"] and not braked.log.qd_command[-1].any()
-    np.testing.assert_array_equal(braked.log.q[: len(free.log)], free.log.q)
+    stop = braked.log.meta["stop"]
+    assert stop["at_rest"] and not braked.log.qd_command[-1].any()
+    # the same run until the task's end at rest is handed over, near its end
+    handed = stop["end_at_rest_from"]["sample"]
+    assert 0 < handed < len(free.log) and stop["end_at_rest_from"]["sigma"] > 0.5
+    np.testing.assert_array_equal(braked.log.q[:handed], free.log.q[:handed])

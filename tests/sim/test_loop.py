@@ -158,8 +158,10 @@ def test_the_end_of_the_task_brakes_after_the_log(lbr4p):
     drv = Recording(KinematicDriver(lbr4p, 0.05))
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), drv, q0=LBR4P_Q0)
     task = _task(res.log)
-    assert task == len(free.log)
-    np.testing.assert_array_equal(res.log.qd_command[:task], free.log.qd_command)
+    # the free run's commands until the task's end at rest is handed over, near its end
+    handed = res.log.meta["stop"]["end_at_rest_from"]["sample"]
+    assert 0 < handed < len(free.log) < task
+    np.testing.assert_array_equal(res.log.qd_command[:handed], free.log.qd_command[:handed])
     assert res.log.meta["stop"]["reason"] == "end" and not res.interrupted
     assert res.log.meta["stop"]["stop_periods"] == len(res.log) - task >= 1
     assert res.log.meta["stop"]["at_rest"] and drv.calls[-1] == ("hold", None)
@@ -359,9 +361,9 @@ def test_a_position_only_arm_runs_from_where_it_is(lbr4p, tmp_path):
     names = tuple(reversed(lbr4p.joint_names))
     arm = PositionArm(names, LBR4P_Q0[::-1])
     res = run_loop(LocalController(lbr4p, Circle(1.0), 0.05), VelocityFromPosition(arm, 0.05))
-    ref = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
-    assert res.metrics.completed and _task(res.log) == len(ref.log)
-    np.testing.assert_allclose(res.log.q[: len(ref.log)], ref.log.q, atol=1e-12)
+    ref = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0, brake=True)
+    assert res.metrics.completed and _task(res.log) == _task(ref.log)
+    np.testing.assert_allclose(res.log.q[: _task(ref.log)], ref.log.q[: _task(ref.log)], atol=1e-12)
     assert res.log.meta["interface"] == "position"
     save_run(res, tmp_path, "position")
     log, record = load_run(tmp_path / "position")

@@ -315,6 +315,31 @@ def test_a_thesis_controllers_end_of_task_stop_keeps_the_jerk_bound_to_rest(pand
     assert result.log.meta["stop"]["ramp"] == ""
 
 
+@pytest.mark.parametrize("name", ["local", "p10"])
+def test_a_task_that_ends_at_speed_ends_at_rest_at_the_paths_end(panda, name):
+    """The thesis's controllers end at speed; with the brake their end is handed over
+    before it is reached and the tool comes to rest at the path's end, never past it (a
+    stop begun at ``σ = T_tot`` overshoots it by 3–5 mm here)."""
+    from dqcontrol.controllers import PredictiveController
+
+    def predictive(robot, trajectory, period):
+        return PredictiveController(robot, trajectory, period, num_instants=10)
+
+    found, result, controller = _checked_run(
+        panda, LocalController if name == "local" else predictive, 1.0
+    )
+    log, stop = result.log, result.log.meta["stop"]
+    assert found == [] and stop["at_rest"] and stop["ramp"] == ""
+    assert np.all(log.qd_command[-1] == 0.0) and result.metrics.completed
+    handed = stop["end_at_rest_from"]
+    assert 0.5 < handed["sigma"] < 0.95 and log.sigma[handed["sample"]] == handed["sigma"]
+    trajectory = controller.trajectory
+    end = translation(trajectory.target(1.0)[None])[0]
+    reached = np.flatnonzero(log.sigma + 1e-3 * log.s >= 1.0 - 1e-12)[0]
+    to_end = np.linalg.norm(translation(log.pose[reached:]) - end, axis=1)
+    assert np.max(to_end) <= KINEMATIC_GOAL_M
+
+
 def test_a_stop_at_half_the_task_keeps_the_profile_and_the_path(panda):
     from dqcontrol.runs.check import check_run
 

@@ -409,6 +409,7 @@ class PathFollowingController(QPController):
         if end not in ("rest", "at_speed"):
             raise ParameterError(f"end must be 'rest' or 'at_speed', got {end!r}")
         self.end = end
+        self.ends_at_rest = end == "rest"
         self._rest: PhaseRestLimit | None = None
         if end == "at_speed":
             return ()
