@@ -22,9 +22,13 @@ bounds keep from the URDF's limits, braking at ``a_max`` ends beyond the limit.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["EXCITATION", "SAMPLES", "TAU_CAP_S", "ServoLagMargin"]
+from dqcontrol._compiled import compiled
+
+__all__ = ["EXCITATION", "SAMPLES", "TAU_CAP_S", "ServoLagMargin", "lag_samples_into"]
 
 #: A command rate of at least this share of ``a_max`` samples the lag.
 EXCITATION = 0.5
@@ -67,31 +71,31 @@ class ServoLagMargin:
 
     def reset(self) -> None:
         """Forget the identified lag and the commands."""
+        n = self.q_min.size
         self.tau_s = np.zeros(self.q_min.shape)
-        self._before: np.ndarray | None = None
+        self._last = np.zeros(n)  # the command of the last update
+        self._spare = np.zeros(n)
+        self._has_before = False
         self._margin_bounds: np.ndarray | None = None
-        self._samples = np.full((SAMPLES, self.q_min.size), -np.inf)
+        self._samples = np.full((SAMPLES, n), -np.inf)  # a ring, oldest at ``_head``
+        self._head = 0
 
     def update(self, qd_meas: np.ndarray | None, qd_cmd: np.ndarray, values: np.ndarray) -> None:
         """One step: ``qd_meas`` measured now, ``qd_cmd`` the command held over the last
         period; the bounds written into ``values`` (``[q_min; q_max; qd_max]``, in place)
         where the lag's travel exceeds the margin."""
-        before, self._before = self._before, qd_cmd.copy()
+        before, self._last, self._spare = self._last, self._spare, self._last
+        self._last[:] = qd_cmd
+        had_before, self._has_before = self._has_before, True
         if qd_meas is None:
             return
-        sample = np.full(self.q_min.shape, -np.inf)  # no sample where not excited
-        if before is not None:
-            rate = (qd_cmd - before) / self.period_s
-            excited = np.abs(rate) >= self.a_min
-            lag = (qd_cmd - qd_meas) * np.sign(rate)
-            sample[excited] = lag[excited] / np.abs(rate[excited])
-        self._samples = np.roll(self._samples, 1, axis=0)
-        self._samples[0] = sample
-        # a lag seen on SAMPLES steps in a row (a noisy sample alone does not count)
-        held = self._samples.min(axis=0)
-        self.tau_s = np.minimum(np.maximum(self.tau_s, held), TAU_CAP_S)
-        travel = self.tau_s * np.abs(qd_meas)
-        if not (travel > self.margin_rad).any():
+        exceeds = lag_samples_into(
+            qd_meas, qd_cmd, before, had_before, self.period_s, self.a_min, self._samples,
+            self._head, self.tau_s, TAU_CAP_S, self.margin_rad,
+        )  # fmt: skip
+        self._head = (self._head + 1) % SAMPLES
+        travel = self.tau_s * np.abs(qd_meas) if exceeds else None
+        if travel is None:
             if self._margin_bounds is not None:  # back to the margin's bounds, as given
                 values[:2] = self._margin_bounds
                 self._margin_bounds = None
@@ -102,3 +106,41 @@ class ServoLagMargin:
         towards_min = np.where(qd_meas < 0.0, travel, 0.0)
         values[0] = np.maximum(self._margin_bounds[0], self.q_min + towards_min)
         values[1] = np.minimum(self._margin_bounds[1], self.q_max - towards_max)
+
+
+@compiled
+def lag_samples_into(
+    qd_meas: np.ndarray,
+    qd_cmd: np.ndarray,
+    before: np.ndarray,
+    had_before: bool,
+    period_s: float,
+    a_min: np.ndarray,
+    samples: np.ndarray,
+    head: int,
+    tau_s: np.ndarray,
+    tau_cap_s: float,
+    margin_rad: float,
+) -> bool:
+    """One step of the lag's identification, in place: each joint's sample ``e/|a|``
+    (``-inf`` where the command's rate ``a = (qd_cmd - before)/T`` is below ``a_min``, or
+    without a command ``before``) written to row ``head`` of the ring ``samples``
+    ``(SAMPLES, n)``, ``tau_s`` raised to the smallest sample of the ring (a lag seen on
+    every one of the last SAMPLES steps) and capped at ``tau_cap_s``; returns whether some
+    joint's travel ``tau_s |qd_meas|`` exceeds ``margin_rad``."""
+    exceeds = False
+    for j in range(qd_cmd.shape[0]):
+        sample = -math.inf
+        if had_before:
+            rate = (qd_cmd[j] - before[j]) / period_s
+            if abs(rate) >= a_min[j]:
+                sign = 1.0 if rate > 0.0 else -1.0
+                sample = ((qd_cmd[j] - qd_meas[j]) * sign) / abs(rate)
+        samples[head, j] = sample
+        held = samples[0, j]
+        for k in range(1, samples.shape[0]):
+            held = min(held, samples[k, j])
+        tau = min(max(tau_s[j], held), tau_cap_s)
+        tau_s[j] = tau
+        exceeds = exceeds or tau * abs(qd_meas[j]) > margin_rad
+    return exceeds

@@ -91,3 +91,49 @@ def test_the_z1_stays_inside_its_urdf_limits_in_mujoco(name):
     lim = robot.limits
     excess = np.maximum(driver.true_q - lim.q_max, lim.q_min - driver.true_q)
     assert excess.max() <= 0.0, f"{1e3 * excess.max():.2f} mrad beyond a limit"
+
+
+def _reference_update(state: dict, qd_meas, qd_cmd, values, a_min, tau_cap, samples_n) -> None:
+    """The lag margin's step written again with numpy arrays (a shifted window of samples,
+    masked divisions): the oracle of the compiled pass."""
+    before, state["before"] = state["before"], qd_cmd.copy()
+    if qd_meas is None:
+        return
+    sample = np.full(qd_cmd.shape, -np.inf)
+    if before is not None:
+        rate = (qd_cmd - before) / T
+        excited = np.abs(rate) >= a_min
+        sample[excited] = ((qd_cmd - qd_meas) * np.sign(rate))[excited] / np.abs(rate[excited])
+    state["window"] = np.vstack([sample, state["window"][: samples_n - 1]])
+    state["tau"] = np.minimum(np.maximum(state["tau"], state["window"].min(axis=0)), tau_cap)
+    travel = state["tau"] * np.abs(qd_meas)
+    if not (travel > MARGIN).any():
+        if state["kept"] is not None:
+            values[:2] = state["kept"]
+            state["kept"] = None
+        return
+    if state["kept"] is None:
+        state["kept"] = values[:2].copy()
+    values[0] = np.maximum(state["kept"][0], -1.0 + np.where(qd_meas < 0.0, travel, 0.0))
+    values[1] = np.minimum(state["kept"][1], 1.0 - np.where(qd_meas > 0.0, travel, 0.0))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_compiled_step_equals_the_numpy_reference_bit_for_bit(seed):
+    from dqcontrol.controllers.limits.servo_lag import SAMPLES, TAU_CAP_S
+
+    rng = np.random.default_rng(seed)
+    lag, values = _margin(3)
+    ref_values = values.copy()
+    state = {"before": None, "window": np.full((SAMPLES, 3), -np.inf), "tau": np.zeros(3),
+             "kept": None}  # fmt: skip
+    cmd = np.zeros(3)
+    for k in range(400):  # bursts of strong acceleration with a lagging joint, and rests
+        accel = rng.choice([0.0, 8.0, -8.0, 20.0], size=3) * (k % 50 < 30)
+        cmd = cmd + accel * T
+        meas = None if k % 37 == 5 else cmd - rng.uniform(0.0, 0.3, 3) * np.sign(accel + 1e-9)
+        lag.update(meas, cmd, values)
+        _reference_update(state, meas, cmd, ref_values, lag.a_min, TAU_CAP_S, SAMPLES)
+        assert np.array_equal(lag.tau_s, state["tau"]), k
+        assert np.array_equal(values, ref_values), k
+    assert np.any(lag.tau_s > 0.0) and not np.array_equal(values[:2], _margin(3)[1][:2])
