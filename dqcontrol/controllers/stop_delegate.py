@@ -21,7 +21,13 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover
     from dqcontrol.controllers.base import Controller
 
-__all__ = ["END_HANDOVER_ERROR_M", "END_LEAD_DISTANCES", "end_lead_s", "stop_delegate"]
+__all__ = [
+    "END_HANDOVER_ERROR_M",
+    "END_LEAD_DISTANCES",
+    "EndLead",
+    "end_lead_s",
+    "stop_delegate",
+]
 
 
 def _acceleration_of(controller: Controller) -> np.ndarray | str:
@@ -38,20 +44,30 @@ def end_lead_s(s: float, qd: np.ndarray, a_max: np.ndarray, jerk_max: np.ndarray
     """How far before ``σ = T_tot`` [s of phase] a task that ends at speed hands its end to
     the rest-to-rest path-following controller, moving at time scaling ``s`` with joint
     velocities ``qd`` [rad/s] under ``a_max`` [rad/s²] and ``jerk_max`` [rad/s³]
-    (``inf``: none).
+    (``inf``: none): :class:`EndLead` of the bounds at ``(s, qd)``."""
+    return EndLead(a_max, jerk_max, np.shape(qd))(s, qd)
+
+
+class EndLead:
+    """The lead of :func:`end_lead_s` under fixed bounds ``a_max``, ``jerk_max`` (per joint,
+    ``shape``), its parts that depend on the bounds only computed once.
 
     With ``∂q/∂σ ≈ qd/s`` and the phase braking on the rest share ``ρ`` of each joint's
     bound, the phase decelerates at ``b = ρ s min_j a_j/|qd_j|`` and stops within
-    ``s²/(2b)``; the rest rows bind from four such distances on (§8.9). The lead is six,
-    plus the phase covered while a jerk bound turns the deceleration on and off
-    (``2 s max_j a_j/j_j``).
+    ``s²/(2b) = s max_j(|qd_j|/a_j)/(2ρ)``; the rest rows bind from one such distance on
+    (§8.9). The lead is :data:`END_LEAD_DISTANCES` of them, plus the phase covered while a
+    jerk bound turns the deceleration on and off (``2 s max_j a_j/j_j``).
     """
-    share = _rest_share()
-    a = np.broadcast_to(np.asarray(a_max, dtype=float), np.shape(qd))
-    j = np.broadcast_to(np.asarray(jerk_max, dtype=float), np.shape(qd))
-    braking = s * float(np.max(np.abs(qd) / a)) / (2.0 * share)
-    turning = 2.0 * s * float(np.max(a / j))
-    return END_LEAD_DISTANCES * braking + turning
+
+    def __init__(self, a_max: np.ndarray, jerk_max: np.ndarray, shape: tuple) -> None:
+        a = np.broadcast_to(np.asarray(a_max, dtype=float), shape)
+        j = np.broadcast_to(np.asarray(jerk_max, dtype=float), shape)
+        self._per_speed = END_LEAD_DISTANCES / (2.0 * _rest_share()) / a  # [s² / rad]
+        self._turn = 2.0 * float(np.max(a / j))
+
+    def __call__(self, s: float, qd: np.ndarray) -> float:
+        """The lead [s of phase] at time scaling ``s`` and joint velocities ``qd``."""
+        return s * (float(np.max(np.abs(qd) * self._per_speed)) + self._turn)
 
 
 #: Braking distances before the end at which a task that ends at speed hands over.

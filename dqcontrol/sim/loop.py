@@ -49,7 +49,7 @@ import numpy as np
 from dqcontrol._blas import single_blas_thread
 from dqcontrol._gc import young_gc_only
 from dqcontrol.controllers.base import Controller, StepResult, check_positive
-from dqcontrol.controllers.stop_delegate import END_HANDOVER_ERROR_M, end_lead_s
+from dqcontrol.controllers.stop_delegate import END_HANDOVER_ERROR_M, EndLead
 from dqcontrol.dq.algebra import translation
 from dqcontrol.errors import DQControlError, ParameterError
 from dqcontrol.runs.bounds import bounds_of
@@ -488,16 +488,17 @@ class _EndWatch:
     def __init__(self, controller: Controller) -> None:
         self.controller = controller
         self.jerk = np.asarray(controller.robot.limits.qddd_max, dtype=float)
-        self.a_max = np.zeros(0)
+        self.lead: EndLead | None = None
         self.count = 0
 
     def due(self, result: StepResult, q: np.ndarray) -> bool:
         controller = self.controller
-        if self.count % self.REFRESH == 0:
-            self.a_max = _brake_rate(controller, q) / controller.period_s
+        if self.lead is None or self.count % self.REFRESH == 0:
+            a_max = _brake_rate(controller, q) / controller.period_s
+            self.lead = EndLead(a_max, self.jerk, q.shape)
         self.count += 1
         remaining = controller.trajectory.duration - controller.sigma
-        if remaining > end_lead_s(result.s, result.qd_command, self.a_max, self.jerk):
+        if remaining > self.lead(result.s, result.qd_command):
             return False
         error_m = float(np.linalg.norm(translation(result.pose) - translation(result.target)))
         return error_m <= END_HANDOVER_ERROR_M
