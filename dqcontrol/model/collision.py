@@ -774,7 +774,10 @@ def _robot_geometry(robot: RobotModel) -> pin.GeometryModel:
             go.placement = base * go.placement
         shape = go.geometry
         if isinstance(shape, coal.BVHModelBase):
-            shape.buildConvexRepresentation(False)
+            # the hull itself (qhull): a convex representation of the mesh's own triangles
+            # would leave GJK's support search at the local maxima of a concave mesh, and
+            # the link would read smaller than its hull. False: the mesh is not convex.
+            shape.buildConvexHull(False, "Qt")
             go.geometry = shape.convex
     return geometry
 

@@ -330,3 +330,69 @@ def test_the_filter_never_drops_a_pair_within_reach(robot_name, lbr4p, panda):
         finite = np.isfinite(true)
         assert np.all(bounds[i][finite] <= true[finite] + 1e-9)
     assert np.mean(bounds > 0.0) > 0.5  # and they are not trivially low
+
+
+def _hull_distance_m(a: np.ndarray, b: np.ndarray) -> float:
+    """The distance between the convex hulls of the points ``a`` and ``b`` ``(k, 3)``: the
+    nearest convex combinations, a QP over the hulls' vertices (quadprog)."""
+    import quadprog
+    from scipy.spatial import ConvexHull
+
+    a, b = a[ConvexHull(a).vertices], b[ConvexHull(b).vertices]
+    m = np.hstack([a.T, -b.T])
+    na, nb = len(a), len(b)
+    g = m.T @ m + 1e-12 * np.eye(na + nb)
+    sums = np.vstack([np.r_[np.ones(na), np.zeros(nb)], np.r_[np.zeros(na), np.ones(nb)]])
+    c = np.vstack([sums, np.eye(na + nb)]).T
+    x = quadprog.solve_qp(g, np.zeros(na + nb), c, np.r_[1.0, 1.0, np.zeros(na + nb)], meq=2)[0]
+    return float(np.linalg.norm(m @ x))
+
+
+@pytest.mark.parametrize("arm", ["panda", "xarm7"])
+def test_mesh_distances_are_those_of_the_convex_hulls(panda, arm):
+    import coal
+
+    """Every self pair within 10 cm at three seeded configurations of the Panda and of
+    example-robot-data's xArm7 (concave links): the distance is the one between the convex
+    hulls of the URDF's collision meshes (read again here, vertices from the mesh files),
+    not of a smaller shape."""
+    if arm == "xarm7":
+        pytest.importorskip("example_robot_data")
+        from dqcontrol.cli.robot_options import RobotRequest, load_robot
+
+        robot = load_robot(RobotRequest("erd:xarm7", "link_eef"))[0]
+        q_mid = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.5, 0.0])  # near the vertical
+    else:
+        robot, q_mid = panda, PANDA_Q0
+    src = robot.source
+    raw = pin.buildGeomFromUrdfString(
+        pin.buildModelFromXML(src.xml), src.xml_with_mesh_paths(), pin.GeometryType.COLLISION
+    )
+    vertices = {
+        go.name: np.array([go.geometry.vertex(i) for i in range(go.geometry.num_vertices)])
+        for go in raw.geometryObjects
+        if isinstance(go.geometry, coal.BVHModelBase)
+    }
+    cm = CollisionModel(robot, (), self_collision=True)
+    names = [go.name for go in cm.geometry.geometryObjects]
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(3):
+        q = np.clip(q_mid + rng.uniform(-0.6, 0.6, 7), robot.limits.q_min, robot.limits.q_max)
+        pin.forwardKinematics(cm.model, cm.data, q)
+        pin.updateGeometryPlacements(cm.model, cm.data, cm.geometry, cm.geometry_data)
+        for found in cm.distances(q, influence_m=0.1):
+            name_a, name_b = cm.pairs[found.pair]
+            if name_a not in vertices or name_b not in vertices:
+                continue  # a primitive shape
+            world = []
+            for name in (name_a, name_b):
+                placement = cm.geometry_data.oMg[names.index(name)]
+                world.append(vertices[name] @ placement.rotation.T + placement.translation)
+            expected = _hull_distance_m(*world)
+            if expected <= 1e-9:  # the hulls overlap: a penetration depth, not a distance
+                assert found.distance_m <= 2e-6, (name_a, name_b)
+            else:
+                assert found.distance_m == pytest.approx(expected, abs=2e-6), (name_a, name_b)
+            checked += 1
+    assert checked >= 5
