@@ -62,8 +62,11 @@ class EndLead:
     def __init__(self, a_max: np.ndarray, jerk_max: np.ndarray, shape: tuple) -> None:
         a = np.broadcast_to(np.asarray(a_max, dtype=float), shape)
         j = np.broadcast_to(np.asarray(jerk_max, dtype=float), shape)
-        self._per_speed = END_LEAD_DISTANCES / (2.0 * _rest_share()) / a  # [s² / rad]
-        self._turn = 2.0 * float(np.max(a / j))
+        bounded = np.isfinite(a)  # an unbounded acceleration brakes at once, with no turn
+        self._per_speed = np.where(  # [s² / rad]
+            bounded, END_LEAD_DISTANCES / (2.0 * _rest_share()) / np.where(bounded, a, 1.0), 0.0
+        )
+        self._turn = 2.0 * float(np.max(np.where(bounded, a, 0.0) / j))
 
     def __call__(self, s: float, qd: np.ndarray) -> float:
         """The lead [s of phase] at time scaling ``s`` and joint velocities ``qd``."""

@@ -568,8 +568,10 @@ class _Samples:
             if unchanged:  # not renewed: where the commands since took the arm
                 self.q = self.q + self.drift_rad
             if self.end_watch is not None and self.end_watch.due(result, self.q):
+                self.end_watch = None
                 controller.finish_at_rest(self.q)
-                self.end_watch, self.finished_at = None, (len(rec), float(controller.sigma))
+                if controller.finishing:
+                    self.finished_at = (len(rec), float(controller.sigma))
             if controller.done:
                 return
             if controller.stopping:

@@ -83,6 +83,12 @@ def test_the_lead_is_two_braking_distances_and_the_jerk_turn():
     jerk = np.array([4000.0, 1000.0])
     assert end_lead_s(0.5, qd, a_max, jerk) == pytest.approx(0.25 + 2 * 0.5 * 4e-3)
     assert end_lead_s(0.0, qd, a_max, jerk) == 0.0  # at rest: nothing to brake
+    # no acceleration bound: the joint brakes at once (no nan, no infinite lead)
+    unbounded = np.array([np.inf, 4.0])
+    # joint 2 alone (0.5 rad/s under 4 rad/s²): the phase brakes at 0.5 · 0.5 · 4/0.5 = 2 /s and
+    # stops within 0.5²/4 = 0.0625 s of phase; twice that
+    assert end_lead_s(0.5, qd, unbounded, np.full(2, np.inf)) == pytest.approx(0.125)
+    assert end_lead_s(0.5, qd, np.full(2, np.inf), jerk) == 0.0
 
 
 def test_finishing_at_rest_hands_the_end_to_a_rest_to_rest_controller(lbr4p):
