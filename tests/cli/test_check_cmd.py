@@ -9,12 +9,12 @@ import json
 
 import numpy as np
 import pytest
+from runs.test_check import NAMES, _clean, _commands, _log
 
 from dqcontrol.cli import build_parser, main
 from dqcontrol.cli.check_cmd import _limits
 from dqcontrol.errors import ParameterError
 from dqcontrol.model.limit_profile import load_profile
-from dqcontrol.runs import RunLog
 
 
 def test_the_options():
@@ -54,42 +54,7 @@ def test_urdf_limits_without_a_robot_suggest_a_profile():
 
 
 # ---------------------------------------------------------------------- whole checks of saved runs
-#: The period [s] and the joints of the hand-made runs.
-T = 0.01
-NAMES = ("a", "b")
-
-
-def _commands(accelerations: list[float]) -> np.ndarray:
-    """The commands ``u_k = u_{k-1} + a_k T`` from rest [rad/s]."""
-    return np.cumsum(np.array(accelerations) * T)
-
-
-def _log(u: np.ndarray) -> RunLog:
-    """A run of the commands ``u`` (K, 2), its positions integrated from 0."""
-    k = u.shape[0]
-    q = np.vstack((np.zeros((1, 2)), np.cumsum(u * T, axis=0)[:-1]))
-    zeros = np.zeros((k, 2))
-    arrays = {
-        "t_s": T * np.arange(k), "sigma": T * np.arange(k), "s": np.ones(k), "q": q,
-        "qd_measured": zeros, "qd_command": u, "torque": zeros, "torque_peak": zeros,
-        "pose": np.zeros((k, 8)), "target": np.zeros((k, 8)),
-        "solver_status": np.array(["solved"] * k), "iterations": np.zeros(k, dtype=int),
-        "solve_time_s": np.zeros(k), "step_time_s": np.zeros(k),
-        "fallback": np.zeros(k, bool), "relaxed": np.zeros(k, bool),
-        "saturated": np.zeros(k, bool),
-    }  # fmt: skip
-    return RunLog.from_arrays(arrays, {"period_s": T, "joint_names": list(NAMES)})
-
-
-#: Joint a: a triangle from rest to rest (1 rad/s² up for 20 samples, down for 20: the last
-#: command is 0, the peak 0.2 rad/s at sample 19, the jerk -200 rad/s³ at sample 20); b: 0.
-TRIANGLE = _commands([1.0] * 20 + [-1.0] * 20)
-
-
-def _clean() -> np.ndarray:
-    return np.column_stack((TRIANGLE, np.zeros(TRIANGLE.size)))
-
-
+# the hand-made runs (_log, _clean: T = 0.01 s, joints NAMES) are tests/runs/test_check.py's
 PROFILE_TOML = """source = "a test"
 control_periods_s = [0.01]
 [[joint]]

@@ -6,11 +6,11 @@ exit code 2."""
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from cli.test_run_cmd import _bad
 
 from dqcontrol.cli import main
 from dqcontrol.cli.robot_options import (
@@ -38,17 +38,6 @@ def no_figures(monkeypatch):
     monkeypatch.setattr(figures, "plot_run", lambda *a, **k: [])
     monkeypatch.setattr(figures, "plot_comparison", lambda logs, path, **k: path)
     monkeypatch.setattr(viewer, "export_replay_html", lambda *a, path_points, **k: a[2])
-
-
-def _bad(argv: list[str], capsys) -> str:
-    """Run ``argv``, expect exit code 2 and return stderr."""
-    with pytest.raises(SystemExit) as exc:
-        main(argv)
-    assert exc.value.code == 2
-    err = capsys.readouterr().err
-    assert re.search(rf"^dqcontrol {argv[0]}: error: ", err, re.MULTILINE), err
-    assert "Traceback" not in err
-    return err
 
 
 # ---------------------------------------------------------------------- any arm

@@ -6,7 +6,6 @@ beside the saved run, and a log that cannot be written → exit code 1 with a cl
 from __future__ import annotations
 
 import base64
-import errno
 import importlib.util
 import json
 import re
@@ -15,6 +14,7 @@ import threading
 import numpy as np
 import pytest
 import umsgpack
+from runs.test_mcap_log import _failing_sync
 
 from dqcontrol import __version__
 from dqcontrol.cli import main
@@ -358,19 +358,6 @@ def test_the_servers_description_is_in_the_saved_run_and_in_view(lbr4p, tmp_path
 
 
 # ---------------------------------------------------------------------- the streamed log
-def _failing_sync(after: int):
-    """A ``McapRunWriter._sync`` that raises ENOSPC from its ``after``-th call on."""
-    calls = []
-
-    def sync(writer: McapRunWriter) -> None:
-        calls.append(1)
-        if len(calls) >= after:
-            raise OSError(errno.ENOSPC, "No space left on device")
-        writer._file.flush()
-
-    return sync
-
-
 _CLI = ["run", "--short", "--simulator", "kinematic", "--controllers", "local",
         "--duration", "0.5"]  # fmt: skip
 

@@ -9,13 +9,14 @@ import importlib.util
 import threading
 
 import pytest
+from sim.bridge_links import TRANSPORTS, exchange, header, socket_port
 
 from dqcontrol.cli import build_parser, main
 from dqcontrol.cli.sim_server_cmd import _check_period
 from dqcontrol.controllers import LocalController
 from dqcontrol.model.library import LBR4P_Q0
 from dqcontrol.sim import run_loop
-from dqcontrol.sim.bridge import HEADER, BridgeDriver
+from dqcontrol.sim.bridge import BridgeDriver
 from dqcontrol.sim.bridge_transport import client_endpoint
 from dqcontrol.trajectories import Circle
 
@@ -64,39 +65,6 @@ needs_zmq = pytest.mark.skipif(
     importlib.util.find_spec("zmq") is None, reason="the sim-server bridge needs pyzmq"
 )
 
-#: Both transports, for the tests that hold for either.
-TRANSPORTS = pytest.mark.parametrize("transport", ["tcp", "udp"])
-
-
-def _exchange(link, packet: bytes) -> bytes:
-    """Send ``packet`` on a client endpoint and return the answer (within 2 s)."""
-    link.send(packet)
-    answer = link.receive(2.0)
-    assert answer is not None
-    return answer
-
-
-def _header(kind, seq, n, status=0, version=1, magic=b"DQ"):
-    return HEADER.pack(magic, version, kind, seq, n, status)
-
-
-class socket_port:
-    """A free TCP (or UDP) port on the loopback address."""
-
-    def __init__(self, transport: str = "tcp") -> None:
-        self.transport = transport
-
-    def __enter__(self) -> int:
-        import socket
-
-        kind = socket.SOCK_DGRAM if self.transport == "udp" else socket.SOCK_STREAM
-        self.sock = socket.socket(socket.AF_INET, kind)
-        self.sock.bind(("127.0.0.1", 0))
-        return self.sock.getsockname()[1]
-
-    def __exit__(self, *exc) -> None:
-        self.sock.close()
-
 
 @needs_zmq
 @TRANSPORTS
@@ -138,7 +106,7 @@ def test_the_sim_server_command_serves_a_client(lbr4p, capsys, transport):
     assert res.metrics.completed and sent < 80
     link = client_endpoint(f"{transport}://127.0.0.1:{port}")
     for _ in range(80 - sent):  # the server stops after its 80th message
-        _exchange(link, _header(1, 0, 0))
+        exchange(link, header(1, 0, 0))
     link.close()
     thread.join(timeout=20.0)
     assert done.is_set() and codes == [0]

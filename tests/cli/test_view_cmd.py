@@ -5,19 +5,20 @@ read (a cut file flagged), and a run's contacts shown and drawn (or said not rec
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import json
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from runs.test_contacts import (
+    _log,
+    _result,
+    blocked_run,  # noqa: F401 - its module fixture, built here too
+)
 
 from dqcontrol.cli import main
 from dqcontrol.controllers import LocalController
 from dqcontrol.model.library import LBR4P_Q0
 from dqcontrol.runs.contacts import loaded_contacts
-from dqcontrol.runs.log import RunLog
 from dqcontrol.runs.storage import load_run, save_run
 from dqcontrol.sim import run_kinematic
 from dqcontrol.trajectories import Circle
@@ -117,51 +118,7 @@ def test_view_reads_a_streamed_run_and_flags_a_cut(lbr4p, tmp_path, capsys, monk
     assert "cut.mcap is incomplete" in err and "run.mcap" not in err
 
 
-#: A ball on the circle's path at σ = 1 s (the circle at 2 s from the LBR4p's start posture).
-BALL = "sphere:0.4865,-0.3922,0.7006,0.03"
-
-
-@pytest.fixture(scope="module")
-def blocked_run(tmp_path_factory):
-    """``dqcontrol run`` with the ball on the path, kinematic loop, T = 50 ms: its printed
-    output and its folder (figures and replay not drawn: not under test here)."""
-    import dqcontrol.viz.figures as figures
-    import dqcontrol.viz.meshcat_viewer as viewer
-
-    out = tmp_path_factory.mktemp("results")
-    printed = io.StringIO()
-    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(printed):
-        mp.setattr(figures, "plot_run", lambda *a, **k: [])
-        mp.setattr(viewer, "export_replay_html", lambda *a, path_points, **k: a[2])
-        code = main(
-            ["run", "--simulator", "kinematic", "--controllers", "pf", "--period", "0.05",
-             "--duration", "2", "--obstacle", BALL, "--short", "--out", str(out)]
-        )  # fmt: skip
-    assert code == 1  # blocked by the ball
-    return printed.getvalue(), out / "lbr4p_circle_T2s_kinematic"
-
-
-def _log(qs: np.ndarray, period_s: float = 0.01) -> RunLog:
-    """A run log whose samples are the joint positions ``qs`` (the rest zeros)."""
-    count, n = qs.shape
-    zeros, rows = np.zeros(count), np.zeros((count, n))
-    return RunLog(
-        t_s=period_s * np.arange(count), sigma=zeros, s=zeros, q=qs, qd_measured=rows,
-        qd_command=rows, torque=rows, torque_peak=rows, pose=np.zeros((count, 8)),
-        target=np.zeros((count, 8)), solver_status=np.full(count, "solved", dtype="U32"),
-        iterations=np.zeros(count, dtype=int), solve_time_s=zeros, step_time_s=zeros,
-        fallback=zeros.astype(bool), relaxed=zeros.astype(bool), saturated=zeros.astype(bool),
-    )  # fmt: skip
-
-
-def _result(log: RunLog, contacts=None):
-    return SimpleNamespace(
-        log=log, metrics=SimpleNamespace(as_dict=dict), interrupted=False, note="",
-        contacts=contacts,
-    )  # fmt: skip
-
-
-def test_view_shows_the_contacts_and_draws_them(blocked_run, tmp_path, capsys, monkeypatch):
+def test_view_shows_the_contacts_and_draws_them(blocked_run, tmp_path, capsys, monkeypatch):  # noqa: F811
     import dqcontrol.viz.figures as figures
 
     monkeypatch.setattr(figures, "plot_run", lambda *a, **k: [])

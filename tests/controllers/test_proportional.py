@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from controllers.thesis.test_controller import turning_waypoints
 
 from dqcontrol.cli.bench_cmd import load_bench
 from dqcontrol.controllers import ProportionalController, command_box
@@ -31,7 +32,7 @@ from dqcontrol.dq import (
 from dqcontrol.dq.algebra import C8, haminus8
 from dqcontrol.model import LBR4P_Q0, RobotModel
 from dqcontrol.sim import run_kinematic
-from dqcontrol.trajectories import Circle, FunctionTrajectory, Sinusoid, WaypointTrajectory
+from dqcontrol.trajectories import Circle, FunctionTrajectory, Sinusoid
 
 #: the synthetic serial chains of the benchmark (benchmarks/bench.py)
 long_chain_urdf = load_bench().long_chain_urdf
@@ -388,12 +389,7 @@ def test_whole_run_has_no_violation(lbr4p):
 
 
 def test_varying_orientation_is_tracked(lbr4p):
-    pos = np.array([[0, 0, 0], [0.05, 0.05, 0.02], [0.1, 0.0, -0.03], [0.12, -0.06, 0.0]])
-    rot = np.array(
-        [qfrom_axis_angle([0, 0, 1], 0.0), qfrom_axis_angle([0, 0, 1], 0.3),
-         qfrom_axis_angle([1, 0, 0], 0.25), qfrom_axis_angle([0, 1, 1], -0.3)]
-    )  # fmt: skip
-    traj = WaypointTrajectory(pos, rot, times_s=np.array([0.0, 2.0, 4.0, 6.0]))
+    traj = turning_waypoints()
     res = run_kinematic(make(lbr4p, traj, T_THESIS), LBR4P_Q0)
     m = res.metrics
     assert m.completed

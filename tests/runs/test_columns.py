@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from runs.test_log import N, _result
 
-from dqcontrol.controllers.base import StepDiagnostics, StepResult
 from dqcontrol.errors import ParameterError
 from dqcontrol.runs.columns import (
     SampleBlock,
@@ -16,34 +16,6 @@ from dqcontrol.runs.columns import (
     field_layout,
 )
 from dqcontrol.runs.log import LogRecorder
-from dqcontrol.streaming.streamed import StreamDiagnostics
-
-N = 3
-
-
-def _result(rng, k: int, status: str = "solved", plan_id: int | None = None) -> StepResult:
-    """Controller output of sample ``k``: random command and poses, diagnostics from ``k``
-    (a streamed controller's when ``plan_id`` is given)."""
-    fields = {
-        "status": status,
-        "iterations": k,
-        "solve_time_s": 1e-4 * k,
-        "step_time_s": 2e-4 * k,
-        "fallback": k % 2 == 0,
-        "relaxed": k % 3 == 0,
-        "saturated": k % 5 == 0,
-    }
-    if plan_id is None:
-        diagnostics = StepDiagnostics(**fields)
-    else:
-        diagnostics = StreamDiagnostics(
-            **fields, plan_id=plan_id, plan_age_s=0.01 * k, lateness_s=-0.001
-        )
-    return StepResult(
-        qd_command=rng.standard_normal(N), s=0.5 + 0.01 * k, sigma=0.1 * k,
-        sigma_next=0.1 * k + 0.05, pose=rng.standard_normal(8), target=rng.standard_normal(8),
-        diagnostics=diagnostics,
-    )  # fmt: skip
 
 
 def _fill(rng, blocks: list[SampleBlock], rec: LogRecorder, count: int, plan_from=None):

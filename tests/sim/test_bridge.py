@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sim.bridge_links import TRANSPORTS, exchange, header, socket_port
 
 import dqcontrol
 from dqcontrol.controllers import LocalController
@@ -42,9 +43,6 @@ from dqcontrol.sim.bridge_transport import client_endpoint
 from dqcontrol.trajectories import Circle
 
 zmq = pytest.importorskip("zmq")
-
-#: Both transports, for the tests that hold for either.
-TRANSPORTS = pytest.mark.parametrize("transport", ["tcp", "udp"])
 
 
 def _at(transport: str) -> str:
@@ -162,34 +160,22 @@ def test_at_100_hz_on_the_wall_clock_no_deadline_is_missed(lbr4p, transport):
     assert stop["jitter_max_ms"] >= 0.0  # a sample never starts before its time
 
 
-def _exchange(link, packet: bytes) -> bytes:
-    """Send ``packet`` on a client endpoint and return the answer (within 2 s)."""
-    link.send(packet)
-    answer = link.receive(2.0)
-    assert answer is not None
-    return answer
-
-
-def _header(kind, seq, n, status=0, version=1, magic=b"DQ"):
-    return HEADER.pack(magic, version, kind, seq, n, status)
-
-
 @TRANSPORTS
 def test_the_server_counts_bad_packets_and_keeps_serving(lbr4p, transport):
     nan_cmd = encode_command(1, np.full(7, np.nan), 1.0, 0.0)
     bad = {
         "short packet": b"DQ",
-        "bad magic": _header(COMMAND, 1, 7, magic=b"XX") + bytes(72),
-        "wrong version": _header(COMMAND, 1, 7, version=9) + bytes(72),
-        "unknown kind": _header(77, 1, 7) + bytes(72),
-        "wrong length": _header(COMMAND, 1, 7) + bytes(40),
+        "bad magic": header(COMMAND, 1, 7, magic=b"XX") + bytes(72),
+        "wrong version": header(COMMAND, 1, 7, version=9) + bytes(72),
+        "unknown kind": header(77, 1, 7) + bytes(72),
+        "wrong length": header(COMMAND, 1, 7) + bytes(40),
         "wrong joint count": encode_command(1, np.zeros(6), 1.0, 0.0),
         "non-finite value": nan_cmd,
     }
     with Served(SimServer(KinematicDriver(lbr4p, 0.05), _at(transport))) as server:
         link = client_endpoint(server.address)
         for packet in bad.values():
-            kind, _, _, reason = decode(_exchange(link, packet))
+            kind, _, _, reason = decode(exchange(link, packet))
             assert kind == 6 and reason in bad
         link.close()
         if transport == "tcp":  # a ZMQ message of two frames; a datagram is one packet
@@ -212,9 +198,9 @@ def test_a_repeated_command_is_answered_without_stepping_again(lbr4p, transport)
         client = BridgeDriver(server.address)
         client.reset(LBR4P_Q0)
         link = client_endpoint(server.address)
-        _exchange(link, _header(3, 1, 7) + np.asarray(LBR4P_Q0, "<f8").tobytes())
+        exchange(link, header(3, 1, 7) + np.asarray(LBR4P_Q0, "<f8").tobytes())
         cmd = encode_command(5, np.full(7, 0.1), 1.0, 0.0)
-        states = [decode(_exchange(link, cmd), 7)[3] for _ in range(2)]
+        states = [decode(exchange(link, cmd), 7)[3] for _ in range(2)]
         link.close()
         client.close()
         np.testing.assert_array_equal(states[0], states[1])
@@ -338,8 +324,8 @@ class Silent(SimServer):
     def handle(self, packet: bytes) -> bytes:
         if len(packet) >= HEADER.size and HEADER.unpack_from(packet)[2] == DESCRIBE:
             if self.answer == "unknown":
-                return _header(6, 0, 0, 1) + b"unknown kind"
-            return _header(DESCRIPTION, HEADER.unpack_from(packet)[3], self.n) + b"[1, 2]"
+                return header(6, 0, 0, 1) + b"unknown kind"
+            return header(DESCRIPTION, HEADER.unpack_from(packet)[3], self.n) + b"[1, 2]"
         return super().handle(packet)
 
 
@@ -409,21 +395,3 @@ def test_a_udp_client_started_before_its_server_repeats_its_hello(lbr4p):
         client.close()
     assert res.metrics.completed and client.server["joint_names"] == list(lbr4p.joint_names)
     assert res.log.meta["driver_report"] == {"rejected": {}, "timeouts": 0}
-
-
-class socket_port:
-    """A free TCP (or UDP) port on the loopback address."""
-
-    def __init__(self, transport: str = "tcp") -> None:
-        self.transport = transport
-
-    def __enter__(self) -> int:
-        import socket
-
-        kind = socket.SOCK_DGRAM if self.transport == "udp" else socket.SOCK_STREAM
-        self.sock = socket.socket(socket.AF_INET, kind)
-        self.sock.bind(("127.0.0.1", 0))
-        return self.sock.getsockname()[1]
-
-    def __exit__(self, *exc) -> None:
-        self.sock.close()

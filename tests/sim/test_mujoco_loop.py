@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from sim.test_kinematic import _assert_same_log
 
 from dqcontrol.controllers import LocalController
 from dqcontrol.model.library import LBR4P_Q0
 from dqcontrol.runs.log import LogRecorder
 from dqcontrol.sim import MujocoSimulation, run_mujoco
 from dqcontrol.trajectories import Circle
-
-TIMING = ("solve_time_s", "step_time_s")
 
 
 def _reference_mujoco(controller, q0):
@@ -29,13 +28,6 @@ def _reference_mujoco(controller, q0):
         if controller.done:
             break
     return rec.finish()
-
-
-def _assert_same_log(a, b):
-    assert len(a) == len(b)
-    for name, x in a.arrays().items():
-        if name not in TIMING:
-            np.testing.assert_array_equal(x, b.arrays()[name], err_msg=name)
 
 
 def test_mujoco_loop_is_bit_identical_to_the_reference(lbr4p):

@@ -4,24 +4,10 @@ tracker (numpy) given the same plan, pull and limits."""
 from __future__ import annotations
 
 import numpy as np
+from streaming.test_streamer import A_MAX, J_MAX, N_JOINTS, V_MAX, T, _random_plan
 
 from dqcontrol.streaming.kernels import stream_period
-from dqcontrol.streaming.plan import Plan
 from dqcontrol.streaming.tracker import JerkLimitedTracker
-
-T = 0.001
-N_JOINTS = 3
-V_MAX, A_MAX, J_MAX = 2.0, 10.0, 5000.0
-
-
-def _random_plan(rng, start_k: int, q0, sigma0: float, scale: float, grid=False) -> Plan:
-    p = 6
-    durations = np.concatenate(([0.01], rng.uniform(0.02, 0.2, p - 1)))
-    if grid:  # breakpoints on the stream's samples
-        durations = np.round(durations / T) * T
-    qd = rng.uniform(-scale, scale, (p, N_JOINTS))
-    return Plan(start_k + 1, start_k, start_k * T, np.array(q0), sigma0, durations, qd,
-                rng.uniform(0, 1, p))  # fmt: skip
 
 
 def _limits() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from runs.test_contacts import _PLANE, _log
 
 from dqcontrol.errors import ParameterError
 from dqcontrol.model import LBR4P_Q0
-from dqcontrol.model.collision import CollisionModel, HalfSpace
+from dqcontrol.model.collision import CollisionModel
 from dqcontrol.runs.contacts import ContactKind, RunContacts
-from dqcontrol.runs.log import RunLog
 from dqcontrol.sim.run_contacts import measure_contacts
 from dqcontrol.viz.contacts_figure import contacts_figure, plot_contacts
 
@@ -72,23 +72,6 @@ def test_the_figure_is_written_in_the_suffixs_format(tmp_path):
     svg = plot_contacts(_contacts(), T_S, tmp_path / "c.svg", safety_distance_m=0.02)
     assert "<svg" in svg.read_text()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.png", "c.svg"]  # no leftovers
-
-
-#: The solid below z = 0.6 m: it cuts the LBR4p's upper arm at its start posture.
-_PLANE = HalfSpace(name="table", normal=(0.0, 0.0, 1.0), offset_m=0.6)
-
-
-def _log(qs: np.ndarray, period_s: float = 0.01) -> RunLog:
-    """A run log whose samples are the joint positions ``qs`` (the rest zeros)."""
-    count, n = qs.shape
-    zeros, rows = np.zeros(count), np.zeros((count, n))
-    return RunLog(
-        t_s=period_s * np.arange(count), sigma=zeros, s=zeros, q=qs, qd_measured=rows,
-        qd_command=rows, torque=rows, torque_peak=rows, pose=np.zeros((count, 8)),
-        target=np.zeros((count, 8)), solver_status=np.full(count, "solved", dtype="U32"),
-        iterations=np.zeros(count, dtype=int), solve_time_s=zeros, step_time_s=zeros,
-        fallback=zeros.astype(bool), relaxed=zeros.astype(bool), saturated=zeros.astype(bool),
-    )  # fmt: skip
 
 
 def test_the_figure_draws_the_columns_and_names_the_pair(lbr4p):

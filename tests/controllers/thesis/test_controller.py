@@ -192,14 +192,19 @@ def test_infeasible_timing_scales_down_and_keeps_the_path(lbr4p, kind):
 
 
 # --------------------------------------------------------------------------- varying orientation
-@pytest.mark.parametrize("kind", ["local", "p6", "noscale"])
-def test_varying_orientation_is_tracked(lbr4p, kind):
+def turning_waypoints() -> WaypointTrajectory:
+    """Four waypoints over 6 s along which the orientation turns."""
     pos = np.array([[0, 0, 0], [0.05, 0.05, 0.02], [0.1, 0.0, -0.03], [0.12, -0.06, 0.0]])
     rot = np.array(
         [qfrom_axis_angle([0, 0, 1], 0.0), qfrom_axis_angle([0, 0, 1], 0.3),
          qfrom_axis_angle([1, 0, 0], 0.25), qfrom_axis_angle([0, 1, 1], -0.3)]
     )  # fmt: skip
-    traj = WaypointTrajectory(pos, rot, times_s=np.array([0.0, 2.0, 4.0, 6.0]))
+    return WaypointTrajectory(pos, rot, times_s=np.array([0.0, 2.0, 4.0, 6.0]))
+
+
+@pytest.mark.parametrize("kind", ["local", "p6", "noscale"])
+def test_varying_orientation_is_tracked(lbr4p, kind):
+    traj = turning_waypoints()
     res = run_kinematic(make(kind, lbr4p, traj), LBR4P_Q0)
     m = res.metrics
     assert m.completed

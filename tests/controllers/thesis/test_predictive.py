@@ -7,12 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from controllers.thesis.test_controller import THESIS_ACC, THESIS_VEL, T, make
 
 from dqcontrol.controllers import (
-    LocalController,
-    PredictiveController,
     PredictiveNoScalingController,
-    ProportionalController,
     integration_matrix,
     prediction_instants,
 )
@@ -21,28 +19,6 @@ from dqcontrol.errors import ParameterError
 from dqcontrol.model import LBR4P_Q0
 from dqcontrol.sim import run_kinematic
 from dqcontrol.trajectories import Circle, Sinusoid
-
-T = 0.05
-#: The thesis's controller velocity bound (eq. 4.13) and constant acceleration bound.
-THESIS_VEL = np.pi * np.array([1, 1, 1, 1, 2.5, 2.5, 2.5])
-THESIS_ACC = 10.0
-
-
-def make(kind, robot, traj, **kw):
-    kw.setdefault("velocity_limits", THESIS_VEL)
-    kw.setdefault("acceleration_limit", THESIS_ACC)
-    if kind == "local":
-        return LocalController(robot, traj, T, **kw)
-    if kind == "p6":
-        return PredictiveController(robot, traj, T, num_instants=6, **kw)
-    if kind == "p10":
-        return PredictiveController(robot, traj, T, num_instants=10, **kw)
-    if kind == "noscale":
-        return PredictiveNoScalingController(robot, traj, T, num_instants=6, **kw)
-    if kind == "proportional":
-        return ProportionalController(robot, traj, T, **kw)
-    raise ValueError(kind)
-
 
 SOLVERS = ["osqp", "daqp"]
 
