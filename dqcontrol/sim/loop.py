@@ -37,6 +37,7 @@ from __future__ import annotations
 import array
 import contextlib
 import copy
+import math
 import os
 import sys
 import time
@@ -103,18 +104,41 @@ class RunResult:
     contacts: RunContacts | None = None
 
 
-def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> str:
-    """One step of a deep copy of ``controller``, then one of its stop (loads the compiled
-    kernels; the controller itself is untouched). Returns ``""`` or why it was skipped."""
-    memo = {id(m): m for m in list(sys.modules.values())}  # modules are shared, not copied
+def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> tuple[str, float]:
+    """One step of a deep copy of ``controller``, then one of its stop, and for a task that
+    ends at speed one of its end at rest (loads the compiled kernels; the controller itself
+    is untouched). Returns ``""`` or why it was skipped, and the time [s] of the end's first
+    step once its kernels are loaded (NaN: the task ends at rest; inf: not measured)."""
+    end_step_s = math.nan
     try:
-        twin = copy.deepcopy(controller, memo)
+        if not controller.ends_at_rest:
+            end_step_s = math.inf
+            for _ in range(2):  # the first loads the end's kernels, the second is timed
+                end_step_s = _end_first_step_s(_copy(controller), q, qd)
+        twin = _copy(controller)
         twin.step(q.copy(), qd.copy())
         twin.request_stop()  # and its stop (a delegate's first steps load their own kernels)
         twin.step(q.copy(), qd.copy())
     except Exception as exc:  # noqa: BLE001 - a warm-up never stops the run
-        return f"skipped: {type(exc).__name__}: {exc}"
-    return ""
+        return f"skipped: {type(exc).__name__}: {exc}", end_step_s
+    return "", end_step_s
+
+
+def _copy(controller: Controller) -> Controller:
+    """A deep copy of ``controller``, the modules shared (each copy its own memo: a memo
+    kept from one copy would hand out that copy again)."""
+    return copy.deepcopy(controller, {id(m): m for m in list(sys.modules.values())})
+
+
+def _end_first_step_s(ender: Controller, q: np.ndarray, qd: np.ndarray) -> float:
+    """The time [s] of the first step of ``ender``'s end at rest, handed over just before
+    the end (where its rest rows are posed; ``ender`` not stepped yet: no solver workspace
+    was copied)."""
+    ender.reset(q.copy(), qd.copy(), max(0.0, ender.trajectory.duration - 2.0 * ender.period_s))
+    ender.finish_at_rest(q.copy())
+    start = time.perf_counter()
+    ender.step(q.copy(), qd.copy())
+    return time.perf_counter() - start
 
 
 def _brake_rate(controller: Controller, q: np.ndarray) -> np.ndarray:
@@ -337,7 +361,7 @@ def _samples_then_brake(run: _Samples, num, stale_periods, on_sample, on_progres
     leaves it closes a streamed log without its end record (it then reads as cut short;
     the log's own write errors give way to that exception)."""
     if brake and not run.controller.ends_at_rest:
-        run.end_watch = _EndWatch(run.controller)
+        _watch_the_end(run)
     try:
         with realtime_priority(run.clock.priority):
             with young_gc_only(run.clock.realtime), single_blas_thread():
@@ -361,7 +385,7 @@ def _started(
     meas = _first_measurement(driver, robot, q0, order)
     q, _qd = order.to_model(meas)
     controller.reset(q)
-    info = _run_info(driver, controller, order.names, q, warm_up, meta)
+    info, end_step_s = _run_info(driver, controller, order.names, q, warm_up, meta)
     log_file, chunk_s = logging
     rec: LogRecorder | StreamRecorder
     if log_file is None:
@@ -369,7 +393,9 @@ def _started(
     else:
         rec = StreamRecorder(log_file, robot.nq, controller.period_s, info, chunk_s=chunk_s)
     clock = _Clock(controller.period_s, bool(realtime))
-    return _Samples(controller, driver, order, rec, clock, meas)
+    run = _Samples(controller, driver, order, rec, clock, meas)
+    run.end_step_s = end_step_s
+    return run
 
 
 def _max_lateness(period_s: float, max_lateness_s: float | None) -> float:
@@ -456,10 +482,11 @@ def _first_measurement(driver, robot, q0, order: _JointOrder) -> Measurement:
     return driver.reset(order.to_driver(q0))
 
 
-def _run_info(driver, controller: Controller, names, q, warm_up: bool, meta) -> dict:
+def _run_info(driver, controller: Controller, names, q, warm_up: bool, meta) -> tuple[dict, float]:
     """The log's ``meta``: simulator, controller, period, the driver's own entries, joint
     names, the warm-up's note (the controller stepped once, in a copy, where ``warm_up``),
-    then the caller's ``meta``."""
+    then the caller's ``meta``; and the end's first step [s] the warm-up measured (inf:
+    none)."""
     info = dict(getattr(driver, "meta", {}))
     info = {
         "simulator": info.pop("simulator", type(driver).__name__),
@@ -468,12 +495,34 @@ def _run_info(driver, controller: Controller, names, q, warm_up: bool, meta) -> 
         **info,
         "joint_names": list(names),
     }
+    end_step_s = math.inf
     if warm_up:
-        why = _warm_up(controller, np.asarray(q, dtype=float), np.zeros(controller.robot.nq))
+        q0, qd0 = np.asarray(q, dtype=float), np.zeros(controller.robot.nq)
+        why, end_step_s = _warm_up(controller, q0, qd0)
         if why:
             info["warm_up"] = why
     info.update(meta or {})
-    return info
+    return info, end_step_s
+
+
+def _watch_the_end(run: _Samples) -> None:
+    """Watch for the end's handover (:class:`_EndWatch`): always in simulated time; on the
+    wall clock where the end's first step (measured by the warm-up) takes at most
+    :data:`END_STEP_SHARE` of a period, else the task ends at speed, and ``meta`` says
+    why."""
+    period = run.controller.period_s
+    if run.clock.realtime and not run.end_step_s <= END_STEP_SHARE * period:
+        took = "not measured" if math.isinf(run.end_step_s) else f"{1e3 * run.end_step_s:.1f} ms"
+        run.rec.meta["end_at_rest"] = (
+            f"not handed over on the wall clock: the end's first step ({took}) does not fit "
+            f"{END_STEP_SHARE:g} of the {1e3 * period:g} ms period; the task ends at speed"
+        )
+        return
+    run.end_watch = _EndWatch(run.controller)
+
+
+#: The share of a period the end's first step may take on the wall clock.
+END_STEP_SHARE = 0.25
 
 
 class _EndWatch:
@@ -521,6 +570,8 @@ class _Samples:
         self.end_watch: _EndWatch | None = None
         #: ``(sample, σ)`` where the task's end at rest was handed over (``None``: not)
         self.finished_at: tuple[int, float] | None = None
+        #: the end's first step [s] measured by the warm-up (inf: not measured)
+        self.end_step_s = math.inf
 
     def loop(self, num: int, stale_periods: int, on_sample, on_progress) -> None:
         try:
