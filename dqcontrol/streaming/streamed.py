@@ -238,6 +238,10 @@ class StreamedController(Controller):
         s = (sample.sigma_next - sample.sigma) / self.period_s
         return StepResult(sample.u, s, sample.sigma, sample.sigma_next, pose, target, diag)
 
+    #: The stream's end is its plans' (the planner's own end, at rest by default): it is
+    #: never handed over (:meth:`finish_at_rest` does nothing, and the loop does not ask).
+    ends_at_rest = True
+
     def finish_at_rest(self, q: np.ndarray) -> None:
         """Nothing: the stream ends as its plans do (the planner's own end)."""
 
