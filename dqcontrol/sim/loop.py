@@ -104,16 +104,20 @@ class RunResult:
     contacts: RunContacts | None = None
 
 
-def _warm_up(controller: Controller, q: np.ndarray, qd: np.ndarray) -> tuple[str, float]:
+def _warm_up(
+    controller: Controller, q: np.ndarray, qd: np.ndarray, timed: bool
+) -> tuple[str, float]:
     """One step of a deep copy of ``controller``, then one of its stop, and for a task that
     ends at speed one of its end at rest (loads the compiled kernels; the controller itself
-    is untouched). Returns ``""`` or why it was skipped, and the time [s] of the end's first
-    step once its kernels are loaded (NaN: the task ends at rest; inf: not measured)."""
+    is untouched). Returns ``""`` or why it was skipped, and where ``timed`` the time [s] of
+    the end's first step once its kernels are loaded (NaN: the task ends at rest; inf: not
+    measured)."""
     end_step_s = math.nan
     try:
         if not controller.ends_at_rest:
             end_step_s = math.inf
-            for _ in range(2):  # the first loads the end's kernels, the second is timed
+            _end_first_step_s(_copy(controller), q, qd)  # loads the end's kernels
+            if timed:  # then timed, its kernels loaded
                 end_step_s = _end_first_step_s(_copy(controller), q, qd)
         twin = _copy(controller)
         twin.step(q.copy(), qd.copy())
@@ -385,7 +389,7 @@ def _started(
     meas = _first_measurement(driver, robot, q0, order)
     q, _qd = order.to_model(meas)
     controller.reset(q)
-    info, end_step_s = _run_info(driver, controller, order.names, q, warm_up, meta)
+    info, end_step_s = _run_info(driver, controller, order.names, q, warm_up, meta, bool(realtime))
     log_file, chunk_s = logging
     rec: LogRecorder | StreamRecorder
     if log_file is None:
@@ -482,11 +486,13 @@ def _first_measurement(driver, robot, q0, order: _JointOrder) -> Measurement:
     return driver.reset(order.to_driver(q0))
 
 
-def _run_info(driver, controller: Controller, names, q, warm_up: bool, meta) -> tuple[dict, float]:
+def _run_info(
+    driver, controller: Controller, names, q, warm_up: bool, meta, realtime: bool
+) -> tuple[dict, float]:
     """The log's ``meta``: simulator, controller, period, the driver's own entries, joint
     names, the warm-up's note (the controller stepped once, in a copy, where ``warm_up``),
-    then the caller's ``meta``; and the end's first step [s] the warm-up measured (inf:
-    none)."""
+    then the caller's ``meta``; and the end's first step [s] the warm-up timed on the wall
+    clock (``realtime``; inf: none)."""
     info = dict(getattr(driver, "meta", {}))
     info = {
         "simulator": info.pop("simulator", type(driver).__name__),
@@ -498,7 +504,7 @@ def _run_info(driver, controller: Controller, names, q, warm_up: bool, meta) -> 
     end_step_s = math.inf
     if warm_up:
         q0, qd0 = np.asarray(q, dtype=float), np.zeros(controller.robot.nq)
-        why, end_step_s = _warm_up(controller, q0, qd0)
+        why, end_step_s = _warm_up(controller, q0, qd0, timed=realtime)
         if why:
             info["warm_up"] = why
     info.update(meta or {})

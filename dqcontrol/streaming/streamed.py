@@ -242,9 +242,6 @@ class StreamedController(Controller):
     #: never handed over (:meth:`finish_at_rest` does nothing, and the loop does not ask).
     ends_at_rest = True
 
-    def finish_at_rest(self, q: np.ndarray) -> None:
-        """Nothing: the stream ends as its plans do (the planner's own end)."""
-
     @property
     def done(self) -> bool:
         """The task's end, or the play-out finished at rest."""

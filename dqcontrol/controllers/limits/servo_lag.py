@@ -94,12 +94,12 @@ class ServoLagMargin:
             self._head, self.tau_s, TAU_CAP_S, self.margin_rad,
         )  # fmt: skip
         self._head = (self._head + 1) % SAMPLES
-        travel = self.tau_s * np.abs(qd_meas) if exceeds else None
-        if travel is None:
+        if not exceeds:
             if self._margin_bounds is not None:  # back to the margin's bounds, as given
                 values[:2] = self._margin_bounds
                 self._margin_bounds = None
             return
+        travel = self.tau_s * np.abs(qd_meas)
         if self._margin_bounds is None:
             self._margin_bounds = values[:2].copy()
         towards_max = np.where(qd_meas > 0.0, travel, 0.0)
