@@ -4,7 +4,8 @@ The core (``pip install dqcontrol``) holds what the model, the controllers and t
 loop need. The rest comes with an extra:
 
 - ``sim``: MuJoCo, for :class:`~dqcontrol.sim.MujocoSimulation` and everything that steps
-  physics (``dqcontrol run --simulator mujoco``, the default, and ``dqcontrol sim-server``);
+  physics (``dqcontrol run --simulator mujoco``, the default, and ``dqcontrol sim-server``),
+  and CoACD, which splits a concave collision mesh into the convex parts MuJoCo collides;
 - ``viz``: Meshcat and matplotlib, for the viewer, the HTML replays and the figures;
 - ``dask``: Dask distributed, for ``dqcontrol table1 --scheduler``;
 - ``ros2``: the ROS 2 client library (rclpy) and the message packages, for
@@ -30,7 +31,7 @@ __all__ = ["EXTRAS", "available", "has_extra", "lazy_module", "missing_extra", "
 
 #: The top-level modules each extra provides.
 EXTRAS: dict[str, tuple[str, ...]] = {
-    "sim": ("mujoco",),
+    "sim": ("mujoco", "coacd"),
     "viz": ("meshcat", "matplotlib"),
     "dask": ("dask", "distributed"),
     "ros2": (

@@ -9,10 +9,12 @@ Pinocchio read (``robot.source``), then edits it as an :class:`mujoco.MjSpec`:
    block is set so that every link stays a body (``fusestatic="false"``), visuals are kept,
    paths are not stripped, and a link without ``<inertial>`` has no mass (as in Pinocchio;
    MuJoCo's default would give it the mass of its collision geoms).
-2. :func:`build_spec` moves the root to ``robot.base_placement``, welds locked joints at their
-   lock value, sets armature, damping and the torque limits of the controlled joints, adds a
-   site named ``robot.ee_frame`` at the Pinocchio end-effector frame, an optional payload body
-   at that frame, one torque actuator (``motor``, clamped to the torque limit) per
+2. :func:`build_spec` splits each concave collision mesh into convex parts
+   (:mod:`dqcontrol.sim.convex_parts`: MuJoCo collides a mesh as its hull), moves the root
+   to ``robot.base_placement``, welds locked joints at their lock value, sets armature,
+   damping and the torque limits of the controlled joints, adds a site named
+   ``robot.ee_frame`` at the Pinocchio end-effector frame, an optional payload body at that
+   frame, one torque actuator (``motor``, clamped to the torque limit) per
    controlled joint, and the obstacles (:func:`add_obstacles`: static geoms in the world).
 
 :func:`count_contacts` sorts a state's contacts into robot–obstacle and self contacts.
@@ -37,6 +39,7 @@ from dqcontrol.model.collision import Box, Capsule, Cylinder, HalfSpace, Obstacl
 from dqcontrol.model.meshes import find_mesh
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.model.urdf_source import URDFSource
+from dqcontrol.sim.convex_parts import convex_parts
 
 if TYPE_CHECKING:
     import mujoco
@@ -236,6 +239,7 @@ def build_spec(robot: RobotModel, prepared: PreparedURDF, options: SpecOptions) 
         URDFError: MuJoCo cannot import the URDF, or a controlled joint is missing from it.
     """
     spec = _import_urdf(prepared)
+    _split_concave_meshes(spec)
     _set_physics(spec, options)
     _place_base(spec, robot)
     _lock_joints(spec, robot)
@@ -257,6 +261,39 @@ def _import_urdf(prepared: PreparedURDF) -> mujoco.MjSpec:
         return mujoco.MjSpec.from_string(prepared.xml)
     except ValueError as exc:
         raise URDFError(f"MuJoCo could not import the URDF: {exc}") from None
+
+
+#: The placement and contact attributes a convex part takes from the geom it replaces.
+_PART_ATTRIBUTES = (
+    "pos", "quat", "alt", "contype", "conaffinity", "condim", "group", "priority", "friction",
+    "solmix", "solref", "solimp", "margin", "gap", "rgba",
+)  # fmt: skip
+
+
+def _split_concave_meshes(spec: mujoco.MjSpec) -> None:
+    """Replace each collision geom of a concave mesh by one geom per convex part of it
+    (:func:`~dqcontrol.sim.convex_parts.convex_parts`), in the same body and place; the
+    visual geoms keep the mesh as it is."""
+    meshes = {mesh.name: mesh for mesh in spec.meshes}
+    for geom in list(spec.geoms):
+        if geom.type != mujoco.mjtGeom.mjGEOM_MESH or not (geom.contype or geom.conaffinity):
+            continue
+        mesh = meshes[geom.meshname]
+        parts = convex_parts(Path(mesh.file), np.asarray(mesh.scale, dtype=float))
+        if parts is None:
+            continue
+        for k, vertices in enumerate(parts):
+            name = f"{mesh.name}_part{k}"
+            if name not in meshes:
+                meshes[name] = spec.add_mesh(name=name, uservert=vertices.ravel().tolist())
+            part = geom.parent.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name)
+            for attribute in _PART_ATTRIBUTES:
+                setattr(part, attribute, getattr(geom, attribute))
+            if geom.frame is not None:
+                part.set_frame(geom.frame)
+            if geom.name:
+                part.name = f"{geom.name}_part{k}"
+        spec.delete(geom)
 
 
 def _set_physics(spec: mujoco.MjSpec, options: SpecOptions) -> None:

@@ -141,3 +141,66 @@ def test_mujoco_hinge_of_a_continuous_joint_is_unlimited(arm, lbr4p):
     assert MujocoSimulation(lbr4p).model.jnt_limited.all()
     state = sim.reset(np.r_[4.0, LBR4P_Q0[1:]])  # an angle beyond π is a state like any other
     np.testing.assert_allclose(state.q[0], 4.0)
+
+
+# ----------------------------------------------------------------------------- concave meshes
+def _world_vertices(model, data, geom: int) -> np.ndarray:
+    """The vertices of mesh geom ``geom`` in the world [m]."""
+    mesh = model.geom_dataid[geom]
+    start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+    local = model.mesh_vert[start : start + count]
+    return local @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
+
+
+def test_a_concave_collision_mesh_becomes_its_convex_parts_in_place(tmp_path, monkeypatch):
+    pytest.importorskip("coacd")
+    from scipy.spatial import ConvexHull
+    from sim.voxel_meshes import L_SHAPE, voxel_triangles, write_stl
+
+    from dqcontrol.sim.convex_parts import CACHE_ENV
+    from dqcontrol.sim.mjcf_builder import _split_concave_meshes
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "cache"))
+    path = write_stl(tmp_path / "l.stl", voxel_triangles(L_SHAPE))
+    spec = mujoco.MjSpec.from_string(f"""
+        <mujoco><asset><mesh name="l" file="{path}" scale="1 2 1"/></asset>
+        <worldbody><body name="link" pos="0.3 -0.2 0.5" euler="10 20 30">
+          <geom name="hit" type="mesh" mesh="l" pos="0.05 0 0" euler="0 0 40" friction="0.3 0 0"/>
+          <geom name="look" type="mesh" mesh="l" contype="0" conaffinity="0" group="1"/>
+        </body></worldbody></mujoco>""")
+    _split_concave_meshes(spec)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    names = [model.geom(g).name for g in range(model.ngeom)]
+    parts = [g for g, name in enumerate(names) if name.startswith("hit_part")]
+    assert "hit" not in names and "look" in names and len(parts) >= 2
+    assert all(model.geom_contype[g] == 1 and model.geom_group[g] == 0 for g in parts)
+    np.testing.assert_allclose(model.geom_friction[parts, 0], 0.3)
+    # the parts are where the mesh was: the whole mesh, placed as the geom they replaced,
+    # lies in their union
+    spec2 = mujoco.MjSpec.from_string(f"""
+        <mujoco><asset><mesh name="l" file="{path}" scale="1 2 1"/></asset>
+        <worldbody><body name="link" pos="0.3 -0.2 0.5" euler="10 20 30">
+          <geom name="hit" type="mesh" mesh="l" pos="0.05 0 0" euler="0 0 40"/>
+        </body></worldbody></mujoco>""")
+    whole = spec2.compile()
+    whole_data = mujoco.MjData(whole)
+    mujoco.mj_forward(whole, whole_data)
+    mesh_points = _world_vertices(whole, whole_data, 0)
+    hulls = [ConvexHull(_world_vertices(model, data, g)) for g in parts]
+    beyond = np.full(len(mesh_points), np.inf)
+    for hull in hulls:
+        eq = hull.equations
+        beyond = np.minimum(beyond, (mesh_points @ eq[:, :3].T + eq[:, 3]).max(axis=1))
+    assert beyond.max() <= 5e-5
+    assert sum(h.volume for h in hulls) == pytest.approx(2 * 3 * 0.1**3, rel=0.05)
+
+
+def test_a_robot_of_convex_meshes_keeps_its_geoms():
+    from dqcontrol.model import load_panda
+
+    panda = load_panda()
+    model = contact_model(panda, ())[0]
+    names = [model.geom(g).name for g in range(model.ngeom)]
+    assert not any("_part" in name for name in names)

@@ -534,11 +534,10 @@ def test_the_controller_holds_the_arm_at_rest_on_the_path(cases, name):
 # whose circle passes close to a singular configuration (``σ_min`` 0.025 of the tangent
 # Jacobian near the elbow's stretch, docs/theory.md §8.3). With the damped-least-squares
 # rows in the path level, the path gave way near that pass: 0.64 mm at T = 50 ms in the
-# kinematic loop, 1.8 mm in MuJoCo at T = 10 ms (with the arm's own contacts off). This
-# circle also brings link 5 to within a few millimetres of link 1: in MuJoCo, whose mesh
-# hulls touch there, the arm pushes against itself at its effort limit (docs/arms.md),
-# which no controller setting removes; the MuJoCo test below turns the robot's contacts off
-# to judge the controller, and a second test checks that contact is the cause the docs name.
+# kinematic loop, 1.8 mm in MuJoCo at T = 10 ms. This circle also brings link 6 to 1.1 mm of
+# link 1, and link 5 to 16 mm: MuJoCo, colliding each mesh as its hull, had the arm push
+# against itself there; with the concave meshes split into convex parts
+# (dqcontrol.sim.convex_parts) the simulated arm moves as freely as the real one.
 
 #: The start near the vertical.
 XARM7_Q0 = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.5, 0.0])
@@ -558,14 +557,11 @@ def test_xarm7_circle_keeps_the_path_in_the_kinematic_loop(xarm7):
     assert m.position_violations == m.velocity_violations == 0
 
 
-def _mujoco(robot, contacts: bool):
-    mujoco = pytest.importorskip("mujoco")
+def _mujoco(robot):
+    pytest.importorskip("mujoco")
     from dqcontrol.sim.mujoco_sim import MujocoSimulation
 
-    sim = MujocoSimulation(robot)
-    if not contacts:
-        sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    return sim
+    return MujocoSimulation(robot)
 
 
 def test_xarm7_circle_keeps_the_path_in_mujoco_at_10_ms(xarm7):
@@ -574,28 +570,27 @@ def test_xarm7_circle_keeps_the_path_in_mujoco_at_10_ms(xarm7):
     controller = PathFollowingController(
         xarm7, Circle(2.0), 0.01, servo_time_constant_s=SERVO_TIME_CONSTANT_S
     )
-    sim = _mujoco(xarm7, contacts=False)
-    m = simulate(controller, XARM7_Q0, simulation=sim).result.metrics
+    sim = _mujoco(xarm7)
+    run = simulate(controller, XARM7_Q0, simulation=sim).result
+    m = run.metrics
     assert m.completed
     assert m.path_deviation_max_m <= 0.5e-3
     assert m.position_violations == m.velocity_violations == 0
     assert m.execution_time_s <= 1.3 * 2.0
 
 
-def test_the_xarm7_circle_touches_link_1_with_link_5_in_mujoco(xarm7):
+def test_the_xarm7_moves_freely_where_its_hulls_would_touch(xarm7):
     import mujoco
 
-    sim = _mujoco(xarm7, contacts=True)
+    from dqcontrol.model.collision import CollisionModel
+
+    sim = _mujoco(xarm7)
     # the configuration the circle passes where the elbow is nearly stretched (sampled from
     # a run of the test above)
     q = np.array([0.2023, -1.0710, -0.5603, -0.1422, -0.6162, 0.9540, 0.3030])
     sim.reset(q)
     mujoco.mj_forward(sim.model, sim.data)
-    bodies = {
-        frozenset(
-            mujoco.mj_id2name(sim.model, mujoco.mjtObj.mjOBJ_BODY, sim.model.geom_bodyid[g])
-            for g in (c.geom1, c.geom2)
-        )
-        for c in sim.data.contact[: sim.data.ncon]
-    }
-    assert frozenset({"link1", "link5"}) in bodies
+    assert sim.data.ncon == 0
+    # the collision model's hulls (one a link, conservative) do touch there
+    hulls = CollisionModel(xarm7, self_collision=True)
+    assert min(d.distance_m for d in hulls.distances(q)) <= 0.0
