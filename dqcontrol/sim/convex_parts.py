@@ -1,4 +1,4 @@
-"""A concave collision mesh as convex parts, for MuJoCo's contacts (docs/theory.md §8.12).
+"""A concave collision mesh as convex parts, for MuJoCo's contacts (docs/theory.md §10.6).
 
 MuJoCo collides every mesh as its convex hull. For a link whose mesh is concave (a hollow
 housing, an elbow's recess) the hull fills space the link does not occupy, and two links
@@ -10,10 +10,13 @@ each part is the hull of a piece of the mesh, so together they cover the mesh (t
 hundredths of a millimetre: CoACD samples the surface), lie inside its hull, and hold
 little space the mesh does not.
 
-A decomposition takes about a second a mesh; the parts are kept on disk
-(:func:`cache_dir`), keyed by the mesh file's bytes, its scale and the settings, so a robot
-is decomposed once per machine. A mesh close enough to convex is left as it is (``None``),
-so its simulation is exactly what it was.
+A decomposition takes a second or a few a mesh. The meshes of a robot are decomposed
+together, each in a process of its own (as many at a time as there are cores), each given
+:data:`TIME_LIMIT_S`; a mesh that takes longer, or whose decomposition fails, is left whole
+with a warning that names it. The outcome is kept on disk (:func:`cache_dir`), keyed by the
+mesh file's bytes, its scale and the settings, so a robot is decomposed once per machine.
+A mesh close enough to convex is left as it is (``None``), so its simulation is exactly
+what it was.
 """
 
 from __future__ import annotations
@@ -21,18 +24,21 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import subprocess
+import sys
 import tempfile
+import time
+import warnings
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from dqcontrol.extras import lazy_module
-
-coacd = lazy_module("coacd", extra="sim", purpose="the convex parts of a concave mesh")
-
 __all__ = [
+    "CACHE_ENV",
     "COACD_SETTINGS",
     "HULL_EXCESS",
+    "TIME_LIMIT_S",
     "cache_dir",
     "convex_parts",
     "hull_excess",
@@ -40,9 +46,9 @@ __all__ = [
 ]
 
 #: A mesh is split where its hull's volume exceeds the mesh's by more than this share.
-HULL_EXCESS = 0.05
-#: CoACD's settings: its concavity threshold, at most 32 parts, the mesh as it is (no
-#: remeshing), a coarse search: about a second a mesh.
+HULL_EXCESS = 0.10
+#: CoACD's settings: its concavity threshold, at most 16 parts, the mesh as it is (no
+#: remeshing), a coarse search.
 COACD_SETTINGS: dict[str, object] = {
     "threshold": 0.05,
     "max_convex_hull": 16,
@@ -53,8 +59,16 @@ COACD_SETTINGS: dict[str, object] = {
     "mcts_nodes": 8,
     "seed": 0,
 }
+#: The longest a mesh's decomposition may take [s] before the mesh is left whole.
+TIME_LIMIT_S = 60.0
 #: The environment variable naming the folder the parts are kept in.
 CACHE_ENV = "DQCONTROL_CACHE_DIR"
+#: What a decomposition's process runs (its arguments: the mesh, its scale, the output).
+_CHILD = "import sys; from dqcontrol.sim.convex_parts import _main; _main(sys.argv[1:])"
+#: The count kept for a mesh left whole because its decomposition failed or took too long.
+_GAVE_UP = -1
+
+Parts = tuple[np.ndarray, ...]
 
 
 def cache_dir() -> Path:
@@ -97,23 +111,68 @@ def hull_excess(vertices: np.ndarray, triangles: np.ndarray) -> float:
     return hull / volume - 1.0
 
 
-def convex_parts(path: Path, scale: np.ndarray) -> tuple[np.ndarray, ...] | None:
-    """The vertices of the convex parts of the mesh at ``path`` (scaled by ``scale``), or
-    ``None`` where its hull is within :data:`HULL_EXCESS` of it (module docstring)."""
-    scale = np.asarray(scale, dtype=float)
-    key = _key(path, scale)
-    cached = _read(key)
-    if cached is not None:
-        return cached or None
-    vertices, triangles = mesh_arrays(path, scale)
-    if hull_excess(vertices, triangles) <= HULL_EXCESS:
-        parts: tuple[np.ndarray, ...] = ()
-    else:
-        coacd.set_log_level("error")
-        found = coacd.run_coacd(coacd.Mesh(vertices, triangles), **COACD_SETTINGS)
-        parts = tuple(np.asarray(v, dtype=float).reshape(-1, 3) for v, _ in found)
-    _write(key, parts)
-    return parts or None
+def convex_parts(meshes: Sequence[tuple[Path, np.ndarray]]) -> list[Parts | None]:
+    """The vertices of the convex parts of each mesh ``(path, scale)``, or ``None`` for a
+    mesh left whole: within :data:`HULL_EXCESS` of its hull, or given up on (module
+    docstring)."""
+    keys = [_key(Path(path), np.asarray(scale, dtype=float)) for path, scale in meshes]
+    found = [_read(key, str(path)) for key, (path, _) in zip(keys, meshes, strict=True)]
+    todo = []
+    for i, (path, scale) in enumerate(meshes):
+        if found[i] is not None:
+            continue
+        vertices, triangles = mesh_arrays(Path(path), np.asarray(scale, dtype=float))
+        if hull_excess(vertices, triangles) <= HULL_EXCESS:
+            found[i] = ()
+            _write(keys[i], ())
+        else:
+            todo.append(i)
+    if todo:
+        done = _decompose([meshes[i] for i in todo], [keys[i] for i in todo])
+        for i, parts in zip(todo, done, strict=True):
+            if parts is None:
+                _warn_given_up(str(meshes[i][0]), keys[i])
+            found[i] = parts
+    return [parts or None for parts in found]
+
+
+def _decompose(meshes: Sequence[tuple[Path, np.ndarray]], keys: list[str]) -> list[Parts | None]:
+    """The parts of ``meshes`` (``None``: given up on), each decomposed in a process of its
+    own, as many at a time as there are cores, each within :data:`TIME_LIMIT_S`; each
+    outcome kept under its key. An interrupt stops the processes."""
+    outcome: dict[str, Parts | None] = {}
+    waiting = list(zip(meshes, keys, strict=True))
+    running: list[tuple[subprocess.Popen, str, float, Path]] = []
+    with tempfile.TemporaryDirectory() as folder:
+        try:
+            while waiting or running:
+                while waiting and len(running) < (os.cpu_count() or 1):
+                    (path, scale), key = waiting.pop(0)
+                    out = Path(folder) / f"{key}.npz"
+                    running.append((_start(path, scale, out), key, time.monotonic(), out))
+                time.sleep(0.02)
+                for entry in list(running):
+                    job, key, start, out = entry
+                    late = time.monotonic() - start > TIME_LIMIT_S
+                    if job.poll() is None and not late:
+                        continue
+                    running.remove(entry)
+                    job.kill()  # nothing to stop if it has ended
+                    loaded = _load(out) if job.wait() == 0 else None
+                    outcome[key] = None if loaded is None or loaded[0] < 0 else loaded[1]
+                    _write(key, outcome[key])
+        finally:
+            for job, *_ in running:
+                job.kill()
+                job.wait()
+    return [outcome[key] for key in keys]
+
+
+def _start(path: Path, scale: np.ndarray, out: Path) -> subprocess.Popen:
+    """A process that decomposes the mesh at ``path`` (``scale``) into ``out``."""
+    sizes = [repr(float(x)) for x in np.asarray(scale, dtype=float)]
+    command = [sys.executable, "-c", _CHILD, str(Path(path)), *sizes, str(out)]
+    return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
 def _key(path: Path, scale: np.ndarray) -> str:
@@ -138,25 +197,63 @@ def _file(key: str) -> Path:
     return cache_dir() / "convex_parts" / f"{key}.npz"
 
 
-def _read(key: str) -> tuple[np.ndarray, ...] | None:
-    """The parts kept under ``key`` (``()``: the mesh is left whole), or ``None``."""
+def _load(path: Path) -> tuple[int, Parts] | None:
+    """The count and the parts kept in ``path``, or ``None`` where there is no readable
+    file."""
     try:
-        with np.load(_file(key)) as data:
-            return tuple(data[f"part{k}"] for k in range(int(data["count"])))
+        with np.load(path) as data:
+            count = int(data["count"])
+            return count, tuple(data[f"part{k}"] for k in range(max(count, 0)))
     except (OSError, KeyError, ValueError):
         return None
 
 
-def _write(key: str, parts: tuple[np.ndarray, ...]) -> None:
-    """Keep ``parts`` under ``key`` (written whole, then renamed: a reader never sees half
-    a file); a cache that cannot be written is skipped."""
-    target = _file(key)
-    arrays: dict[str, np.ndarray] = {f"part{k}": p for k, p in enumerate(parts)}
-    arrays["count"] = np.array(len(parts))
+def _read(key: str, name: str) -> Parts | None:
+    """The parts kept under ``key`` (``()``: the mesh is left whole), or ``None``; a mesh
+    given up on is left whole, with a warning that names it."""
+    loaded = _load(_file(key))
+    if loaded is None:
+        return None
+    count, parts = loaded
+    if count == _GAVE_UP:
+        _warn_given_up(name, key)
+    return parts
+
+
+def _warn_given_up(name: str, key: str) -> None:
+    warnings.warn(
+        f"collision mesh {name}: its convex decomposition failed or took longer than "
+        f"{TIME_LIMIT_S:g} s; MuJoCo collides its convex hull (delete {_file(key)} to try "
+        "again)",
+        stacklevel=4,
+    )
+
+
+def _write(key: str, parts: Parts | None) -> None:
+    """Keep ``parts`` under ``key`` (``None``: given up on), written whole and then renamed
+    (a reader never sees half a file); a cache that cannot be written is skipped."""
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=target.parent, suffix=".npz", delete=False) as f:
-            np.savez(f, **arrays)  # type: ignore[arg-type]
-        os.replace(f.name, target)
+        _write_file(_file(key), parts)
     except OSError:
         return
+
+
+def _write_file(target: Path, parts: Parts | None) -> None:
+    arrays: dict[str, np.ndarray] = {f"part{k}": p for k, p in enumerate(parts or ())}
+    arrays["count"] = np.array(_GAVE_UP if parts is None else len(parts))
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile(dir=target.parent, suffix=".npz", delete=False) as f:
+        np.savez(f, **arrays)  # type: ignore[arg-type]
+    os.replace(f.name, target)
+
+
+def _main(argv: list[str]) -> None:
+    """One decomposition, in a process of its own: ``MESH SX SY SZ OUT.npz``."""
+    from dqcontrol.extras import require
+
+    coacd = require("coacd", extra="sim", purpose="the convex parts of a concave mesh")
+    path, scale, out = Path(argv[0]), np.array([float(s) for s in argv[1:4]]), Path(argv[4])
+    vertices, triangles = mesh_arrays(path, scale)
+    coacd.set_log_level("error")
+    found = coacd.run_coacd(coacd.Mesh(vertices, triangles), **COACD_SETTINGS)
+    _write_file(out, tuple(np.asarray(v, dtype=float).reshape(-1, 3) for v, _ in found))

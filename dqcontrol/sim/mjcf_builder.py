@@ -275,15 +275,22 @@ def _split_concave_meshes(spec: mujoco.MjSpec) -> None:
     (:func:`~dqcontrol.sim.convex_parts.convex_parts`), in the same body and place; the
     visual geoms keep the mesh as it is."""
     meshes = {mesh.name: mesh for mesh in spec.meshes}
-    for geom in list(spec.geoms):
-        if geom.type != mujoco.mjtGeom.mjGEOM_MESH or not (geom.contype or geom.conaffinity):
-            continue
-        mesh = meshes[geom.meshname]
-        parts = convex_parts(Path(mesh.file), np.asarray(mesh.scale, dtype=float))
+    geoms = [
+        geom
+        for geom in spec.geoms
+        if geom.type == mujoco.mjtGeom.mjGEOM_MESH and (geom.contype or geom.conaffinity)
+    ]
+    used = sorted({geom.meshname for geom in geoms})
+    found = convex_parts(
+        [(Path(meshes[name].file), np.asarray(meshes[name].scale, dtype=float)) for name in used]
+    )
+    parts_of = dict(zip(used, found, strict=True))
+    for geom in geoms:
+        parts = parts_of[geom.meshname]
         if parts is None:
             continue
         for k, vertices in enumerate(parts):
-            name = f"{mesh.name}_part{k}"
+            name = f"{geom.meshname}_part{k}"
             if name not in meshes:
                 meshes[name] = spec.add_mesh(name=name, uservert=vertices.ravel().tolist())
             part = geom.parent.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name)

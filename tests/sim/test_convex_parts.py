@@ -24,6 +24,10 @@ def _mesh(tmp_path, cells, name="mesh.stl", size_m=0.1):
     return write_stl(tmp_path / name, voxel_triangles(cells, size_m))
 
 
+def _parts(path, scale=(1.0, 1.0, 1.0)):
+    return cp.convex_parts([(path, np.asarray(scale, dtype=float))])[0]
+
+
 def _outside_m(points: np.ndarray, hulls: list[ConvexHull]) -> float:
     """How far the farthest of ``points`` is outside the union of ``hulls`` [m] (≤ 0:
     every point inside one of them)."""
@@ -58,7 +62,7 @@ def test_the_mesh_is_read_as_the_collision_model_reads_it(tmp_path):
 def test_the_parts_cover_the_mesh_inside_its_hull(tmp_path, cells):
     path = _mesh(tmp_path, cells)
     vertices, triangles = cp.mesh_arrays(path, np.ones(3))
-    parts = cp.convex_parts(path, np.ones(3))
+    parts = _parts(path)
     assert parts is not None and len(parts) >= 2
     hulls = [ConvexHull(p) for p in parts]
     assert _outside_m(vertices, hulls) <= 5e-5  # every point of the mesh in a part, to 0.05 mm
@@ -72,39 +76,39 @@ def test_the_parts_cover_the_mesh_inside_its_hull(tmp_path, cells):
 
 
 def test_a_convex_mesh_is_left_whole(tmp_path):
-    assert cp.convex_parts(_mesh(tmp_path, CUBE), np.ones(3)) is None
+    assert _parts(_mesh(tmp_path, CUBE)) is None
 
 
 def test_the_parts_are_computed_once(tmp_path, cache, monkeypatch):
     path = _mesh(tmp_path, L_SHAPE)
-    first = cp.convex_parts(path, np.ones(3))
+    first = _parts(path)
     assert len(list((cache / "convex_parts").glob("*.npz"))) == 1
 
     def refuse(*args, **kwargs):
         raise AssertionError("decomposed again")
 
-    monkeypatch.setattr(cp.coacd, "run_coacd", refuse)
-    again = cp.convex_parts(path, np.ones(3))
+    monkeypatch.setattr(cp, "_decompose", refuse)
+    again = _parts(path)
     assert first is not None and again is not None
     for a, b in zip(first, again, strict=True):
         np.testing.assert_array_equal(a, b)
     # another scale is another mesh
     with pytest.raises(AssertionError, match="decomposed again"):
-        cp.convex_parts(path, np.full(3, 2.0))
+        _parts(path, (2.0, 2.0, 2.0))
 
 
 def test_a_convex_mesh_is_remembered_as_whole(tmp_path, monkeypatch):
     path = _mesh(tmp_path, CUBE)
-    assert cp.convex_parts(path, np.ones(3)) is None
+    assert _parts(path) is None
     monkeypatch.setattr(cp, "mesh_arrays", lambda *a: pytest.fail("read again"))
-    assert cp.convex_parts(path, np.ones(3)) is None
+    assert _parts(path) is None
 
 
 def test_a_cache_that_cannot_be_written_is_skipped(tmp_path, monkeypatch):
     blocked = tmp_path / "file"
-    blocked.write_text("not a folder")
+    blocked.write_text("not a folder")  # the cache's folder cannot be made
     monkeypatch.setenv(cp.CACHE_ENV, str(blocked))
-    parts = cp.convex_parts(_mesh(tmp_path, L_SHAPE), np.ones(3))
+    parts = _parts(_mesh(tmp_path, L_SHAPE))
     assert parts is not None and len(parts) >= 2
 
 
@@ -115,3 +119,29 @@ def test_the_cache_folder(monkeypatch, tmp_path):
     monkeypatch.delenv("XDG_CACHE_HOME")
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     assert cp.cache_dir() == tmp_path / "home" / ".cache" / "dqcontrol"
+
+
+def test_the_meshes_of_a_robot_are_decomposed_together(tmp_path):
+    meshes = [
+        (_mesh(tmp_path, L_SHAPE, "l.stl"), np.ones(3)),
+        (_mesh(tmp_path, CUBE, "cube.stl"), np.ones(3)),
+        (_mesh(tmp_path, U_SHAPE, "u.stl"), np.ones(3)),
+    ]
+    l_parts, cube, u_parts = cp.convex_parts(meshes)
+    assert cube is None
+    assert l_parts is not None and u_parts is not None and len(u_parts) > len(l_parts) - 1
+    for (path, scale), parts in zip(meshes, (l_parts, u_parts), strict=False):
+        vertices = cp.mesh_arrays(path, scale)[0]
+        if parts is not None:
+            assert _outside_m(vertices, [ConvexHull(p) for p in parts]) <= 5e-5
+
+
+def test_a_decomposition_past_the_time_limit_leaves_the_mesh_whole(tmp_path, monkeypatch):
+    monkeypatch.setattr(cp, "TIME_LIMIT_S", 0.0)
+    path = _mesh(tmp_path, L_SHAPE)
+    with pytest.warns(UserWarning, match=r"l.stl|mesh.stl.*took longer than 0 s"):
+        assert _parts(path) is None
+    # remembered: not tried again, and said again
+    monkeypatch.setattr(cp, "_decompose", lambda *a: pytest.fail("tried again"))
+    with pytest.warns(UserWarning, match="convex hull"):
+        assert _parts(path) is None
