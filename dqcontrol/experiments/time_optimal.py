@@ -50,7 +50,8 @@ The computation has two stages.
    The motion starts at rest (``σ̇(0) = 0``, as the controllers do) and its end velocity
    is free (the task is done when ``σ`` reaches ``T_tot``; the arm need not stop there), so
    the result is a lower bound on the execution time of any controller that follows this
-   joint path within these limits.
+   joint path within these limits. With ``end_at_rest`` it also ends at rest
+   (``σ̇(T) = 0``): the bound of a controller that brings the task to rest at its end.
 
    The second-order constraints use TOPP-RA's interpolation discretisation: with ``σ̈``
    constant on each grid interval, each constraint holds at both ends of every interval,
@@ -120,6 +121,8 @@ class TimeOptimalSettings:
         samples: number of uniform path samples (the grid has :data:`_START_REFINEMENT` more
             in its first interval).
         ik_tolerance: bound on ``‖e6‖`` at every sample.
+        end_at_rest: the motion ends at rest (``σ̇(T) = 0``), for a controller that brings
+            the task to rest at its end; else its end velocity is free.
     """
 
     velocity_limits: np.ndarray
@@ -131,6 +134,7 @@ class TimeOptimalSettings:
     posture_gain_per_s: float
     samples: int
     ik_tolerance: float
+    end_at_rest: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,6 +236,7 @@ def time_optimal_bound(
     acceleration_floor: float = 0.5,
     acceleration_cap: float = 50.0,
     ik_tolerance: float = 1e-10,
+    end_at_rest: bool = False,
 ) -> TimeOptimalBound:
     """Minimum execution time of ``trajectory`` from rest at ``q0`` (see the module notes).
 
@@ -255,6 +260,8 @@ def time_optimal_bound(
         acceleration_floor: lower end of the clipping range of ``"dynamics"`` [rad/s²].
         acceleration_cap: upper end of the clipping range of ``"dynamics"`` [rad/s²].
         ik_tolerance: bound on ``‖e6‖`` at every sample, in ``(0, 1e-6]``.
+        end_at_rest: the motion ends at rest, as the path-following controller's task does
+            by default (the bound of a controller that ends at speed has a free end).
 
     Raises:
         ParameterError: a limit or setting is malformed or out of range (the message names
@@ -270,6 +277,7 @@ def time_optimal_bound(
         torque_limits=torque_limits, speed_cap=speed_cap, samples=samples,
         posture_gain_per_s=posture_gain_per_s, acceleration_floor=acceleration_floor,
         acceleration_cap=acceleration_cap, ik_tolerance=ik_tolerance,
+        end_at_rest=end_at_rest,
     )  # fmt: skip
     joint_path = _task_joint_path(robot, trajectory, q0, settings)
     return _bound_along(toppra, robot, settings, joint_path, started)
@@ -305,7 +313,7 @@ def _task_joint_path(
     if trajectory.reference is None:
         trajectory = trajectory.anchored_at(robot.pose(q0))
     duration = trajectory.duration
-    sigma = _grid(duration, settings.samples)
+    sigma = _grid(duration, settings.samples, settings.end_at_rest)
     targets, _ = trajectory.targets(sigma)
     q, ik_error = _joint_path(robot, targets, sigma, q0, settings)
     _check_position_limits(robot, sigma, q)
@@ -337,8 +345,9 @@ def _bound_along(
     ddq = np.asarray(path(sigma, 2)).reshape(-1, robot.nq)
     a_max = _AccelerationTable(robot, settings)
     constraints = _constraints(toppra, robot, settings, a_max)
-    sd = _parameterize(toppra, path, sigma, constraints)
-    duration_coarse = _coarse_duration(toppra, sigma, q, constraints)
+    end = settings.end_at_rest
+    sd = _parameterize(toppra, path, sigma, constraints, end)
+    duration_coarse = _coarse_duration(toppra, sigma, q, constraints, end)
     sdd, dt, times = _interval_timing(sigma, sd)
     share, peak = _constraint_use(robot, settings, a_max, q, dq, ddq, sd, sdd, dt)
     return TimeOptimalBound(
@@ -362,16 +371,16 @@ def _bound_along(
 
 
 def _coarse_duration(
-    toppra: Any, sigma: np.ndarray, q: np.ndarray, constraints: list[Any]
+    toppra: Any, sigma: np.ndarray, q: np.ndarray, constraints: list[Any], end_at_rest: bool
 ) -> float:
     """The time-optimal duration [s] on the grid with every other point (``2Δσ``).
 
     Raises:
         ParameterError: TOPP-RA finds no parameterisation on that grid.
     """
-    coarse = _coarse_indices(sigma.size)
+    coarse = _coarse_indices(sigma.size, end_at_rest)
     coarse_path = toppra.SplineInterpolator(sigma[coarse], q[coarse])
-    sd_coarse = _parameterize(toppra, coarse_path, sigma[coarse], constraints)
+    sd_coarse = _parameterize(toppra, coarse_path, sigma[coarse], constraints, end_at_rest)
     delta_coarse = np.diff(sigma[coarse])
     return float(np.sum(2.0 * delta_coarse / (sd_coarse[:-1] + sd_coarse[1:])))
 
@@ -485,17 +494,23 @@ def _check_settings(robot: RobotModel, **kw: Any) -> TimeOptimalSettings:
         ),
         samples=int(samples),
         ik_tolerance=tolerance,
+        end_at_rest=bool(kw["end_at_rest"]),
     )
 
 
 # ---------------------------------------------------------------------------- joint path
-def _grid(duration: float, samples: int) -> np.ndarray:
+def _grid(duration: float, samples: int, end_at_rest: bool = False) -> np.ndarray:
     """``samples`` points evenly spaced on ``[0, T_tot]``, the first interval ``[0, Δ]`` split
     further at ``Δ/2, Δ/4, ..., Δ/2^k`` (:data:`_START_REFINEMENT` points) to resolve the
-    start from rest."""
+    start from rest; with ``end_at_rest`` the last interval likewise, mirrored, to resolve
+    the end at rest."""
     uniform = np.linspace(0.0, duration, samples)
     start = uniform[1] * 0.5 ** np.arange(_START_REFINEMENT, 0, -1)
-    return np.concatenate(([0.0], start, uniform[1:]))
+    grid = np.concatenate(([0.0], start, uniform[1:]))
+    if not end_at_rest:
+        return grid
+    end = duration - start[::-1]
+    return np.concatenate((grid[:-1], end, [duration]))
 
 
 def _joint_path(
@@ -623,9 +638,13 @@ def _constraints(
     return out
 
 
-def _parameterize(toppra: Any, path: Any, sigma: np.ndarray, constraints: list[Any]) -> np.ndarray:
-    """Time-optimal ``σ̇`` at the grid ``sigma`` from rest, end free."""
-    algorithm = _free_end_toppra(toppra)(constraints, path, gridpoints=sigma)
+def _parameterize(
+    toppra: Any, path: Any, sigma: np.ndarray, constraints: list[Any], end_at_rest: bool
+) -> np.ndarray:
+    """Time-optimal ``σ̇`` at the grid ``sigma`` from rest, to rest (``end_at_rest``) or with
+    a free end."""
+    kind = toppra.algorithm.TOPPRA if end_at_rest else _free_end_toppra(toppra)
+    algorithm = kind(constraints, path, gridpoints=sigma)
     _, sd, _ = algorithm.compute_parameterization(0.0, 0.0)
     if sd is None or not np.all(np.isfinite(sd)):
         raise ParameterError(
@@ -643,10 +662,15 @@ def _parameterize(toppra: Any, path: Any, sigma: np.ndarray, constraints: list[A
     return sd
 
 
-def _coarse_indices(size: int) -> np.ndarray:
+def _coarse_indices(size: int, end_at_rest: bool = False) -> np.ndarray:
     """Indices of the :func:`_grid` points that form the same grid with twice the spacing:
     ``0``, the refinement ``2Δ/2^k = Δ/2^(k-1)``, ``Δ``, then every other uniform point
-    (and the last one)."""
+    (and the last one); with ``end_at_rest`` the end's refinement mirrored."""
+    if end_at_rest:  # the start's refinement, then every other point, then the end's
+        first, last = 1 + _START_REFINEMENT, size - 2 - _START_REFINEMENT  # σ = Δ, T - Δ
+        start = np.concatenate(([0], np.arange(2, first + 1)))
+        middle = np.arange(first, last + 1, 2)
+        return np.unique(np.concatenate((start, middle, [last], size - 1 - start[::-1])))
     first_uniform = 1 + _START_REFINEMENT  # index of σ = Δ
     uniform = np.arange(first_uniform, size)
     keep = uniform[(uniform - first_uniform) % 2 == 1]  # 2Δ, 4Δ, ...

@@ -1,4 +1,4 @@
-"""A concave collision mesh as convex parts, for MuJoCo's contacts (docs/theory.md §10.6).
+"""A concave collision mesh as convex parts, for MuJoCo's contacts (docs/theory.md §10.8).
 
 MuJoCo collides every mesh as its convex hull. For a link whose mesh is concave (a hollow
 housing, an elbow's recess) the hull fills space the link does not occupy, and two links

@@ -74,12 +74,15 @@ def velocity_limits(arm: ArmSpec, robot) -> np.ndarray:
     return np.array(robot.limits.qd_max, dtype=float)
 
 
-def _bound_s(robot, trajectory, q0: np.ndarray, v_max: np.ndarray) -> tuple[float, str]:
-    """The TOPP-RA bound [s] of the task's joint path, or NaN and why it has none."""
+def _bound_s(
+    robot, trajectory, q0: np.ndarray, v_max: np.ndarray, end_at_rest: bool
+) -> tuple[float, str]:
+    """The TOPP-RA bound [s] of the task's joint path, or NaN and why it has none: from
+    rest to rest for a controller that ends the task at rest, else with a free end."""
     from dqcontrol.errors import DQControlError
     from dqcontrol.experiments.time_optimal import time_optimal_bound
 
-    key = (id(robot), trajectory.to_metadata().__repr__(), q0.tobytes())
+    key = (id(robot), trajectory.to_metadata().__repr__(), q0.tobytes(), end_at_rest)
     cache = getattr(_LOCAL, "bounds", None)
     if cache is None:
         cache = _LOCAL.bounds = {}
@@ -87,7 +90,7 @@ def _bound_s(robot, trajectory, q0: np.ndarray, v_max: np.ndarray) -> tuple[floa
         try:
             bound = time_optimal_bound(
                 robot, trajectory, q0, velocity_limits=v_max,
-                acceleration_limit="dynamics", torque_limits="urdf",
+                acceleration_limit="dynamics", torque_limits="urdf", end_at_rest=end_at_rest,
             )  # fmt: skip
             cache[key] = (bound.duration_s, "")
         except (DQControlError, ValueError, RuntimeError) as exc:  # toppra's own failures too
@@ -170,7 +173,7 @@ def run_arms_case(case: ArmsCase, study: Study, save_dir: str | None = None) -> 
     )  # fmt: skip
     result = run.result
     ratio, joint = _torque_ratio(robot, result.log)
-    bound_s, bound_note = _bound_s(robot, trajectory, q0, v_max)
+    bound_s, bound_note = _bound_s(robot, trajectory, q0, v_max, controller.ends_at_rest)
     samples = result.log.q[: max(result.metrics.samples, 1)]
     contacts = _contacts(robot, samples) if case.simulator == "mujoco" else None
     sigma_min = _smallest_singular_value(robot, samples)

@@ -48,6 +48,12 @@ def circle_bound(lbr4p) -> TimeOptimalBound:
     return _bound(lbr4p, Circle(1.0))
 
 
+@pytest.fixture(scope="module")
+def circle_rest_bound(lbr4p) -> TimeOptimalBound:
+    """The circle at T_tot = 1 s, from rest to rest."""
+    return _bound(lbr4p, Circle(1.0), end_at_rest=True)
+
+
 # ---------------------------------------------------------------------------- joint path
 @pytest.mark.parametrize("fixture", ["circle_bound", "sinusoid_bound"])
 def test_every_sample_reaches_its_target(lbr4p, fixture, request):
@@ -106,6 +112,23 @@ def test_feasible_task_takes_nominal_time_plus_start(lbr4p, acceleration):
     assert bound.active_share["speed_cap"] > 0.999
 
 
+@pytest.mark.parametrize("acceleration", [2.0, 10.0])
+def test_an_end_at_rest_adds_the_braking_ramp(lbr4p, acceleration):
+    """The same slow circle to rest: σ̇ = 1 until a ramp at ``σ̈ = -a / max_j |q_j'(T)|``
+    that loses ``1/(2 u_end)`` at the end, as the start's does."""
+    free = _bound(lbr4p, Circle(8.0), velocity_limits=100.0, acceleration_limit=acceleration)
+    rest = _bound(
+        lbr4p, Circle(8.0), velocity_limits=100.0, acceleration_limit=acceleration,
+        end_at_rest=True,
+    )  # fmt: skip
+    assert rest.settings.end_at_rest and not free.settings.end_at_rest
+    assert rest.sigma_dot[0] == 0.0 and rest.sigma_dot[-1] == 0.0
+    assert free.sigma_dot[-1] == pytest.approx(1.0)
+    u_end = acceleration / np.abs(rest.dq_dsigma[-1]).max()
+    assert rest.duration_s - free.duration_s == pytest.approx(1.0 / (2.0 * u_end), rel=0.05)
+    assert rest.duration_coarse_s >= rest.duration_s
+
+
 @pytest.mark.parametrize("kind", [Circle, Sinusoid])
 def test_velocity_bound_task_follows_the_velocity_curve(lbr4p, kind):
     """Only joint velocities bind: ``σ̇(σ) = min_j v / |q_j'(σ)|`` (from rest at σ = 0)."""
@@ -121,7 +144,7 @@ def test_velocity_bound_task_follows_the_velocity_curve(lbr4p, kind):
     assert bound.active_share["velocity"] > 0.99
 
 
-@pytest.mark.parametrize("fixture", ["circle_bound", "sinusoid_bound"])
+@pytest.mark.parametrize("fixture", ["circle_bound", "sinusoid_bound", "circle_rest_bound"])
 def test_profile_meets_every_limit(fixture, request):
     """Re-integrate the returned profile and check it against the limits."""
     bound = request.getfixturevalue(fixture)

@@ -35,8 +35,10 @@ def test_the_reduced_study_meets_its_goals(arm, task):
 
     cases = study_cases(study)
     assert len(cases) == 6 and all(isinstance(c, ArmsCase) for c in cases)
+    bounds = {}
     for case in cases:
         result = run_arms_case(case, study)
+        bounds[case.controller] = result["bound_s"]
         m = result["metrics"]
         assert goal_misses(result) == [], (case.name, table_row(result))
         assert m["position_violations"] == m["velocity_violations"] == 0
@@ -44,3 +46,6 @@ def test_the_reduced_study_meets_its_goals(arm, task):
         if case.controller == "pf":
             assert m["path_deviation_max_m"] <= 0.1e-3
             assert result["between_deviation_max_m"] >= m["path_deviation_max_m"]
+    # the path-following controller ends at rest, and so does its bound; the others' ends
+    # are free
+    assert bounds["pf"] > bounds["local"] == bounds["p10"]
