@@ -61,8 +61,8 @@ class PredictedPositionLimit(Limit):
         self.layout = layout
         self.jerk_max = jerk_max
         self.reach_rad = None if reach_rad is None else np.asarray(reach_rad, dtype=float)
-        self.q_min = np.asarray(q_min, dtype=float)
-        self.q_max = np.asarray(q_max, dtype=float)
+        self.q_min = np.array(q_min, dtype=float)  # its own: set_bounds moves them
+        self.q_max = np.array(q_max, dtype=float)
         self.qd_max = np.asarray(qd_max, dtype=float)
         self.terminal = bool(terminal)
         p = layout.num_blocks
@@ -89,6 +89,15 @@ class PredictedPositionLimit(Limit):
             reach_rad=self.reach_rad,
             jerk_max=self.jerk_max,
         )
+
+    def set_bounds(self, q_min: np.ndarray, q_max: np.ndarray) -> None:
+        """Move the position bounds [rad] (the rows stay; e.g. a servo's measured lag,
+        :class:`~dqcontrol.controllers.limits.servo_lag.ServoLagMargin`)."""
+        self.q_min[:] = q_min
+        self.q_max[:] = q_max
+        p = self.layout.num_blocks
+        self._q_min_tiled.reshape(p, -1)[:] = self.q_min
+        self._q_max_tiled.reshape(p, -1)[:] = self.q_max
 
     def _matrix(self, weights: np.ndarray) -> np.ndarray:
         """Rows ``q_i = Σ_j W_ij qd_j`` as a ``(p n, len(z))`` matrix (cached per ``W``)."""

@@ -63,11 +63,14 @@ class ServoLagMargin:
         self.a_min = EXCITATION * np.broadcast_to(np.asarray(a_max, dtype=float), self.q_min.shape)
         self.reset()
 
-    def restore(self, values: np.ndarray) -> None:
-        """Put the margin's bounds back into ``values`` (if moved) and forget the lag."""
-        if self._margin_bounds is not None:
+    def restore(self, values: np.ndarray) -> bool:
+        """Put the margin's bounds back into ``values`` (if moved) and forget the lag; whether
+        they had moved."""
+        moved = self._margin_bounds is not None
+        if moved:
             values[:2] = self._margin_bounds
         self.reset()
+        return moved
 
     def reset(self) -> None:
         """Forget the identified lag and the commands."""
@@ -80,15 +83,16 @@ class ServoLagMargin:
         self._samples = np.full((SAMPLES, n), -np.inf)  # a ring, oldest at ``_head``
         self._head = 0
 
-    def update(self, qd_meas: np.ndarray | None, qd_cmd: np.ndarray, values: np.ndarray) -> None:
+    def update(self, qd_meas: np.ndarray | None, qd_cmd: np.ndarray, values: np.ndarray) -> bool:
         """One step: ``qd_meas`` measured now, ``qd_cmd`` the command held over the last
         period; the bounds written into ``values`` (``[q_min; q_max; qd_max]``, in place)
-        where the lag's travel exceeds the margin."""
+        where the lag's travel exceeds the margin. Whether they were written (moved, or put
+        back to the margin's)."""
         before, self._last, self._spare = self._last, self._spare, self._last
         self._last[:] = qd_cmd
         had_before, self._has_before = self._has_before, True
         if qd_meas is None:
-            return
+            return False
         exceeds = lag_samples_into(
             qd_meas, qd_cmd, before, had_before, self.period_s, self.a_min, self._samples,
             self._head, self.tau_s, TAU_CAP_S, self.margin_rad,
@@ -98,7 +102,8 @@ class ServoLagMargin:
             if self._margin_bounds is not None:  # back to the margin's bounds, as given
                 values[:2] = self._margin_bounds
                 self._margin_bounds = None
-            return
+                return True
+            return False
         travel = self.tau_s * np.abs(qd_meas)
         if self._margin_bounds is None:
             self._margin_bounds = values[:2].copy()
@@ -106,6 +111,7 @@ class ServoLagMargin:
         towards_min = np.where(qd_meas < 0.0, travel, 0.0)
         values[0] = np.maximum(self._margin_bounds[0], self.q_min + towards_min)
         values[1] = np.minimum(self._margin_bounds[1], self.q_max - towards_max)
+        return True
 
 
 @compiled

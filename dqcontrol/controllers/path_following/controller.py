@@ -43,6 +43,7 @@ from dqcontrol.controllers.limits.phase_end import PhaseEndLimit
 from dqcontrol.controllers.limits.phase_rest import PhaseRestLimit
 from dqcontrol.controllers.limits.predicted_position import PredictedPositionLimit
 from dqcontrol.controllers.limits.scaling_range import ScalingRange
+from dqcontrol.controllers.limits.servo_lag import ServoLagMargin
 from dqcontrol.controllers.limits.torque import TorqueLimit
 from dqcontrol.controllers.limits.trust_region import TrustRegionLimit
 from dqcontrol.controllers.limits.velocity import VelocityLimit
@@ -247,6 +248,7 @@ class PathFollowingController(QPController):
         prediction = self.prediction_model
         limits = self._limits() + self._end_limits(end) + tuple(extra_limits)
         self.compose(prediction, levels, limits, solver, solver_settings, self.s_max)
+        self._set_servo_lag()
         self._reset_state()
 
     # ------------------------------------------------------------------ composition
@@ -282,6 +284,18 @@ class PathFollowingController(QPController):
             breaks, self.n, self.period_s, self.s_max, lag_s
         )
         self.layout = self.prediction_model.layout
+
+    def _set_servo_lag(self) -> None:
+        """The position rows' bounds moved by the servo's measured lag, as the thesis's
+        controllers' are (:class:`~dqcontrol.controllers.limits.servo_lag.ServoLagMargin`;
+        docs/theory.md §8.7)."""
+        lim = self.robot.limits
+        self._positions = next(x for x in self.limits if isinstance(x, PredictedPositionLimit))
+        self._position_bounds = np.vstack([self.q_min, self.q_max, self.qd_max])
+        a_max = np.full(self.n, 10.0) if self.a_const is None else self.a_const
+        self._servo_lag = ServoLagMargin(
+            lim.q_min, lim.q_max, self.position_margin_rad, self.period_s, a_max
+        )
 
     def _set_acceleration(self, acceleration_limit, floor: float, cap: float) -> None:
         self.dynamic_acceleration = isinstance(acceleration_limit, str)
@@ -444,6 +458,8 @@ class PathFollowingController(QPController):
 
     def _reset_memory(self, q0: np.ndarray, qd0: np.ndarray) -> None:
         super()._reset_memory(q0, qd0)
+        if self._servo_lag.restore(self._position_bounds):
+            self._positions.set_bounds(*self._position_bounds[:2])
         ref = self._posture_reference
         if isinstance(ref, str):
             if ref != "start":
@@ -459,6 +475,12 @@ class PathFollowingController(QPController):
 
     # ------------------------------------------------------------------ one step
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        """The step, the position rows' bounds first moved by the servo's measured lag
+        (not with a compensated measurement delay, whose measured velocity is older than
+        the command)."""
+        measured = None if self.measurement_delay_periods else qd
+        if self._servo_lag.update(measured, self.qd_prev, self._position_bounds):
+            self._positions.set_bounds(*self._position_bounds[:2])
         with single_blas_thread():  # the dense levels' products and factorisations
             return super()._step(q, qd)
 

@@ -41,3 +41,24 @@ def test_predicted_position_rows_are_the_reachable_ones(seed, terminal):
         assert np.array_equal(g.C, full[name].C[mask])
         assert np.array_equal(g.lower, full[name].lower[mask])
         assert np.array_equal(g.upper, full[name].upper[mask])
+
+
+def test_set_bounds_moves_the_rows_bounds_and_nothing_else():
+    model, pred, rng = consistent_prediction(3)
+    p, n = pred.q_lin.shape
+    q_min, q_max = -np.full(n, 1.0), np.full(n, 1.0)
+    qd_max, a_max = np.full(n, 1.5), np.full((p, n), 3.0)
+    limit = PredictedPositionLimit(model.layout, q_min, q_max, qd_max)
+    ctx = PredictionContext(pred, a_max)
+    before = {g.name: g for g in limit.rows(ctx)}
+    shift = rng.uniform(0.0, 0.1, n)
+    limit.set_bounds(q_min + shift, q_max - shift)
+    assert np.array_equal(q_min, -np.ones(n)) and np.array_equal(q_max, np.ones(n))  # theirs
+    moved = {g.name: g for g in limit.rows(ctx)}
+    fresh = {g.name: g for g in PredictedPositionLimit(
+        model.layout, q_min + shift, q_max - shift, qd_max
+    ).rows(ctx)}  # fmt: skip
+    for name, g in moved.items():
+        assert g.C is before[name].C or np.array_equal(g.C, before[name].C)  # the rows stay
+        assert np.array_equal(g.lower, fresh[name].lower)
+        assert np.array_equal(g.upper, fresh[name].upper)

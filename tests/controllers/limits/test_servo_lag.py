@@ -69,8 +69,24 @@ def test_restore_gives_the_margin_bounds_back():
     before = values.copy()
     _ramp(lag, values, 30, 10.0, 0.19)
     assert not np.array_equal(values, before)
-    lag.restore(values)
+    assert lag.restore(values) is True
     assert np.array_equal(values, before) and np.all(lag.tau_s == 0.0)
+    assert lag.restore(values) is False  # nothing had moved
+
+
+def test_an_update_says_whether_it_wrote_the_bounds():
+    lag, values = _margin()
+    cmd = np.zeros(2)
+    said = []
+    for k in range(40):
+        behind = 0.19 if k < 30 else 0.0
+        said.append(lag.update(cmd - behind, cmd, values))
+        cmd = cmd + (10.0 * T if k < 30 else 0.0)
+    assert lag.update(None, cmd, values) is False  # nothing measured: nothing written
+    first = said.index(True)  # the bound moves once the lag's travel exceeds the margin
+    assert not any(said[:first]) and all(said[first:30])
+    lag.update(np.zeros(2), np.zeros(2), values)  # at rest: back to the margin's
+    assert lag.update(np.zeros(2), np.zeros(2), values) is False  # already there
 
 
 @pytest.mark.parametrize("name", ["local", "proportional"])
