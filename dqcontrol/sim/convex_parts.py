@@ -12,9 +12,12 @@ little space the mesh does not.
 
 A decomposition takes a second or a few a mesh. The meshes of a robot are decomposed
 together, each in a process of its own (as many at a time as there are cores), each given
-:data:`TIME_LIMIT_S`; a mesh that takes longer, or whose decomposition fails, is left whole
-with a warning that names it. The outcome is kept on disk (:func:`cache_dir`), keyed by the
-mesh file's bytes, its scale and the settings, so a robot is decomposed once per machine.
+:data:`TIME_LIMIT_S` of processor time (not of wall time: a loaded machine slows it, and
+the outcome stays the machine's, not the moment's); a mesh that takes longer, or whose
+decomposition fails, is left whole with a warning that names it. The processes run at a
+lower priority (``nice`` 10), so that a control loop beside them keeps its cores. The
+outcome is kept on disk (:func:`cache_dir`), keyed by the mesh file's bytes, its scale and
+the settings, so a robot is decomposed once per machine.
 A mesh close enough to convex is left as it is (``None``), so its simulation is exactly
 what it was.
 """
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import subprocess
 import sys
@@ -39,6 +43,7 @@ __all__ = [
     "COACD_SETTINGS",
     "HULL_EXCESS",
     "TIME_LIMIT_S",
+    "WALL_LIMIT_S",
     "cache_dir",
     "convex_parts",
     "hull_excess",
@@ -59,12 +64,18 @@ COACD_SETTINGS: dict[str, object] = {
     "mcts_nodes": 8,
     "seed": 0,
 }
-#: The longest a mesh's decomposition may take [s] before the mesh is left whole.
+#: The processor time [s] a mesh's decomposition may take before the mesh is left whole.
 TIME_LIMIT_S = 60.0
+#: The wall time [s] after which a decomposition is stopped whatever its processor time
+#: (the mesh is left whole for this model, and tried again for the next).
+WALL_LIMIT_S = 600.0
 #: The environment variable naming the folder the parts are kept in.
 CACHE_ENV = "DQCONTROL_CACHE_DIR"
-#: What a decomposition's process runs (its arguments: the mesh, its scale, the output).
-_CHILD = "import sys; from dqcontrol.sim.convex_parts import _main; _main(sys.argv[1:])"
+#: What a decomposition's process runs (its arguments: the mesh, its scale, the output), at
+#: a lower priority: a control loop on the same machine keeps its cores.
+_CHILD = (
+    "import os, sys; os.nice(10); from dqcontrol.sim.convex_parts import _main; _main(sys.argv[1:])"
+)
 #: The count kept for a mesh left whole because its decomposition failed or took too long.
 _GAVE_UP = -1
 
@@ -97,7 +108,8 @@ def mesh_arrays(path: Path, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def hull_excess(vertices: np.ndarray, triangles: np.ndarray) -> float:
     """How much larger the hull's volume is than the mesh's, as a share of the mesh's
-    (``inf`` for a mesh that encloses no volume: an open or flat one)."""
+    (``inf`` for an open mesh, which encloses almost no volume; 0 for a flat one, whose hull
+    has none to add)."""
     from scipy.spatial import ConvexHull, QhullError
 
     a, b, c = (vertices[triangles[:, k]] for k in range(3))
@@ -129,18 +141,20 @@ def convex_parts(meshes: Sequence[tuple[Path, np.ndarray]]) -> list[Parts | None
             todo.append(i)
     if todo:
         done = _decompose([meshes[i] for i in todo], [keys[i] for i in todo])
-        for i, parts in zip(todo, done, strict=True):
+        for i, (parts, why) in zip(todo, done, strict=True):
             if parts is None:
-                _warn_given_up(str(meshes[i][0]), keys[i])
+                _warn_whole(str(meshes[i][0]), why)
             found[i] = parts
     return [parts or None for parts in found]
 
 
-def _decompose(meshes: Sequence[tuple[Path, np.ndarray]], keys: list[str]) -> list[Parts | None]:
-    """The parts of ``meshes`` (``None``: given up on), each decomposed in a process of its
-    own, as many at a time as there are cores, each within :data:`TIME_LIMIT_S`; each
-    outcome kept under its key. An interrupt stops the processes."""
-    outcome: dict[str, Parts | None] = {}
+def _decompose(
+    meshes: Sequence[tuple[Path, np.ndarray]], keys: list[str]
+) -> list[tuple[Parts | None, str]]:
+    """The parts of ``meshes`` (``None``: left whole, and why), each decomposed in a process
+    of its own, as many at a time as there are cores; each outcome kept under its key but
+    for one stopped at :data:`WALL_LIMIT_S`. An interrupt stops the processes."""
+    outcome: dict[str, tuple[Parts | None, str]] = {}
     waiting = list(zip(meshes, keys, strict=True))
     running: list[tuple[subprocess.Popen, str, float, Path]] = []
     with tempfile.TemporaryDirectory() as folder:
@@ -153,14 +167,12 @@ def _decompose(meshes: Sequence[tuple[Path, np.ndarray]], keys: list[str]) -> li
                 time.sleep(0.02)
                 for entry in list(running):
                     job, key, start, out = entry
-                    late = time.monotonic() - start > TIME_LIMIT_S
+                    late = time.monotonic() - start > WALL_LIMIT_S
                     if job.poll() is None and not late:
                         continue
                     running.remove(entry)
                     job.kill()  # nothing to stop if it has ended
-                    loaded = _load(out) if job.wait() == 0 else None
-                    outcome[key] = None if loaded is None or loaded[0] < 0 else loaded[1]
-                    _write(key, outcome[key])
+                    outcome[key] = _outcome(job.wait(), out, late, key)
         finally:
             for job, *_ in running:
                 job.kill()
@@ -168,10 +180,23 @@ def _decompose(meshes: Sequence[tuple[Path, np.ndarray]], keys: list[str]) -> li
     return [outcome[key] for key in keys]
 
 
+def _outcome(code: int, out: Path, late: bool, key: str) -> tuple[Parts | None, str]:
+    """A finished decomposition's parts (kept under ``key``, unless stopped ``late``), or
+    ``None`` and why."""
+    if late:
+        return None, f"it was stopped after {WALL_LIMIT_S:g} s of wall time (tried again later)"
+    loaded = _load(out) if code == 0 else None
+    parts = None if loaded is None or loaded[0] < 0 else loaded[1]
+    _write(key, parts)
+    return parts, "" if parts is not None else _given_up(key)
+
+
 def _start(path: Path, scale: np.ndarray, out: Path) -> subprocess.Popen:
-    """A process that decomposes the mesh at ``path`` (``scale``) into ``out``."""
+    """A process that decomposes the mesh at ``path`` (``scale``) into ``out``, within
+    :data:`TIME_LIMIT_S` of processor time."""
     sizes = [repr(float(x)) for x in np.asarray(scale, dtype=float)]
-    command = [sys.executable, "-c", _CHILD, str(Path(path)), *sizes, str(out)]
+    limit = repr(float(TIME_LIMIT_S))
+    command = [sys.executable, "-c", _CHILD, str(Path(path)), *sizes, str(out), limit]
     return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
@@ -216,15 +241,20 @@ def _read(key: str, name: str) -> Parts | None:
         return None
     count, parts = loaded
     if count == _GAVE_UP:
-        _warn_given_up(name, key)
+        _warn_whole(name, _given_up(key))
     return parts
 
 
-def _warn_given_up(name: str, key: str) -> None:
+def _given_up(key: str) -> str:
+    return (
+        f"its decomposition failed or took more than {TIME_LIMIT_S:g} s of processor time "
+        f"(delete {_file(key)} to try again)"
+    )
+
+
+def _warn_whole(name: str, why: str) -> None:
     warnings.warn(
-        f"collision mesh {name}: its convex decomposition failed or took longer than "
-        f"{TIME_LIMIT_S:g} s; MuJoCo collides its convex hull (delete {_file(key)} to try "
-        "again)",
+        f"collision mesh {name} is left whole (MuJoCo collides its convex hull): {why}",
         stacklevel=4,
     )
 
@@ -248,8 +278,19 @@ def _write_file(target: Path, parts: Parts | None) -> None:
 
 
 def _main(argv: list[str]) -> None:
-    """One decomposition, in a process of its own: ``MESH SX SY SZ OUT.npz``."""
+    """One decomposition, in a process of its own: ``MESH SX SY SZ OUT.npz LIMIT_S``, at a
+    lower priority and within ``LIMIT_S`` of processor time (where the system has process
+    limits; elsewhere :data:`WALL_LIMIT_S` holds)."""
     from dqcontrol.extras import require
+
+    os.nice(10)
+    try:
+        import resource
+
+        limit = int(math.ceil(float(argv[5])))
+        resource.setrlimit(resource.RLIMIT_CPU, (limit, limit))
+    except (ImportError, ValueError, OSError):
+        pass
 
     coacd = require("coacd", extra="sim", purpose="the convex parts of a concave mesh")
     path, scale, out = Path(argv[0]), np.array([float(s) for s in argv[1:4]]), Path(argv[4])

@@ -137,11 +137,21 @@ def test_the_meshes_of_a_robot_are_decomposed_together(tmp_path):
 
 
 def test_a_decomposition_past_the_time_limit_leaves_the_mesh_whole(tmp_path, monkeypatch):
-    monkeypatch.setattr(cp, "TIME_LIMIT_S", 0.0)
+    monkeypatch.setattr(cp, "TIME_LIMIT_S", 0.0)  # no processor time at all
     path = _mesh(tmp_path, L_SHAPE)
-    with pytest.warns(UserWarning, match=r"l.stl|mesh.stl.*took longer than 0 s"):
+    with pytest.warns(UserWarning, match=r"mesh\.stl is left whole.*more than 0 s"):
         assert _parts(path) is None
     # remembered: not tried again, and said again
     monkeypatch.setattr(cp, "_decompose", lambda *a: pytest.fail("tried again"))
     with pytest.warns(UserWarning, match="convex hull"):
         assert _parts(path) is None
+
+
+def test_a_decomposition_stopped_on_the_wall_clock_is_tried_again(tmp_path, monkeypatch):
+    monkeypatch.setattr(cp, "WALL_LIMIT_S", 0.0)
+    path = _mesh(tmp_path, L_SHAPE)
+    with pytest.warns(UserWarning, match="wall time"):
+        assert _parts(path) is None
+    monkeypatch.setattr(cp, "WALL_LIMIT_S", 600.0)
+    parts = _parts(path)  # nothing was kept: decomposed now
+    assert parts is not None and len(parts) >= 2
