@@ -38,6 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dqcontrol.extras import require
+
 __all__ = [
     "CACHE_ENV",
     "COACD_SETTINGS",
@@ -140,6 +142,7 @@ def convex_parts(meshes: Sequence[tuple[Path, np.ndarray]]) -> list[Parts | None
         else:
             todo.append(i)
     if todo:
+        require("coacd", extra="sim", purpose="the convex parts of a concave collision mesh")
         done = _decompose([meshes[i] for i in todo], [keys[i] for i in todo])
         for i, (parts, why) in zip(todo, done, strict=True):
             if parts is None:
@@ -281,9 +284,8 @@ def _main(argv: list[str]) -> None:
     """One decomposition, in a process of its own: ``MESH SX SY SZ OUT.npz LIMIT_S``, at a
     lower priority and within ``LIMIT_S`` of processor time (where the system has process
     limits; elsewhere :data:`WALL_LIMIT_S` holds)."""
-    from dqcontrol.extras import require
-
-    os.nice(10)
+    if hasattr(os, "nice"):  # not on Windows
+        os.nice(10)
     try:
         import resource
 
@@ -292,7 +294,7 @@ def _main(argv: list[str]) -> None:
     except (ImportError, ValueError, OSError):
         pass
 
-    coacd = require("coacd", extra="sim", purpose="the convex parts of a concave mesh")
+    coacd = require("coacd", extra="sim", purpose="the convex parts of a concave collision mesh")
     path, scale, out = Path(argv[0]), np.array([float(s) for s in argv[1:4]]), Path(argv[4])
     vertices, triangles = mesh_arrays(path, scale)
     coacd.set_log_level("error")

@@ -155,3 +155,15 @@ def test_a_decomposition_stopped_on_the_wall_clock_is_tried_again(tmp_path, monk
     monkeypatch.setattr(cp, "WALL_LIMIT_S", 600.0)
     parts = _parts(path)  # nothing was kept: decomposed now
     assert parts is not None and len(parts) >= 2
+
+
+def test_without_coacd_a_concave_mesh_asks_for_the_sim_extra(tmp_path, monkeypatch):
+    from dqcontrol.errors import MissingExtraError
+
+    def missing(module, *, extra, purpose):
+        raise MissingExtraError(f"{purpose} needs {module} ([{extra}] extra)")
+
+    monkeypatch.setattr(cp, "require", missing)
+    with pytest.raises(MissingExtraError, match=r"coacd \(\[sim\] extra\)"):
+        _parts(_mesh(tmp_path, L_SHAPE))
+    assert _parts(_mesh(tmp_path, CUBE, "cube.stl")) is None  # a convex one needs nothing
