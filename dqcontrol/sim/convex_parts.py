@@ -73,11 +73,9 @@ TIME_LIMIT_S = 60.0
 WALL_LIMIT_S = 600.0
 #: The environment variable naming the folder the parts are kept in.
 CACHE_ENV = "DQCONTROL_CACHE_DIR"
-#: What a decomposition's process runs (its arguments: the mesh, its scale, the output), at
-#: a lower priority: a control loop on the same machine keeps its cores.
-_CHILD = (
-    "import os, sys; os.nice(10); from dqcontrol.sim.convex_parts import _main; _main(sys.argv[1:])"
-)
+#: What a decomposition's process runs (:func:`_main`; its arguments: the mesh, its scale,
+#: the output, the processor time allowed).
+_CHILD = "import sys; from dqcontrol.sim.convex_parts import _main; _main(sys.argv[1:])"
 #: The count kept for a mesh left whole because its decomposition failed or took too long.
 _GAVE_UP = -1
 
