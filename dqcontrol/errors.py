@@ -36,3 +36,20 @@ class SolverError(DQControlError):
 class MissingExtraError(DQControlError, ImportError):
     """An optional dependency is not installed; the message names the extra that brings it
     (``pip install 'dqcontrol[sim]'``)."""
+
+
+def user_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is the user's interrupt: a :class:`KeyboardInterrupt` (Ctrl-C, or a
+    termination signal a handler turns into one), or an error that wraps one. A signal's
+    handler runs in whatever Python code the main thread is in; where that is a callback of
+    compiled code (Numba fetching a constant while it returns an array), the interrupt comes
+    back as a ``SystemError`` whose cause is the :class:`KeyboardInterrupt`, and a loop that
+    waited for the interrupt alone would end without braking or saving its run."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False

@@ -65,3 +65,29 @@ def test_solver_and_urdf_errors_are_not_value_errors():
     """Callers that catch ValueError for bad arguments must not swallow these."""
     for cls in (SolverError, URDFError):
         assert not issubclass(cls, ValueError | KeyError | ImportError)
+
+
+def test_user_interrupt_finds_the_interrupt_behind_a_wrapped_error():
+    from dqcontrol.errors import user_interrupt
+
+    assert user_interrupt(KeyboardInterrupt())
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as inner:
+            raise SystemError("returned a result with an exception set") from inner
+    except SystemError as exc:
+        wrapped = exc
+    assert user_interrupt(wrapped)
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("during handling") from None  # context kept, cause suppressed
+    except SystemError as exc:
+        assert user_interrupt(exc)
+    assert not user_interrupt(SystemError("a real one"))
+    assert not user_interrupt(ValueError("x"))
+    looped = SystemError("a cycle")
+    looped.__context__ = looped
+    assert not user_interrupt(looped)

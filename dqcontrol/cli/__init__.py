@@ -14,7 +14,7 @@ import pkgutil
 import sys
 
 from dqcontrol import __version__
-from dqcontrol.errors import DQControlError
+from dqcontrol.errors import DQControlError, user_interrupt
 
 __all__ = ["build_parser", "main"]
 
@@ -49,6 +49,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dqcontrol {args.command}: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
+        print(f"dqcontrol {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except SystemError as exc:  # an interrupt that came through compiled code
+        if not user_interrupt(exc):
+            raise
         print(f"dqcontrol {args.command}: interrupted", file=sys.stderr)
         return 130
 

@@ -52,7 +52,7 @@ from dqcontrol._gc import young_gc_only
 from dqcontrol.controllers.base import Controller, StepResult, check_positive
 from dqcontrol.controllers.stop_delegate import END_HANDOVER_ERROR_M, EndLead
 from dqcontrol.dq.algebra import translation
-from dqcontrol.errors import DQControlError, ParameterError
+from dqcontrol.errors import DQControlError, ParameterError, user_interrupt
 from dqcontrol.runs.bounds import bounds_of
 from dqcontrol.runs.contacts import RunContacts
 from dqcontrol.runs.log import LogRecorder, RunLog
@@ -583,6 +583,10 @@ class _Samples:
         try:
             self._loop(num, stale_periods, on_sample, on_progress)
         except KeyboardInterrupt:
+            self._stop("user", f"interrupted by the user after {len(self.rec)} samples")
+        except SystemError as exc:  # an interrupt that came through compiled code
+            if not user_interrupt(exc):
+                raise
             self._stop("user", f"interrupted by the user after {len(self.rec)} samples")
         except RunLogWriteError as exc:
             self._stop("log", f"stopped after {len(self.rec)} samples: {exc}")

@@ -24,7 +24,7 @@ import numpy as np
 
 from dqcontrol.controllers.base import StepResult
 from dqcontrol.dq.algebra import translation
-from dqcontrol.errors import DQControlError
+from dqcontrol.errors import DQControlError, user_interrupt
 from dqcontrol.runs.mcap_log import RunLogWriteError
 from dqcontrol.sim.jerk_brake import jerk_brake_command
 
@@ -120,6 +120,10 @@ def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathSto
                 return out
         out.ramp = f"not at rest after {MAX_STOP_S:g} s of stop: joint-space ramp"
     except KeyboardInterrupt:
+        out.ramp = "interrupted again during the stop: joint-space ramp"
+    except SystemError as exc:  # an interrupt that came through compiled code
+        if not user_interrupt(exc):
+            raise
         out.ramp = "interrupted again during the stop: joint-space ramp"
     except DQControlError as exc:
         out.ramp = f"driver error during the stop ({exc}): joint-space ramp"

@@ -153,6 +153,40 @@ def test_ctrl_c_brakes_and_holds_and_keeps_the_samples(lbr4p):
     assert res.log.meta["stop"]["stop_periods"] == len(writes) - 7 == len(res.log) - 7
 
 
+def _interrupt_through_compiled_code():
+    """What an interrupt looks like when its signal handler ran inside a callback of
+    compiled code: a ``SystemError`` whose cause is the ``KeyboardInterrupt``."""
+    try:
+        raise KeyboardInterrupt
+    except KeyboardInterrupt as exc:
+        raise SystemError("<function _numba_unpickle> returned a result with an exception") from exc
+
+
+def test_an_interrupt_through_compiled_code_brakes_and_keeps_the_samples(lbr4p):
+    ctrl = ProportionalController(lbr4p, Circle(1.0), 0.05, acceleration_limit=4.0)
+    drv = Recording(KinematicDriver(lbr4p, 0.05))
+
+    def interrupt(k, _driver, _result):
+        if k == 6:
+            _interrupt_through_compiled_code()
+
+    res = run_loop(ctrl, drv, q0=LBR4P_Q0, on_sample=interrupt)
+    assert res.reason == "user" and _task(res.log) == 7
+    writes = np.array([u for c, u in drv.calls if c == "write"])
+    assert not writes[-1].any() and drv.calls[-1] == ("hold", None)
+
+
+def test_a_system_error_that_is_not_an_interrupt_is_raised(lbr4p):
+    ctrl = ProportionalController(lbr4p, Circle(1.0), 0.05, acceleration_limit=4.0)
+
+    def fail(k, _driver, _result):
+        if k == 3:
+            raise SystemError("a real one")
+
+    with pytest.raises(SystemError, match="a real one"):
+        run_loop(ctrl, KinematicDriver(lbr4p, 0.05), q0=LBR4P_Q0, on_sample=fail)
+
+
 def test_the_end_of_the_task_brakes_after_the_log(lbr4p):
     free = run_kinematic(LocalController(lbr4p, Circle(1.0), 0.05), LBR4P_Q0)
     drv = Recording(KinematicDriver(lbr4p, 0.05))
