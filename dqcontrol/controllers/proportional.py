@@ -178,6 +178,7 @@ class ProportionalController(Controller):
         self.braking_aware = bool(braking_aware)
         self.saturate = bool(saturate)
         self._damping_eye = self.damping**2 * np.eye(8)
+        self._jacobian = np.empty((8, self.n))  # filled at each step
         # the box: a_max and braking_aware are taken at construction (as before); q_min,
         # q_max, qd_max and T are read at every step, and the constants that depend on
         # qd_max and T rebuilt when they change
@@ -234,7 +235,8 @@ class ProportionalController(Controller):
 
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
-        x, jac = self.robot._pose_and_jacobian(q)
+        x, jac = np.empty(8), self._jacobian  # the pose is the result's: a new array a step
+        self.robot._pose_and_jacobian_into(q, x, jac)
         sigma = self.sigma
         pair = self.trajectory.target_pair(sigma)  # [x_d; dx_d/dσ], s = 1: d/dt = d/dσ
         xd = pair[0]

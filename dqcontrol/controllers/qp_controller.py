@@ -252,11 +252,12 @@ class QPController(Controller):
         stay the same objects from step to step (views of one buffer), refilled by one
         compiled call; the fresh pose and target pair are kept for the result."""
         sigma = self.sigma
-        x, jac = self._fast.pose_and_jacobian(q)
-        pair = self.trajectory.target_pair(sigma)
         ctx = self._ctx
         if ctx is None:
             ctx = self._ctx = self._one_block_context(q, sigma)
+        x, jac = np.empty(8), self._jacobian  # the pose is the result's: a new array a step
+        self._fast.pose_and_jacobian_into(q, x, jac)
+        pair = self.trajectory.target_pair(sigma)
         measured_state(x, jac, pair, q, sigma, self._state)
         ctx.period_s = self.period_s
         ctx.q = q
@@ -270,6 +271,7 @@ class QPController(Controller):
 
     def _one_block_context(self, q: np.ndarray, sigma: float) -> StepContext:
         n = self.n
+        self._jacobian = np.empty((8, n))  # filled at each step, copied into the state
         state = self._state = np.zeros(8 + 8 * n + 16 + n + 1)
         o = 8 + 8 * n
         poses, jacs = state[:8].reshape(1, 8), state[8:o].reshape(1, 8, n)

@@ -23,13 +23,18 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["pose_from_xyzquat", "pose_jacobian_batch", "pose_jacobian_from_xyzquat"]
+__all__ = [
+    "pose_from_xyzquat",
+    "pose_jacobian_batch",
+    "pose_jacobian_from_xyzquat",
+    "pose_jacobian_into",
+]
 
 _NO_COLUMNS = (np.zeros((6, 0)), np.zeros((8, 0)))
 
 
 @compiled
-def _fill(v: np.ndarray, j6: np.ndarray, x: np.ndarray, jac: np.ndarray) -> None:
+def pose_jacobian_into(v: np.ndarray, j6: np.ndarray, x: np.ndarray, jac: np.ndarray) -> None:
     """Write ``vec8`` of the XYZQUAT ``v`` into ``x`` (8,) and its pose Jacobian into
     ``jac`` (8, n), ``j6`` the (6, n) LOCAL_WORLD_ALIGNED frame Jacobian."""
     tx, ty, tz = v[0], v[1], v[2]
@@ -70,7 +75,7 @@ def pose_jacobian_from_xyzquat(v: np.ndarray, j6: np.ndarray) -> tuple[np.ndarra
     frame (7,) and its (6, n) ``LOCAL_WORLD_ALIGNED`` frame Jacobian; new arrays."""
     x = np.empty(8)
     jac = np.empty((8, j6.shape[1]))
-    _fill(v, j6, x, jac)
+    pose_jacobian_into(v, j6, x, jac)
     return x, jac
 
 
@@ -78,7 +83,7 @@ def pose_from_xyzquat(v: np.ndarray) -> np.ndarray:
     """``vec8`` (8,) of Pinocchio's ``SE3ToXYZQUAT`` of a frame (7,), as
     :func:`pose_jacobian_from_xyzquat` gives it; a new array."""
     x = np.empty(8)
-    _fill(v, _NO_COLUMNS[0], x, _NO_COLUMNS[1])
+    pose_jacobian_into(v, _NO_COLUMNS[0], x, _NO_COLUMNS[1])
     return x
 
 
@@ -90,5 +95,5 @@ def pose_jacobian_batch(vs: np.ndarray, j6s: np.ndarray) -> tuple[np.ndarray, np
     xs = np.empty((count, 8))
     jacs = np.empty((count, 8, j6s.shape[2]))
     for i in range(count):
-        _fill(vs[i], j6s[i], xs[i], jacs[i])
+        pose_jacobian_into(vs[i], j6s[i], xs[i], jacs[i])
     return xs, jacs

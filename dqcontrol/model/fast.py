@@ -2,7 +2,8 @@
 
 The checked methods of :class:`~dqcontrol.model.robot.RobotModel` validate every joint
 vector (shape, NaN/inf) and return fresh copies; a controller that has already checked its
-inputs calls these instead. Each returns fresh arrays the caller may modify.
+inputs calls these instead. Each returns fresh arrays the caller may modify (the ``_into``
+methods write into the caller's instead).
 """
 
 from __future__ import annotations
@@ -28,6 +29,11 @@ class UncheckedModel:
     def pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pose ``vec8`` (8,) and pose Jacobian (8, n) at ``q``."""
         return self._robot._pose_and_jacobian(q)
+
+    def pose_and_jacobian_into(self, q: np.ndarray, x: np.ndarray, jac: np.ndarray) -> None:
+        """:meth:`pose_and_jacobian` written into ``x`` (8,) and ``jac`` (8, n): no arrays
+        made (each a compiled function returns costs the 1 kHz step about 0.4 µs)."""
+        self._robot._pose_and_jacobian_into(q, x, jac)
 
     def pose(self, q: np.ndarray) -> np.ndarray:
         """Pose ``vec8`` (8,) at ``q`` (the kinematics alone)."""

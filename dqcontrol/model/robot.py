@@ -31,6 +31,7 @@ from dqcontrol.dq.kernels import (
     pose_from_xyzquat,
     pose_jacobian_batch,
     pose_jacobian_from_xyzquat,
+    pose_jacobian_into,
 )
 from dqcontrol.errors import ConfigurationError, FrameError, ParameterError, URDFError
 from dqcontrol.model.chain_batch import ChainBatch
@@ -338,10 +339,18 @@ class RobotModel:
 
     def _pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unchecked hot-path version of :meth:`pose_and_jacobian` (``q`` already valid)."""
+        return pose_jacobian_from_xyzquat(*self._frame_jacobian(q))
+
+    def _pose_and_jacobian_into(self, q: np.ndarray, x: np.ndarray, jac: np.ndarray) -> None:
+        """:meth:`_pose_and_jacobian` written into ``x`` (8,) and ``jac`` (8, n)."""
+        pose_jacobian_into(*self._frame_jacobian(q), x, jac)
+
+    def _frame_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The end-effector's XYZQUAT (7,) and (6, n) ``LOCAL_WORLD_ALIGNED`` Jacobian."""
         j6 = pin.computeFrameJacobian(self.model, self.data, q, self._fid, _LWA)
         if self._one_dof:  # Pinocchio returns a (6,) Jacobian for a one-joint model
             j6 = j6.reshape(6, 1)
-        return pose_jacobian_from_xyzquat(pin.SE3ToXYZQUAT(self._ee_placement), j6)
+        return pin.SE3ToXYZQUAT(self._ee_placement), j6
 
     def poses_and_jacobians(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Batched pose and Jacobian for N configurations: ``(N, 8)`` and ``(N, 8, n)``.

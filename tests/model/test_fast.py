@@ -82,3 +82,28 @@ def test_results_are_fresh_arrays(lbr4p):
     g[:] = 0.0
     m2, g2 = lbr4p.fast.mass_gravity(q)
     assert np.any(m2 != 0.0) and np.any(g2 != 0.0)
+
+
+def test_pose_and_jacobian_into_writes_what_the_call_returns(lbr4p, panda):
+    rng = np.random.default_rng(11)
+    for robot in (lbr4p, panda):
+        x, jac = np.full(8, np.nan), np.full((8, robot.nq), np.nan)
+        for _ in range(20):
+            q = rng.uniform(robot.limits.q_min, robot.limits.q_max)
+            robot.fast.pose_and_jacobian_into(q, x, jac)
+            x_new, jac_new = robot.fast.pose_and_jacobian(q)
+            assert np.array_equal(x, x_new) and np.array_equal(jac, jac_new)
+
+
+def test_the_one_block_controllers_report_a_new_pose_each_step(lbr4p):
+    from dqcontrol.controllers import LocalController, ProportionalController
+    from dqcontrol.trajectories import Circle
+
+    for cls in (LocalController, ProportionalController):
+        controller = cls(lbr4p, Circle(1.0), 0.01)
+        controller.reset(LBR4P_Q0)
+        q = np.array(LBR4P_Q0, dtype=float)
+        first = controller.step(q)
+        kept = first.pose.copy()
+        second = controller.step(q + 0.01 * first.qd_command)
+        assert second.pose is not first.pose and np.array_equal(first.pose, kept)
