@@ -48,10 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     except DQControlError as exc:
         print(f"dqcontrol {args.command}: error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"dqcontrol {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except SystemError as exc:  # an interrupt that came through compiled code
+    except (KeyboardInterrupt, SystemError) as exc:  # SystemError: through compiled code
         if not user_interrupt(exc):
             raise
         print(f"dqcontrol {args.command}: interrupted", file=sys.stderr)

@@ -582,9 +582,7 @@ class _Samples:
     def loop(self, num: int, stale_periods: int, on_sample, on_progress) -> None:
         try:
             self._loop(num, stale_periods, on_sample, on_progress)
-        except KeyboardInterrupt:
-            self._stop("user", f"interrupted by the user after {len(self.rec)} samples")
-        except SystemError as exc:  # an interrupt that came through compiled code
+        except (KeyboardInterrupt, SystemError) as exc:  # SystemError: through compiled code
             if not user_interrupt(exc):
                 raise
             self._stop("user", f"interrupted by the user after {len(self.rec)} samples")

@@ -119,9 +119,7 @@ def stop_along_path(run: _Run, rate: np.ndarray, record: bool = True) -> PathSto
             if out.at_rest:
                 return out
         out.ramp = f"not at rest after {MAX_STOP_S:g} s of stop: joint-space ramp"
-    except KeyboardInterrupt:
-        out.ramp = "interrupted again during the stop: joint-space ramp"
-    except SystemError as exc:  # an interrupt that came through compiled code
+    except (KeyboardInterrupt, SystemError) as exc:  # SystemError: through compiled code
         if not user_interrupt(exc):
             raise
         out.ramp = "interrupted again during the stop: joint-space ramp"

@@ -28,7 +28,14 @@ import numpy as np
 
 from dqcontrol._compiled import compiled
 
-__all__ = ["EXCITATION", "SAMPLES", "TAU_CAP_S", "ServoLagMargin", "lag_samples_into"]
+__all__ = [
+    "DEFAULT_A_MAX",
+    "EXCITATION",
+    "SAMPLES",
+    "TAU_CAP_S",
+    "ServoLagMargin",
+    "lag_samples_into",
+]
 
 #: A command rate of at least this share of ``a_max`` samples the lag.
 EXCITATION = 0.5
@@ -36,6 +43,9 @@ EXCITATION = 0.5
 TAU_CAP_S = 0.1
 #: Consecutive samples that must all show the lag.
 SAMPLES = 3
+#: The acceleration bound [rad/s²] a clear acceleration is judged against where the
+#: controller has no constant one (a dynamics-aware bound changes with the state).
+DEFAULT_A_MAX = 10.0
 
 
 class ServoLagMargin:
@@ -45,7 +55,8 @@ class ServoLagMargin:
         q_min, q_max: the URDF's limits [rad] ``(n,)``.
         margin_rad: the margin the bounds keep at least [rad].
         period_s: the control period ``T`` [s].
-        a_max: ``a_max`` [rad/s²] ``(n,)`` (the rate that counts as a clear acceleration).
+        a_max: ``a_max`` [rad/s²] ``(n,)`` (the rate that counts as a clear acceleration;
+            ``None``: :data:`DEFAULT_A_MAX`).
     """
 
     def __init__(
@@ -54,12 +65,13 @@ class ServoLagMargin:
         q_max: np.ndarray,
         margin_rad: float,
         period_s: float,
-        a_max: np.ndarray,
+        a_max: float | np.ndarray | None,
     ) -> None:
         self.q_min = np.asarray(q_min, dtype=float)
         self.q_max = np.asarray(q_max, dtype=float)
         self.margin_rad = float(margin_rad)
         self.period_s = float(period_s)
+        a_max = DEFAULT_A_MAX if a_max is None else a_max
         self.a_min = EXCITATION * np.broadcast_to(np.asarray(a_max, dtype=float), self.q_min.shape)
         self.reset()
 

@@ -292,9 +292,8 @@ class PathFollowingController(QPController):
         lim = self.robot.limits
         self._positions = next(x for x in self.limits if isinstance(x, PredictedPositionLimit))
         self._position_bounds = np.vstack([self.q_min, self.q_max, self.qd_max])
-        a_max = np.full(self.n, 10.0) if self.a_const is None else self.a_const
         self._servo_lag = ServoLagMargin(
-            lim.q_min, lim.q_max, self.position_margin_rad, self.period_s, a_max
+            lim.q_min, lim.q_max, self.position_margin_rad, self.period_s, self.a_const
         )
 
     def _set_acceleration(self, acceleration_limit, floor: float, cap: float) -> None:

@@ -27,7 +27,7 @@ with ``w_i = dx_d/dσ(σ̂_i) + K (x_d(σ̂_i) - x̂_i)``. As a composition:
 
 from __future__ import annotations
 
-from typing import Literal, cast
+from typing import Literal
 
 import numpy as np
 
@@ -224,9 +224,8 @@ class TrackingController(QPController):
         predicted.values = applied.values  # one set of bounds (in-place edits included)
         self._joint_boxes = (applied, predicted)
         self._servo_lag = ServoLagMargin(
-            robot.limits.q_min, robot.limits.q_max, margin, period_s,
-            cast(np.ndarray, 10.0 if self.a_const is None else self.a_const),
-        )  # fmt: skip
+            robot.limits.q_min, robot.limits.q_max, margin, period_s, self.a_const
+        )
         jerk = jerk_setting(robot, jerk_limit)
         return jerk_limits(jerk, layout, period_s, qd_max, q_min, q_max)
 
