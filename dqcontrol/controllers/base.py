@@ -14,13 +14,16 @@ from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
 from dqcontrol.errors import ConfigurationError, ParameterError
 from dqcontrol.model.robot import RobotModel
 from dqcontrol.trajectories import Trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dqcontrol.streaming.streamed import StreamedController
 
 _T = TypeVar("_T")
 
@@ -307,6 +310,10 @@ class Controller(ABC):
         #: The controller whose steps are this one's after :meth:`request_stop` or
         #: :meth:`finish_at_rest` (``None``: its own).
         self._delegate: Controller | None = None
+        #: A streamed end at rest that :meth:`finish_at_rest` hands over to
+        #: (:func:`~dqcontrol.streaming.end.end_stream`, set by ``run_loop`` on the wall
+        #: clock); ``None``: the end is a path-following controller stepped here.
+        self.end_stream: StreamedController | None = None
 
     def reset(self, q0: np.ndarray, qd0: np.ndarray | None = None, sigma0: float = 0.0) -> None:
         """Start a new run from joint positions ``q0`` [rad] (and velocity ``qd0`` [rad/s]).
@@ -347,7 +354,9 @@ class Controller(ABC):
             else:
                 self._begin_stop()
 
-    def finish_at_rest(self, q: np.ndarray) -> None:
+    def finish_at_rest(
+        self, q: np.ndarray, qd: np.ndarray | None = None, s: float | None = None
+    ) -> None:
         """End the task at rest on the path, from the measured ``q`` [rad] on: every later
         :meth:`step` is that of a path-following controller with its rest-to-rest end
         (docs/theory.md §8.9, §8.10) on the same task, robot, period and bounds, started at
@@ -355,14 +364,27 @@ class Controller(ABC):
         exactly at ``σ = T_tot``. For a task that ends at speed, called while its end is
         still at least :func:`~dqcontrol.controllers.stop_delegate.end_lead_s` away
         (``run_loop`` does so with ``brake=True``); nothing changes for a controller that
-        ends at rest by itself, or one already stopping or finishing."""
+        ends at rest by itself, or one already stopping or finishing.
+
+        With :attr:`end_stream` set (``run_loop`` on the wall clock), the end is that
+        streamed controller's, taking over from the measured ``q``, ``qd`` [rad/s] and the
+        last step's time scaling ``s`` (default 0): this controller keeps stepping until
+        its first plan starts."""
         if not self._reset_done:
             raise ConfigurationError("call reset(q0) before finish_at_rest()")
         if self.ends_at_rest or self.stopping or self._delegate is not None:
             return
+        q = self.robot.check_q(q)
+        end = self.end_stream
+        if end is not None:
+            before = getattr(self, "qd_before_prev", self.qd_prev)
+            a = (self.qd_prev - before) / self.period_s
+            end.take_over(q, qd, self.sigma, self.qd_prev.copy(), a, 0.0 if s is None else s)
+            self._delegate = end
+            return
         from dqcontrol.controllers.stop_delegate import stop_delegate
 
-        self._delegate = stop_delegate(self, self.robot.check_q(q), at_end=True)
+        self._delegate = stop_delegate(self, q, at_end=True)
 
     @property
     def finishing(self) -> bool:
@@ -411,12 +433,21 @@ class Controller(ABC):
 
     def _delegated_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         """A step of the delegate (:meth:`request_stop`, :meth:`finish_at_rest`), its phase
-        and command kept as this controller's."""
+        and command kept as this controller's; a streamed end that has no plan started yet
+        follows this controller's own step instead."""
         if self._delegate is None:
             from dqcontrol.controllers.stop_delegate import stop_delegate
 
             self._delegate = stop_delegate(self, q)
         delegate = self._delegate
+        if delegate is self.end_stream and delegate.awaits_plan:
+            self._delegate = None  # this one step its own, as before the handover
+            try:
+                result = self.step(q, qd)
+            finally:
+                self._delegate = delegate
+            delegate.follow(q, qd, result.qd_command, result.sigma_next)
+            return result
         result = delegate.step(q, qd)
         self.qd_before_prev = getattr(delegate, "qd_before_prev", self.qd_prev)
         self.qd_prev = result.qd_command

@@ -20,12 +20,14 @@ import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
     from dqcontrol.controllers.base import Controller
+    from dqcontrol.controllers.path_following.controller import PathFollowingController
 
 __all__ = [
     "END_HANDOVER_ERROR_M",
     "END_LEAD_DISTANCES",
     "EndLead",
     "end_lead_s",
+    "path_following_like",
     "stop_delegate",
 ]
 
@@ -89,10 +91,12 @@ def _rest_share() -> float:
     return PathFollowingTuning().rest_deceleration_share
 
 
-def stop_delegate(controller: Controller, q: np.ndarray, at_end: bool = False) -> Controller:
-    """A path-following controller at ``controller``'s phase and last command and at the
-    measured ``q`` [rad]: its stop requested, or (``at_end``) with its rest-to-rest end, to
-    finish the task at rest."""
+def path_following_like(
+    controller: Controller, period_s: float, at_end: bool
+) -> PathFollowingController:
+    """A path-following controller on ``controller``'s robot, (anchored) task, velocity and
+    acceleration bounds and position margin, of period ``period_s`` [s], with the
+    rest-to-rest end (``at_end``) or ending at speed; not reset."""
     from dqcontrol.controllers.path_following.controller import PathFollowingController
 
     options: dict = {
@@ -103,9 +107,14 @@ def stop_delegate(controller: Controller, q: np.ndarray, at_end: bool = False) -
     margin = getattr(controller, "position_margin_rad", None)
     if margin is not None:
         options["position_margin_rad"] = margin
-    delegate = PathFollowingController(
-        controller.robot, controller.trajectory, controller.period_s, **options
-    )
+    return PathFollowingController(controller.robot, controller.trajectory, period_s, **options)
+
+
+def stop_delegate(controller: Controller, q: np.ndarray, at_end: bool = False) -> Controller:
+    """A path-following controller at ``controller``'s phase and last command and at the
+    measured ``q`` [rad]: its stop requested, or (``at_end``) with its rest-to-rest end, to
+    finish the task at rest."""
+    delegate = path_following_like(controller, controller.period_s, at_end)
     delegate.reset(q, controller.qd_prev.copy(), controller.sigma)
     before = getattr(controller, "qd_before_prev", None)
     if before is not None:  # the acceleration it stops from (its jerk rows read it)

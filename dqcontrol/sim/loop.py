@@ -64,6 +64,7 @@ from dqcontrol.sim.driver import JointDriver, joint_map
 from dqcontrol.sim.mujoco_sim import Measurement
 from dqcontrol.sim.path_stop import stop_along_path
 from dqcontrol.sim.priority import check_priority, realtime_priority
+from dqcontrol.streaming.end import end_plan_period_s, end_stream
 from dqcontrol.streaming.hook import stream_hook
 
 __all__ = ["RunResult", "run_loop"]
@@ -356,6 +357,7 @@ def _with_stream(run: _Samples, realtime, num, stale_periods, on_sample, on_prog
         stop = _samples_then_brake(run, num, stale_periods, on_sample, on_progress, brake)
     finally:
         stream.close()
+        _close_end_stream(run)
     run.rec.meta.update(stream.meta())
     return stop
 
@@ -512,19 +514,44 @@ def _run_info(
 
 
 def _watch_the_end(run: _Samples) -> None:
-    """Watch for the end's handover (:class:`_EndWatch`): always in simulated time; on the
+    """Watch for the end's handover (:class:`_EndWatch`). In simulated time, and on the
     wall clock where the end's first step (measured by the warm-up) takes at most
-    :data:`END_STEP_SHARE` of a period, else the task ends at speed, and ``meta`` says
-    why."""
-    period = run.controller.period_s
-    if run.clock.realtime and not run.end_step_s <= END_STEP_SHARE * period:
-        took = "not measured" if math.isinf(run.end_step_s) else f"{1e3 * run.end_step_s:.1f} ms"
+    :data:`END_STEP_SHARE` of a period, the end is a path-following controller stepped in
+    the loop; on the wall clock otherwise it is streamed (:func:`~dqcontrol.streaming.end.
+    end_stream`, prepared here, before the clock), and ``meta`` says so; without that
+    measurement the task ends at speed, and ``meta`` says why. A streamed end the caller
+    set (``controller.end_stream``) is used as it is."""
+    period, given = run.controller.period_s, run.controller.end_stream
+    if given is not None:  # the caller's (e.g. stepped, to be deterministic)
+        run.end_watch = _EndWatch(run.controller, wait_s=2.0 * given.plan_period_s)
+        return
+    if not run.clock.realtime or run.end_step_s <= END_STEP_SHARE * period:
+        run.end_watch = _EndWatch(run.controller)
+        return
+    plan_period_s = end_plan_period_s(run.end_step_s, period)
+    if math.isinf(plan_period_s):
         run.rec.meta["end_at_rest"] = (
-            f"not handed over on the wall clock: the end's first step ({took}) does not fit "
-            f"{END_STEP_SHARE:g} of the {1e3 * period:g} ms period; the task ends at speed"
+            "not handed over on the wall clock: the end's first step was not measured "
+            "(warm_up=False); the task ends at speed"
         )
         return
-    run.end_watch = _EndWatch(run.controller)
+    run.controller.end_stream = end_stream(run.controller, run.q, plan_period_s)
+    run.end_watch = _EndWatch(run.controller, wait_s=2.0 * plan_period_s)
+    run.rec.meta["end_at_rest"] = (
+        f"streamed on the wall clock: the end's first step ({1e3 * run.end_step_s:.1f} ms) "
+        f"does not fit {END_STEP_SHARE:g} of the {1e3 * period:g} ms period; planned every "
+        f"{1e3 * plan_period_s:g} ms in a process of its own"
+    )
+
+
+def _close_end_stream(run: _Samples) -> None:
+    """Stop a streamed end's planner (:func:`_watch_the_end`); its figures to ``meta``."""
+    ender = run.controller.end_stream
+    if ender is None:
+        return
+    run.controller.end_stream = None
+    ender.close()
+    run.rec.meta["end_stream"] = ender.report()
 
 
 #: The share of a period the end's first step may take on the wall clock.
@@ -536,12 +563,15 @@ class _EndWatch:
     end_lead_s` from its end with the tool within :data:`~dqcontrol.controllers.
     stop_delegate.END_HANDOVER_ERROR_M` of its target, where it hands its end to the
     rest-to-rest controller (:meth:`~dqcontrol.controllers.base.Controller.finish_at_rest`);
-    the acceleration bound at the measured state refreshed every :data:`REFRESH` samples."""
+    the acceleration bound at the measured state refreshed every :data:`REFRESH` samples.
+    ``wait_s`` [s]: how long the handover may take before that controller commands (the
+    phase the task moves meanwhile is added to the lead)."""
 
     REFRESH = 10
 
-    def __init__(self, controller: Controller) -> None:
+    def __init__(self, controller: Controller, wait_s: float = 0.0) -> None:
         self.controller = controller
+        self.wait_s = wait_s
         self.jerk = np.asarray(controller.robot.limits.qddd_max, dtype=float)
         self.lead: EndLead | None = None
         self.count = 0
@@ -553,7 +583,7 @@ class _EndWatch:
             self.lead = EndLead(a_max, self.jerk, q.shape)
         self.count += 1
         remaining = controller.trajectory.duration - controller.sigma
-        if remaining > self.lead(result.s, result.qd_command):
+        if remaining > self.lead(result.s, result.qd_command) + self.wait_s * result.s:
             return False
         error_m = float(np.linalg.norm(translation(result.pose) - translation(result.target)))
         return error_m <= END_HANDOVER_ERROR_M
@@ -628,7 +658,7 @@ class _Samples:
                 self.q = self.q + self.drift_rad
             if self.end_watch is not None and self.end_watch.due(result, self.q):
                 self.end_watch = None
-                controller.finish_at_rest(self.q)
+                controller.finish_at_rest(self.q, self.qd, float(result.s))
                 if controller.finishing:
                     self.finished_at = (len(rec), float(controller.sigma))
             if controller.done:

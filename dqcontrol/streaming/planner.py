@@ -102,9 +102,13 @@ class Planner:
         self.lag_s = float(controller.prediction_model.lag_s)
         self.step_times_s: list[float] = []
 
-    def plan(self, request: PlanRequest) -> Plan:
-        """Solve one step of the controller from the request's state; its plan."""
+    def plan(self, request: PlanRequest, fresh: bool = False) -> Plan:
+        """Solve one step of the controller from the request's state; its plan. ``fresh``:
+        the controller is first reset there (its memory of the last plan is not of this
+        run: a stream taking over another controller's)."""
         c = self.controller
+        if fresh:
+            c.reset(np.array(request.q, dtype=float), request.qd_prev, request.sigma)
         c.sigma, c.qd_prev = request.sigma, np.array(request.qd_prev, dtype=float)
         start = time.perf_counter()
         result = c.step(np.array(request.q, dtype=float), request.qd)
@@ -137,16 +141,24 @@ class PlannerThread:
         self._thread.start()
 
     def request(
-        self, stream: Streamer, q: np.ndarray, qd: np.ndarray, lead_k: int, plan_id: int
+        self,
+        stream: Streamer,
+        q: np.ndarray,
+        qd: np.ndarray,
+        lead_k: int,
+        plan_id: int,
+        fresh: bool = False,
     ) -> bool:
         """Solve a plan from the measurement ``q``, ``qd`` and ``stream`` (a copy of the
-        streamer, projected ahead by ``lead_k`` samples in the planner's thread)."""
+        streamer, projected ahead by ``lead_k`` samples in the planner's thread); ``fresh``
+        as in :meth:`Planner.plan`."""
         with self._lock:
             if self._busy:
                 self.busy_skips += 1
                 return False
             self._busy = True
-            self._request = (stream, q.copy(), qd.copy(), lead_k, plan_id, self.planner.lag_s)
+            lag = self.planner.lag_s
+            self._request = (stream, q.copy(), qd.copy(), lead_k, plan_id, lag, fresh)
         self._wake.set()
         return True
 
@@ -180,7 +192,7 @@ class PlannerThread:
             if request is None or self._closed:
                 continue
             try:
-                plan = self.planner.plan(project(*request))
+                plan = self.planner.plan(project(*request[:-1]), request[-1])
             except Exception as exc:  # noqa: BLE001 - reported; the streamer plays out
                 self.error = f"{type(exc).__name__}: {exc}"
                 return
@@ -210,14 +222,20 @@ class PlannerProcess:
         self.error = ""
 
     def request(
-        self, stream: Streamer, q: np.ndarray, qd: np.ndarray, lead_k: int, plan_id: int
+        self,
+        stream: Streamer,
+        q: np.ndarray,
+        qd: np.ndarray,
+        lead_k: int,
+        plan_id: int,
+        fresh: bool = False,
     ) -> bool:
         """As :meth:`PlannerThread.request`."""
         if not self._collect() or self.error:
             self.busy_skips += 1
             return False
         try:
-            self._conn.send((stream, q, qd, lead_k, plan_id, self.planner.lag_s))
+            self._conn.send((stream, q, qd, lead_k, plan_id, self.planner.lag_s, fresh))
         except OSError as exc:
             self.error = f"the planner process is gone ({exc})"
             return False
@@ -316,7 +334,7 @@ def _answer(planner: Planner, conn) -> None:
         if request is None:
             return
         try:
-            plan = planner.plan(project(*request))
+            plan = planner.plan(project(*request[:-1]), request[-1])
         except Exception as exc:  # noqa: BLE001 - reported; the streamer plays out
             conn.send(f"{type(exc).__name__}: {exc}")
             return

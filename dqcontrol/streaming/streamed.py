@@ -127,6 +127,11 @@ class StreamedController(Controller):
         #: the planner process's warm-up plans' times [s] (none in stepped mode)
         self.warm_up_s: list[float] = []
         self._start_state = (np.zeros(self.n), np.zeros(self.n))
+        #: the command sent the period before the last [rad/s]: a stop's jerk rows start
+        #: from it
+        self.qd_before_prev = np.zeros(self.n)
+        #: the next plan resets the planner's controller first (:meth:`take_over`)
+        self._fresh = False
 
     # ------------------------------------------------------------------ modes
     def use_wall_clock(self, on: bool) -> None:
@@ -184,6 +189,7 @@ class StreamedController(Controller):
         self.lateness_s.clear()
         self._next_id = 1
         self._start_state = (q0.copy(), qd0.copy())
+        self.qd_before_prev = qd0.copy()
         request = project(self.streamer, q0, qd0, 0, self._take_id())
         self.streamer.offer(self.planner.plan(request))  # the first plan, before the clock
         self.first_plan_s = self.planner.step_times_s.pop()  # its iterations from rest
@@ -197,23 +203,15 @@ class StreamedController(Controller):
     # ------------------------------------------------------------------ one period
     def _step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         start = time.perf_counter()
+        self.qd_before_prev = self.qd_prev
         streamer, k = self.streamer, self.streamer.k
         streamer.take_due()
-        qd_meas = np.zeros(self.n) if qd is None else qd
         if self._wall_clock and self._t0 is None:
             self._t0 = start
         if self._thread is not None:
-            plan = self._thread.take()
-            if plan is not None:
-                streamer.offer(plan)
-            if k % self.plan_periods == 0 and k > 0:
-                if self._thread.request(streamer.copy(), q, qd_meas, self.lead_k, self._next_id):
-                    self._next_id += 1
-        elif k % self.plan_periods == 0 and k > 0:
-            request = project(
-                streamer, q, qd_meas, self.lead_k, self._take_id(), self.planner.lag_s
-            )
-            streamer.offer(self.planner.plan(request))
+            self._take_plan()
+        if k % self.plan_periods == 0 and k > 0:
+            self._ask_plan(q, qd)
         sample = streamer.step()
         now = time.perf_counter()
         spent, late = now - start, float("nan")
@@ -225,6 +223,81 @@ class StreamedController(Controller):
         self.streamer_times_s.append(spent)
         self.ages_s.append(sample.plan_age_s)
         return self._result(q, sample, spent, late)
+
+    def _take_plan(self) -> None:
+        """Offer the plan the planner finished since the last call, if any."""
+        assert self._thread is not None
+        plan = self._thread.take()
+        if plan is not None:
+            self.streamer.offer(plan)
+
+    def _ask_plan(self, q: np.ndarray, qd: np.ndarray | None) -> None:
+        """Ask for a plan from the measurement ``q``, ``qd`` starting ``lead_k`` samples on
+        (on the wall clock: handed to the planner, unless it is still busy; stepped: solved
+        and offered now)."""
+        streamer, fresh = self.streamer, self._fresh
+        qd_meas = np.zeros(self.n) if qd is None else qd
+        if self._thread is not None:
+            args = (streamer.copy(), q, qd_meas, self.lead_k, self._next_id, fresh)
+            if self._thread.request(*args):
+                self._next_id += 1
+                self._fresh = False
+            return
+        request = project(streamer, q, qd_meas, self.lead_k, self._take_id(), self.planner.lag_s)
+        self._fresh = False
+        streamer.offer(self.planner.plan(request, fresh))
+
+    # ------------------------------------------------------------------ taking over
+    def take_over(
+        self,
+        q: np.ndarray,
+        qd: np.ndarray | None,
+        sigma: float,
+        u: np.ndarray,
+        a: np.ndarray,
+        s: float,
+    ) -> None:
+        """Continue another controller's run on the same task from this sample: measured
+        ``q`` [rad], ``qd`` [rad/s], its phase ``sigma`` [s], last command ``u`` [rad/s],
+        that command's acceleration ``a`` [rad/s²] and its time scaling ``s``. The stream
+        restarts there and asks for a plan starting ``lead_k`` samples on (the other
+        controller's command and phase rate held in the projection); until a plan starts
+        (:attr:`awaits_plan`) the other controller keeps commanding and reports each
+        command (:meth:`follow`), and the plan's switch blends from the last
+        (docs/theory.md §8.10)."""
+        self.sigma, self.qd_prev = float(sigma), np.array(u, dtype=float)
+        self.qd_before_prev = self.qd_prev - self.period_s * np.asarray(a, dtype=float)
+        self.stopping = False
+        self.streamer.take_over(q, sigma, u, a, s)
+        self._t0 = time.perf_counter() if self._wall_clock else None
+        if self._thread is not None:
+            self._take_plan()  # a plan left from before (none: the planner was idle)
+            self.streamer.pending = None
+        self._fresh = True  # the planner's memory is of its own start, not of this state
+        self._ask_plan(q, qd)
+
+    @property
+    def awaits_plan(self) -> bool:
+        """Whether, after :meth:`take_over`, no plan has started yet (nor starts at this
+        sample): the other controller still commands."""
+        streamer = self.streamer
+        if streamer.plan is not None or self.stopping:
+            return False
+        if self._thread is not None:
+            self._take_plan()
+        pending = streamer.pending
+        return pending is None or pending.start_k > streamer.k
+
+    def follow(self, q: np.ndarray, qd: np.ndarray | None, u: np.ndarray, sigma: float) -> None:
+        """This sample's command ``u`` [rad/s] and the phase after it ``sigma`` [s] came from
+        the controller taken over (:attr:`awaits_plan`); measured ``q``, ``qd``. A new plan
+        is asked for every plan period (a late one was refused)."""
+        k = self.streamer.k
+        if k % self.plan_periods == 0 and k > 0:
+            self._ask_plan(q, qd)
+        self.streamer.follow(np.asarray(u, dtype=float), sigma)
+        self.qd_before_prev = self.qd_prev
+        self.qd_prev, self.sigma = self.streamer.tracker.u.copy(), float(sigma)
 
     def _result(self, q: np.ndarray, sample: StreamSample, spent: float, late: float) -> StepResult:
         target = self.trajectory.target(sample.sigma)

@@ -37,7 +37,8 @@ class StreamSample:
         plan_age_s: time since the measurement that plan was computed from [s].
         sigma, sigma_next: phase at this sample and the next [s].
         mode: ``"plan"``, ``"playout"`` (no new plan: stopping along the last one),
-            ``"stopped"`` (played out, at rest) or ``"rest"`` (no plan yet).
+            ``"stopped"`` (played out, at rest) or ``"rest"`` (no plan yet: the last
+            command held, zero from a start at rest).
     """
 
     u: np.ndarray
@@ -79,6 +80,7 @@ class Streamer:
         self.k = 0
         self.q = np.array(q0, dtype=float)
         self.sigma0 = float(sigma0)
+        self.s_hold = 0.0
         self.plan: Plan | None = None
         self.pending: Plan | None = None
         self.tau_s = 0.0
@@ -88,6 +90,29 @@ class Streamer:
         self.switches = 0
         self.playout_note = ""
         self.tracker.restart(np.zeros_like(self.q), np.zeros_like(self.q))
+
+    def take_over(
+        self, q: np.ndarray, sigma: float, u: np.ndarray, a: np.ndarray, s: float
+    ) -> None:
+        """Restart at ``q`` [rad], phase ``sigma`` [s], sample 0, no plan, from another
+        controller's last command ``u`` [rad/s], its acceleration ``a`` [rad/s²] and time
+        scaling ``s``: held until a plan starts, and the first plan's switch blends from
+        them (§12.3)."""
+        self.restart(q, sigma)
+        self.tracker.restart(u, a)
+        self.s_hold = float(s)
+
+    def follow(self, u: np.ndarray, sigma_next: float) -> None:
+        """Sample ``k``'s command ``u`` [rad/s] and the phase after it ``sigma_next`` [s]
+        came from another controller (before the first plan starts): they become the
+        tracker's command and acceleration and the held phase rate, the integrated
+        positions move by it; advances to ``k + 1``."""
+        tr, T = self.tracker, self.period_s
+        tr.restart(u, (u - tr.u) / T)
+        self.q += T * tr.u
+        self.s_hold = (float(sigma_next) - self.sigma0) / T
+        self.sigma0 = float(sigma_next)
+        self.k += 1
 
     def copy(self) -> Streamer:
         """An independent copy (for projecting the committed stream ahead)."""
@@ -120,11 +145,13 @@ class Streamer:
         """The command of sample ``k``; advances to ``k + 1``."""
         self.take_due()
         plan = self.plan
-        if plan is None:
-            u = self.tracker.step(np.zeros_like(self.q))
+        if plan is None:  # the last command and phase rate held (acceleration to zero)
+            u = self.tracker.step(self.tracker.u)
             self.q += self.period_s * u
             self.k += 1
-            return StreamSample(u, 0, 0.0, self.sigma0, self.sigma0, "rest")
+            sigma = self.sigma0
+            self.sigma0 = sigma + self.period_s * self.s_hold
+            return StreamSample(u, 0, 0.0, sigma, self.sigma0, "rest")
         if not self.playing_out and self.k - plan.start_k >= self.patience_k:
             self._begin_playout(plan)
         return self._play(plan)

@@ -5,6 +5,7 @@ plans refused, the play-out a stop at rest on the plan's path (docs/theory.md §
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -130,3 +131,38 @@ def test_without_new_plans_the_last_is_played_out_to_rest_on_its_path():
     assert modes[-1] == "stopped" and "no new plan" in streamer.playout_note
     assert streamer.tau_s < plan.duration_s  # it stopped within the plan
     np.testing.assert_allclose(streamer.q, plan.position(streamer.tau_s), atol=1e-6)
+
+
+def test_without_a_plan_a_taken_over_command_and_phase_rate_are_held():
+    """After :meth:`Streamer.take_over` the stream holds the other controller's command
+    (its acceleration brought to zero within the jerk bound) and phase rate, as the
+    projection of the first plan's start assumes."""
+    streamer = Streamer(JerkLimitedTracker(*_limits(), T), 0.02, patience_k=10)
+    u0, a0 = np.array([1.0, -0.5, 0.2]), np.array([3.0, 0.0, -2.0])
+    streamer.take_over(np.array([0.1, 0.2, 0.3]), 0.4, u0, a0, 0.8)
+    commands = np.array([streamer.step().u for _ in range(20)])
+    a = np.diff(np.vstack((u0 - T * a0, u0, commands)), axis=0) / T
+    assert np.all(np.abs(np.diff(a, axis=0)) <= J_MAX * T * (1 + 1e-9))  # jerk kept
+    assert np.allclose(a[-5:], 0.0) and np.all(np.abs(commands[-1] - u0) < 0.01)
+    assert streamer.sigma0 == pytest.approx(0.4 + 20 * T * 0.8)
+    assert streamer.k == 20
+
+
+def test_a_followed_command_sets_the_tracker_the_positions_and_the_phase():
+    streamer = Streamer(JerkLimitedTracker(*_limits(), T), 0.02, patience_k=10)
+    q0, u0 = np.array([0.1, 0.2, 0.3]), np.array([1.0, -0.5, 0.2])
+    streamer.take_over(q0, 0.4, u0, np.zeros(N_JOINTS), 1.0)
+    u1 = u0 + np.array([0.002, 0.0, -0.001])
+    streamer.follow(u1, 0.4 + 0.9 * T)
+    assert np.array_equal(streamer.tracker.u, u1)
+    assert np.allclose(streamer.tracker.a, (u1 - u0) / T)
+    assert np.allclose(streamer.q, q0 + T * u1)
+    assert streamer.s_hold == pytest.approx(0.9) and streamer.k == 1
+    assert streamer.step().sigma == pytest.approx(0.4 + 0.9 * T)  # held from there
+
+
+def test_from_rest_without_a_plan_the_command_stays_exactly_zero():
+    streamer = Streamer(JerkLimitedTracker(*_limits(), T), 0.02, patience_k=10)
+    streamer.restart(np.zeros(N_JOINTS), 0.3)
+    samples = [streamer.step() for _ in range(5)]
+    assert all(np.all(s.u == 0.0) and s.sigma == s.sigma_next == 0.3 for s in samples)
