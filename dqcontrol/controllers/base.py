@@ -291,6 +291,8 @@ class Controller(ABC):
         self.period_s = check_positive("period_s (T)", period_s, "s")
         self.n = robot.nq
         self.sigma = 0.0
+        #: the time scaling ``s`` of the last step (the phase rate a stream taking over holds)
+        self.s_last = 0.0
         self.qd_prev = np.zeros(self.n)
         if (
             isinstance(measurement_delay_periods, bool)
@@ -328,6 +330,7 @@ class Controller(ABC):
         else:
             self.trajectory = self.task
         self.sigma = check_positive("sigma0", sigma0, "s", allow_zero=True)
+        self.s_last = 0.0
         self.qd_prev = qd0.copy()
         self._sent.clear()
         self._reset_done = True
@@ -354,9 +357,7 @@ class Controller(ABC):
             else:
                 self._begin_stop()
 
-    def finish_at_rest(
-        self, q: np.ndarray, qd: np.ndarray | None = None, s: float | None = None
-    ) -> None:
+    def finish_at_rest(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
         """End the task at rest on the path, from the measured ``q`` [rad] on: every later
         :meth:`step` is that of a path-following controller with its rest-to-rest end
         (docs/theory.md §8.9, §8.10) on the same task, robot, period and bounds, started at
@@ -367,24 +368,30 @@ class Controller(ABC):
         ends at rest by itself, or one already stopping or finishing.
 
         With :attr:`end_stream` set (``run_loop`` on the wall clock), the end is that
-        streamed controller's, taking over from the measured ``q``, ``qd`` [rad/s] and the
-        last step's time scaling ``s`` (default 0): this controller keeps stepping until
-        its first plan starts."""
+        streamed controller's, taking over from the measured ``q``, ``qd`` [rad/s]: this
+        controller keeps stepping until its first plan starts."""
         if not self._reset_done:
             raise ConfigurationError("call reset(q0) before finish_at_rest()")
         if self.ends_at_rest or self.stopping or self._delegate is not None:
             return
         q = self.robot.check_q(q)
-        end = self.end_stream
-        if end is not None:
-            before = getattr(self, "qd_before_prev", self.qd_prev)
-            a = (self.qd_prev - before) / self.period_s
-            end.take_over(q, qd, self.sigma, self.qd_prev.copy(), a, 0.0 if s is None else s)
-            self._delegate = end
+        if self.end_stream is not None:
+            self._hand_to_stream(q, qd)
             return
         from dqcontrol.controllers.stop_delegate import stop_delegate
 
         self._delegate = stop_delegate(self, q, at_end=True)
+
+    def _hand_to_stream(self, q: np.ndarray, qd: np.ndarray | None, stop: bool = False) -> None:
+        """:attr:`end_stream` takes over from the measured ``q``, ``qd`` and this
+        controller's phase, last command, its acceleration and time scaling (with ``stop``:
+        to stop)."""
+        end = self.end_stream
+        assert end is not None
+        before = getattr(self, "qd_before_prev", self.qd_prev)
+        a = (self.qd_prev - before) / self.period_s
+        end.take_over(q, qd, self.sigma, self.qd_prev.copy(), a, self.s_last, stop)
+        self._delegate = end
 
     @property
     def finishing(self) -> bool:
@@ -422,30 +429,32 @@ class Controller(ABC):
             qd = self.robot.check_q(qd, "qd")
         if self._delegate is not None or (self.stopping and not self.stops_itself):
             return self._delegated_step(q, qd)
+        return self._own_step(q, qd)
+
+    def _own_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
+        """This controller's own step from the checked ``q``, ``qd``."""
         if self.measurement_delay_periods and self._sent:
             q = q + self.period_s * np.sum(self._sent, axis=0)
         result = self._step(q, qd)
         self.qd_prev = result.qd_command
         if self.measurement_delay_periods:
             self._sent.append(result.qd_command)
-        self.sigma = result.sigma_next
+        self.sigma, self.s_last = result.sigma_next, result.s
         return result
 
     def _delegated_step(self, q: np.ndarray, qd: np.ndarray | None) -> StepResult:
         """A step of the delegate (:meth:`request_stop`, :meth:`finish_at_rest`), its phase
         and command kept as this controller's; a streamed end that has no plan started yet
         follows this controller's own step instead."""
+        if self._delegate is None and self.end_stream is not None:  # a streamed stop
+            self._hand_to_stream(q, qd, stop=True)
         if self._delegate is None:
             from dqcontrol.controllers.stop_delegate import stop_delegate
 
             self._delegate = stop_delegate(self, q)
         delegate = self._delegate
         if delegate is self.end_stream and delegate.awaits_plan:
-            self._delegate = None  # this one step its own, as before the handover
-            try:
-                result = self.step(q, qd)
-            finally:
-                self._delegate = delegate
+            result = self._own_step(q, qd)
             delegate.follow(q, qd, result.qd_command, result.sigma_next)
             return result
         result = delegate.step(q, qd)

@@ -658,7 +658,7 @@ class _Samples:
                 self.q = self.q + self.drift_rad
             if self.end_watch is not None and self.end_watch.due(result, self.q):
                 self.end_watch = None
-                controller.finish_at_rest(self.q, self.qd, float(result.s))
+                controller.finish_at_rest(self.q, self.qd)
                 if controller.finishing:
                     self.finished_at = (len(rec), float(controller.sigma))
             if controller.done:

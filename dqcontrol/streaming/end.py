@@ -50,4 +50,5 @@ def end_stream(
     ender = StreamedController(planner, controller.period_s, lead_periods=num)
     ender.reset(np.asarray(q0, dtype=float))
     ender.use_wall_clock(wall_clock)
+    ender.warm_up_stop()
     return ender

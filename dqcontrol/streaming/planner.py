@@ -102,13 +102,16 @@ class Planner:
         self.lag_s = float(controller.prediction_model.lag_s)
         self.step_times_s: list[float] = []
 
-    def plan(self, request: PlanRequest, fresh: bool = False) -> Plan:
+    def plan(self, request: PlanRequest, fresh: bool = False, stop: bool = False) -> Plan:
         """Solve one step of the controller from the request's state; its plan. ``fresh``:
         the controller is first reset there (its memory of the last plan is not of this
-        run: a stream taking over another controller's)."""
+        run: a stream taking over another controller's). ``stop``: the controller's stop
+        is requested first (it then keeps stopping: docs/theory.md §8.10)."""
         c = self.controller
         if fresh:
             c.reset(np.array(request.q, dtype=float), request.qd_prev, request.sigma)
+        if stop and not c.stopping:
+            c.request_stop()
         c.sigma, c.qd_prev = request.sigma, np.array(request.qd_prev, dtype=float)
         start = time.perf_counter()
         result = c.step(np.array(request.q, dtype=float), request.qd)
@@ -148,17 +151,18 @@ class PlannerThread:
         lead_k: int,
         plan_id: int,
         fresh: bool = False,
+        stop: bool = False,
     ) -> bool:
         """Solve a plan from the measurement ``q``, ``qd`` and ``stream`` (a copy of the
         streamer, projected ahead by ``lead_k`` samples in the planner's thread); ``fresh``
-        as in :meth:`Planner.plan`."""
+        and ``stop`` as in :meth:`Planner.plan`."""
         with self._lock:
             if self._busy:
                 self.busy_skips += 1
                 return False
             self._busy = True
             lag = self.planner.lag_s
-            self._request = (stream, q.copy(), qd.copy(), lead_k, plan_id, lag, fresh)
+            self._request = (stream, q.copy(), qd.copy(), lead_k, plan_id, lag, fresh, stop)
         self._wake.set()
         return True
 
@@ -192,7 +196,7 @@ class PlannerThread:
             if request is None or self._closed:
                 continue
             try:
-                plan = self.planner.plan(project(*request[:-1]), request[-1])
+                plan = self.planner.plan(project(*request[:-2]), *request[-2:])
             except Exception as exc:  # noqa: BLE001 - reported; the streamer plays out
                 self.error = f"{type(exc).__name__}: {exc}"
                 return
@@ -229,13 +233,14 @@ class PlannerProcess:
         lead_k: int,
         plan_id: int,
         fresh: bool = False,
+        stop: bool = False,
     ) -> bool:
         """As :meth:`PlannerThread.request`."""
         if not self._collect() or self.error:
             self.busy_skips += 1
             return False
         try:
-            self._conn.send((stream, q, qd, lead_k, plan_id, self.planner.lag_s, fresh))
+            self._conn.send((stream, q, qd, lead_k, plan_id, self.planner.lag_s, fresh, stop))
         except OSError as exc:
             self.error = f"the planner process is gone ({exc})"
             return False
@@ -249,17 +254,25 @@ class PlannerProcess:
         return plan
 
     def warm_up(
-        self, stream: Streamer, q: np.ndarray, qd: np.ndarray, count: int, timeout_s: float
+        self,
+        stream: Streamer,
+        q: np.ndarray,
+        qd: np.ndarray,
+        count: int,
+        timeout_s: float,
+        stop: bool = False,
     ) -> list[float]:
         """Plan ``count`` times for the request of a plan starting now, each plan waited for
         (at most ``timeout_s`` in all) and dropped: the forked process's first plans touch
         its copied memory and caches for the first time and take several times a plan's
-        usual time, which must not fall on the clock. Returns the plans' times [s]."""
+        usual time, which must not fall on the clock. With ``stop`` the plans are the
+        stop's from a fresh reset (for a stream that is only reset when it takes over).
+        Returns the plans' times [s]."""
         times: list[float] = []
         deadline = time.perf_counter() + timeout_s
         for _ in range(count):
             start = time.perf_counter()
-            if not self.request(stream, q, qd, 0, 0):
+            if not self.request(stream, q, qd, 0, 0, fresh=stop, stop=stop):
                 break
             if not self._conn.poll(max(deadline - time.perf_counter(), 0.0)):
                 return times  # still busy: its plan is collected (and used) later
@@ -334,7 +347,7 @@ def _answer(planner: Planner, conn) -> None:
         if request is None:
             return
         try:
-            plan = planner.plan(project(*request[:-1]), request[-1])
+            plan = planner.plan(project(*request[:-2]), *request[-2:])
         except Exception as exc:  # noqa: BLE001 - reported; the streamer plays out
             conn.send(f"{type(exc).__name__}: {exc}")
             return

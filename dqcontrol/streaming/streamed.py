@@ -132,6 +132,8 @@ class StreamedController(Controller):
         self.qd_before_prev = np.zeros(self.n)
         #: the next plan resets the planner's controller first (:meth:`take_over`)
         self._fresh = False
+        #: a stop was requested and no plan asked for since (:meth:`_begin_stop`)
+        self._stop_unasked = False
 
     # ------------------------------------------------------------------ modes
     def use_wall_clock(self, on: bool) -> None:
@@ -150,6 +152,16 @@ class StreamedController(Controller):
             # interpreter back to the streamer within SWITCH_INTERVAL_S, not the 5 ms default
             self._switch_before = sys.getswitchinterval()
             sys.setswitchinterval(SWITCH_INTERVAL_S)
+
+    def warm_up_stop(self, count: int = WARM_UP_PLANS) -> None:
+        """On the wall clock, ``count`` stop plans from a fresh reset made and dropped by the
+        planner process before the clock: a stream that takes over another controller (and
+        is reset by it) would otherwise solve its first stop cold."""
+        if isinstance(self._thread, PlannerProcess):
+            start = self._start_state
+            self.warm_up_s += self._thread.warm_up(
+                self.streamer.copy(), start[0], start[1], count, WARM_UP_TIMEOUT_S, stop=True
+            )
 
     def close(self) -> None:
         """Stop the planner thread (if any)."""
@@ -183,6 +195,7 @@ class StreamedController(Controller):
         self.planner_controller.reset(q0, qd0, self.sigma)
         self.trajectory = self.planner_controller.trajectory
         self.streamer.restart(q0, self.sigma)
+        self._stop_unasked = False
         self.planner.step_times_s.clear()
         self.streamer_times_s.clear()
         self.ages_s.clear()
@@ -210,7 +223,7 @@ class StreamedController(Controller):
             self._t0 = start
         if self._thread is not None:
             self._take_plan()
-        if k % self.plan_periods == 0 and k > 0:
+        if (k % self.plan_periods == 0 and k > 0) or self._stop_unasked:
             self._ask_plan(q, qd)
         sample = streamer.step()
         now = time.perf_counter()
@@ -235,17 +248,25 @@ class StreamedController(Controller):
         """Ask for a plan from the measurement ``q``, ``qd`` starting ``lead_k`` samples on
         (on the wall clock: handed to the planner, unless it is still busy; stepped: solved
         and offered now)."""
-        streamer, fresh = self.streamer, self._fresh
+        streamer, fresh, stop = self.streamer, self._fresh, self.stopping
         qd_meas = np.zeros(self.n) if qd is None else qd
         if self._thread is not None:
-            args = (streamer.copy(), q, qd_meas, self.lead_k, self._next_id, fresh)
+            args = (streamer.copy(), q, qd_meas, self.lead_k, self._next_id, fresh, stop)
             if self._thread.request(*args):
                 self._next_id += 1
-                self._fresh = False
+                self._fresh = self._stop_unasked = False
             return
         request = project(streamer, q, qd_meas, self.lead_k, self._take_id(), self.planner.lag_s)
-        self._fresh = False
-        streamer.offer(self.planner.plan(request, fresh))
+        self._fresh = self._stop_unasked = False
+        streamer.offer(self.planner.plan(request, fresh, stop))
+
+    #: A stop is the planner's (its stop's plans, streamed): the stream plays its present
+    #: plan, or holds the last command, until the first of them starts.
+    stops_itself = True
+
+    def _begin_stop(self) -> None:
+        """Ask for the planner's stop at the next sample, not a plan period later."""
+        self._stop_unasked = True
 
     # ------------------------------------------------------------------ taking over
     def take_over(
@@ -256,6 +277,7 @@ class StreamedController(Controller):
         u: np.ndarray,
         a: np.ndarray,
         s: float,
+        stop: bool = False,
     ) -> None:
         """Continue another controller's run on the same task from this sample: measured
         ``q`` [rad], ``qd`` [rad/s], its phase ``sigma`` [s], last command ``u`` [rad/s],
@@ -264,10 +286,10 @@ class StreamedController(Controller):
         controller's command and phase rate held in the projection); until a plan starts
         (:attr:`awaits_plan`) the other controller keeps commanding and reports each
         command (:meth:`follow`), and the plan's switch blends from the last
-        (docs/theory.md §8.10)."""
+        (docs/theory.md §8.10). With ``stop`` the plans are the planner's stop."""
         self.sigma, self.qd_prev = float(sigma), np.array(u, dtype=float)
         self.qd_before_prev = self.qd_prev - self.period_s * np.asarray(a, dtype=float)
-        self.stopping = False
+        self.stopping, self._stop_unasked = bool(stop), False
         self.streamer.take_over(q, sigma, u, a, s)
         self._t0 = time.perf_counter() if self._wall_clock else None
         if self._thread is not None:
@@ -281,7 +303,7 @@ class StreamedController(Controller):
         """Whether, after :meth:`take_over`, no plan has started yet (nor starts at this
         sample): the other controller still commands."""
         streamer = self.streamer
-        if streamer.plan is not None or self.stopping:
+        if streamer.plan is not None:
             return False
         if self._thread is not None:
             self._take_plan()

@@ -95,3 +95,45 @@ def test_the_plan_period_follows_the_measured_first_step():
     assert end_plan_period_s(3.3e-3, 1e-3) == pytest.approx(7e-3)
     assert end_plan_period_s(1e-3, 1e-2) == pytest.approx(1e-2)
     assert math.isinf(end_plan_period_s(math.inf, 1e-3))
+
+
+def _stop_at_half(controller):
+    def on_sample(k, driver, result) -> None:
+        if result.sigma_next >= 0.5 * controller.trajectory.duration and not controller.stopping:
+            controller.request_stop()
+
+    return on_sample
+
+
+def test_a_thesis_controllers_stop_is_streamed_where_its_end_is(franka):
+    """A stop requested mid-task goes to the prepared stream too (the planner's stop), the
+    task's controller commanding until the first stop plan starts: at rest on the path,
+    every limit kept, no synchronous solve in the loop."""
+    controller = LocalController(franka, Circle(2.0), T)
+    controller.reset(PANDA_Q0)
+    controller.end_stream = end_stream(controller, PANDA_Q0, PLAN_PERIODS * T, False)
+    driver = KinematicDriver(franka, T)
+    result = run_loop(controller, driver, q0=PANDA_Q0, on_sample=_stop_at_half(controller))
+    log, stop = result.log, result.log.meta["stop"]
+    assert stop["reason"] == "request" and stop["at_rest"] and stop["ramp"] == ""
+    assert check_run(log, franka.limits, period_s=T) == []
+    assert np.all(log.qd_command[-1] == 0.0) and log.meta["end_stream"]["plans_used"] > 0
+    deviation = controller.trajectory.path_deviation(translation(log.pose))
+    assert np.max(deviation[log.stopping]) <= np.max(deviation[~log.stopping]) + 1e-6
+
+
+def test_a_streamed_controllers_stop_is_its_planners(franka):
+    """A streamed path-following controller stops through its planner's stop plans, not a
+    controller built and solved in the loop at the stop."""
+    from dqcontrol.controllers.path_following.controller import PathFollowingController
+    from dqcontrol.streaming.streamed import streamed
+
+    controller = streamed(PathFollowingController(franka, Circle(2.0), PLAN_PERIODS * T), T)
+    driver = KinematicDriver(franka, T)
+    result = run_loop(controller, driver, q0=PANDA_Q0, on_sample=_stop_at_half(controller))
+    log, stop = result.log, result.log.meta["stop"]
+    assert controller._delegate is None and controller.planner_controller.stopping
+    assert stop["at_rest"] and stop["ramp"] == "" and np.all(log.qd_command[-1] == 0.0)
+    assert check_run(log, franka.limits, period_s=T) == []
+    deviation = controller.trajectory.path_deviation(translation(log.pose[log.stopping]))
+    assert np.max(deviation) <= END_GOAL_M
