@@ -403,7 +403,11 @@ class Controller(ABC):
 
     @property
     def done(self) -> bool:
-        """Whether the phase has reached the end of the task (``σ ≥ T_tot``)."""
+        """Whether the phase has reached the end of the task (``σ ≥ T_tot``); after a
+        handover to :attr:`end_stream`, whether that stream is done."""
+        end = self.end_stream
+        if end is not None and self._delegate is end:
+            return end.done
         return self.sigma >= self.trajectory.duration - 1e-12
 
     def step(self, q: np.ndarray, qd: np.ndarray | None = None) -> StepResult:

@@ -38,6 +38,9 @@ __all__ = ["StreamDiagnostics", "StreamedController", "streamed"]
 
 #: The interpreter's thread switch interval while a planner thread runs [s].
 SWITCH_INTERVAL_S = 5e-5
+#: At the task's end the stream follows its plans until its command and the plan's first
+#: are below this [rad/s], or for at most :data:`SETTLE_PLANS` plan periods.
+SETTLED_RAD_S, SETTLE_PLANS = 1e-3, 20
 #: Plans a planner process makes (and drops) before the clock starts, and the longest wait
 #: for them [s] (docs/theory.md §12.5).
 WARM_UP_PLANS, WARM_UP_TIMEOUT_S = 3, 10.0
@@ -134,6 +137,10 @@ class StreamedController(Controller):
         self._fresh = False
         #: a stop was requested and no plan asked for since (:meth:`_begin_stop`)
         self._stop_unasked = False
+        #: the plans asked for are the planner's stop (:meth:`_begin_stop`)
+        self._stop_plans = False
+        #: the stream's sample at which the phase first reached the task's end
+        self._end_k: int | None = None
 
     # ------------------------------------------------------------------ modes
     def use_wall_clock(self, on: bool) -> None:
@@ -195,7 +202,8 @@ class StreamedController(Controller):
         self.planner_controller.reset(q0, qd0, self.sigma)
         self.trajectory = self.planner_controller.trajectory
         self.streamer.restart(q0, self.sigma)
-        self._stop_unasked = False
+        self._stop_unasked = self._stop_plans = False
+        self._end_k = None
         self.planner.step_times_s.clear()
         self.streamer_times_s.clear()
         self.ages_s.clear()
@@ -248,7 +256,7 @@ class StreamedController(Controller):
         """Ask for a plan from the measurement ``q``, ``qd`` starting ``lead_k`` samples on
         (on the wall clock: handed to the planner, unless it is still busy; stepped: solved
         and offered now)."""
-        streamer, fresh, stop = self.streamer, self._fresh, self.stopping
+        streamer, fresh, stop = self.streamer, self._fresh, self._stop_plans
         qd_meas = np.zeros(self.n) if qd is None else qd
         if self._thread is not None:
             args = (streamer.copy(), q, qd_meas, self.lead_k, self._next_id, fresh, stop)
@@ -265,8 +273,13 @@ class StreamedController(Controller):
     stops_itself = True
 
     def _begin_stop(self) -> None:
-        """Ask for the planner's stop at the next sample, not a plan period later."""
-        self._stop_unasked = True
+        """Ask for the planner's stop at the next sample, not a plan period later; at the
+        task's end nothing changes: the plans there already end at rest at the path's
+        end, and the stream keeps following them (a stop plan would hold the arm where
+        the stream's tracking of the last plans left it)."""
+        if super().done:
+            return
+        self._stop_plans = self._stop_unasked = True
 
     # ------------------------------------------------------------------ taking over
     def take_over(
@@ -289,7 +302,8 @@ class StreamedController(Controller):
         (docs/theory.md §8.10). With ``stop`` the plans are the planner's stop."""
         self.sigma, self.qd_prev = float(sigma), np.array(u, dtype=float)
         self.qd_before_prev = self.qd_prev - self.period_s * np.asarray(a, dtype=float)
-        self.stopping, self._stop_unasked = bool(stop), False
+        self.stopping = self._stop_plans = bool(stop)
+        self._stop_unasked, self._end_k = False, None
         self.streamer.take_over(q, sigma, u, a, s)
         self._t0 = time.perf_counter() if self._wall_clock else None
         if self._thread is not None:
@@ -339,8 +353,25 @@ class StreamedController(Controller):
 
     @property
     def done(self) -> bool:
-        """The task's end, or the play-out finished at rest."""
-        return super().done or self._last_mode == "stopped"
+        """The task's end with the stream settled there (:meth:`_settled`), or the
+        play-out finished at rest."""
+        if self._last_mode == "stopped":
+            return True
+        return super().done and self._settled()
+
+    def _settled(self) -> bool:
+        """Whether, at the task's end, the stream has settled on the path's end: its
+        command and its plan's first one below :data:`SETTLED_RAD_S` (the plans there only
+        correct the tool's position: the stream's tracking of the braking plans leaves
+        the tool up to 0.1 mm past the end), or :data:`SETTLE_PLANS` plan periods on."""
+        streamer = self.streamer
+        if self._end_k is None:
+            self._end_k = streamer.k
+        if streamer.k - self._end_k >= SETTLE_PLANS * self.plan_periods:
+            return True
+        plan = streamer.plan
+        first = 0.0 if plan is None else float(np.max(np.abs(plan.qd[0])))
+        return max(first, float(np.max(np.abs(streamer.tracker.u)))) < SETTLED_RAD_S
 
     @property
     def _last_mode(self) -> str:
