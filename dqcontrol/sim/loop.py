@@ -535,7 +535,14 @@ def _watch_the_end(run: _Samples) -> None:
             "(warm_up=False); the task ends at speed"
         )
         return
-    run.controller.end_stream = end_stream(run.controller, run.q, plan_period_s)
+    try:
+        run.controller.end_stream = end_stream(run.controller, run.q, plan_period_s)
+    except Exception as exc:  # noqa: BLE001 - the task then ends at speed, and says why
+        run.rec.meta["end_at_rest"] = (
+            f"not handed over on the wall clock: its streamed end could not be prepared "
+            f"({type(exc).__name__}: {exc}); the task ends at speed"
+        )
+        return
     run.end_watch = _EndWatch(run.controller, wait_s=2.0 * plan_period_s)
     run.rec.meta["end_at_rest"] = (
         f"streamed on the wall clock: the end's first step ({1e3 * run.end_step_s:.1f} ms) "

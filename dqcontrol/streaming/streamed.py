@@ -327,9 +327,10 @@ class StreamedController(Controller):
     def follow(self, q: np.ndarray, qd: np.ndarray | None, u: np.ndarray, sigma: float) -> None:
         """This sample's command ``u`` [rad/s] and the phase after it ``sigma`` [s] came from
         the controller taken over (:attr:`awaits_plan`); measured ``q``, ``qd``. A new plan
-        is asked for every plan period (a late one was refused)."""
+        is asked for every plan period (a late one was refused), and at once for a stop
+        requested meanwhile."""
         k = self.streamer.k
-        if k % self.plan_periods == 0 and k > 0:
+        if (k % self.plan_periods == 0 and k > 0) or self._stop_unasked:
             self._ask_plan(q, qd)
         self.streamer.follow(np.asarray(u, dtype=float), sigma)
         self.qd_before_prev = self.qd_prev

@@ -137,3 +137,18 @@ def test_a_streamed_controllers_stop_is_its_planners(franka):
     assert check_run(log, franka.limits, period_s=T) == []
     deviation = controller.trajectory.path_deviation(translation(log.pose[log.stopping]))
     assert np.max(deviation) <= END_GOAL_M
+
+
+def test_a_streamed_end_that_cannot_be_prepared_leaves_the_task_ending_at_speed(
+    franka, monkeypatch
+):
+    import dqcontrol.sim.loop as loop
+
+    def broken(*args, **kwargs):
+        raise OSError("no process for the planner")
+
+    monkeypatch.setattr(loop, "end_stream", broken)
+    controller = LocalController(franka, Circle(1.0), 1e-2)
+    result = run_loop(controller, KinematicDriver(franka, 1e-2), q0=PANDA_Q0, realtime=True)
+    assert "could not be prepared (OSError: no process" in result.log.meta["end_at_rest"]
+    assert result.metrics.completed and "end_at_rest_from" not in result.log.meta["stop"]
