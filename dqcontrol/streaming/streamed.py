@@ -133,6 +133,10 @@ class StreamedController(Controller):
         #: the command sent the period before the last [rad/s]: a stop's jerk rows start
         #: from it
         self.qd_before_prev = np.zeros(self.n)
+        self._clear_requests()
+
+    def _clear_requests(self) -> None:
+        """No plan to reset for, no stop asked or owed, the task's end not reached."""
         #: the next plan resets the planner's controller first (:meth:`take_over`)
         self._fresh = False
         #: a stop was requested and no plan asked for since (:meth:`_begin_stop`)
@@ -202,8 +206,7 @@ class StreamedController(Controller):
         self.planner_controller.reset(q0, qd0, self.sigma)
         self.trajectory = self.planner_controller.trajectory
         self.streamer.restart(q0, self.sigma)
-        self._stop_unasked = self._stop_plans = False
-        self._end_k = None
+        self._clear_requests()
         self.planner.step_times_s.clear()
         self.streamer_times_s.clear()
         self.ages_s.clear()
@@ -302,8 +305,8 @@ class StreamedController(Controller):
         (docs/theory.md §8.10). With ``stop`` the plans are the planner's stop."""
         self.sigma, self.qd_prev = float(sigma), np.array(u, dtype=float)
         self.qd_before_prev = self.qd_prev - self.period_s * np.asarray(a, dtype=float)
+        self._clear_requests()
         self.stopping = self._stop_plans = bool(stop)
-        self._stop_unasked, self._end_k = False, None
         self.streamer.take_over(q, sigma, u, a, s)
         self._t0 = time.perf_counter() if self._wall_clock else None
         if self._thread is not None:
